@@ -1,0 +1,158 @@
+"""The ``studyapp`` command line.
+
+Every command reports bad input as one line ``studyapp: error: ...`` on stderr and exits with status 2;
+nothing it writes is left half-written (files are written to a temporary name, then renamed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from . import __version__
+
+EXIT_USAGE = 2
+
+
+class CLIError(Exception):
+    """Bad input: reported as one line, exit status 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, not usage + message
+        raise CLIError(f"{self.prog}: {message}")
+
+
+def _progress(msg: str) -> None:
+    if sys.stderr.isatty():
+        print(f"\r\033[K{msg}", end="", file=sys.stderr, flush=True)
+
+
+def _end_progress() -> None:
+    if sys.stderr.isatty():
+        print("\r\033[K", end="", file=sys.stderr, flush=True)
+
+
+# --- foveation ------------------------------------------------------------------------------------------------
+def cmd_foveation_table(args) -> int:
+    from data_schema.atomic import write_text
+    from renderers.foveation import table as T
+
+    rows = T.table1(args.fov_y, progress=_progress)
+    presets = T.preset_reductions(args.fov_y)
+    _end_progress()
+    md = T.table1_markdown(rows, presets, args.fov_y)
+    if args.out:
+        out = Path(args.out)
+        paths = [write_text(out / "table1.md", md), write_text(out / "table1.csv", T.rows_csv(rows)),
+                 write_text(out / "vafr_presets.csv", T.rows_csv(presets)),
+                 write_text(out / "table1.json", json.dumps(T.rows_json(rows), indent=2) + "\n")]
+        if not args.json:
+            for p in paths:
+                print(p)
+    if args.json:
+        print(json.dumps(T.rows_json(rows), indent=2))
+    elif not args.out:
+        print(md, end="")
+    return 0
+
+
+def cmd_foveation_plots(args) -> int:
+    from renderers.foveation.plots import write_plots
+
+    for p in write_plots(args.out, args.fov_y):
+        print(p)
+    return 0
+
+
+# --- demo -----------------------------------------------------------------------------------------------------
+def cmd_demo(args) -> int:
+    from data_schema.atomic import write_text
+    from renderers.foveation import table as T
+    from renderers.foveation.plots import write_plots
+
+    out = Path(args.out)
+    fov_dir = out / "foveation"
+    print(f"[1/2] foveation table (seed 001 Table 1) -> {fov_dir}", flush=True)
+    rows = T.table1(args.fov_y, progress=_progress)
+    presets = T.preset_reductions(args.fov_y)
+    _end_progress()
+    md = T.table1_markdown(rows, presets, args.fov_y)
+    written = [write_text(fov_dir / "table1.md", md), write_text(fov_dir / "table1.csv", T.rows_csv(rows)),
+               write_text(fov_dir / "vafr_presets.csv", T.rows_csv(presets)),
+               write_text(fov_dir / "table1.json", json.dumps(T.rows_json(rows), indent=2) + "\n")]
+    print(f"[2/2] shading-rate plots (seed 001 Fig 5, 8, 9, 10, 21) -> {fov_dir}", flush=True)
+    written += write_plots(fov_dir, args.fov_y)
+    print(md)
+    print("Demo output:")
+    for p in written:
+        print(f"  {p}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="studyapp", description=(
+        "Perceptual user studies of foveated rendering: foveation mappings (VaFR, LMFR, LaFR), "
+        "shading-rate analysis, and (as they land) renderers, a study runner and the statistics."))
+    p.add_argument("--version", action="version", version=f"studyapp {__version__}")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+
+    fov = sub.add_parser("foveation", help="log-polar foveation mappings: shading-point table and rate plots",
+                         description="Shading-point counts (seed 001 Table 1) and shading-rate plots "
+                                     "(seed 001 Fig 5, 8, 9, 10, 21) of VaFR, LMFR and LaFR.")
+    fsub = fov.add_subparsers(dest="fov_command", metavar="SUBCOMMAND", parser_class=_Parser)
+    fsub.required = True
+    t = fsub.add_parser("table", help="shading points per eye at 2K ... retinal (seed 001 Table 1)",
+                        description="Print seed 001 Table 1 (shading points per eye for VaFR_Dup, LaFR(2.2), "
+                                    "LaFR(1.8), LMFR(1.8), GT at 2K, 4K, 6K, 8K and retinal resolution) as "
+                                    "Markdown, and the VaFR preset reductions.")
+    t.add_argument("--json", action="store_true",
+                   help="print a JSON list of records (method, width, height, shading_points, "
+                        "shading_points_on_screen, ...) instead of Markdown")
+    t.add_argument("--out", metavar="DIR", help="also write table1.md, table1.csv, table1.json and "
+                                                "vafr_presets.csv into DIR")
+    t.add_argument("--fov-y", type=float, default=100.0, metavar="DEG",
+                   help="vertical field of view in degrees, in (0, 180) (default: 100)")
+    t.set_defaults(func=cmd_foveation_table)
+    pl = fsub.add_parser("plots", help="PNG plots of shading rate vs eccentricity",
+                         description="Write PNG plots of radial (and tangential) shading rate against "
+                                     "eccentricity, with the acuity curve, reproducing seed 001 Figures 5, 8, "
+                                     "9, 10 and 21.")
+    pl.add_argument("--out", metavar="DIR", required=True, help="folder for the PNG files (created if needed)")
+    pl.add_argument("--fov-y", type=float, default=100.0, metavar="DEG",
+                    help="vertical field of view in degrees, in (0, 180) (default: 100)")
+    pl.set_defaults(func=cmd_foveation_plots)
+
+    d = sub.add_parser("demo", help="the end-to-end demo (writes everything into one folder)",
+                       description="Run the end-to-end demo: today the foveation table and plots; it grows "
+                                   "with the renderers, the study runner and the analysis.")
+    d.add_argument("--out", metavar="DIR", default="demo_out", help="output folder (default: demo_out)")
+    d.add_argument("--fov-y", type=float, default=100.0, metavar="DEG",
+                   help="vertical field of view in degrees, in (0, 180) (default: 100)")
+    d.set_defaults(func=cmd_demo)
+    return p
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+        if getattr(args, "fov_y", None) is not None and not 0.0 < args.fov_y < 180.0:
+            raise CLIError(f"--fov-y={args.fov_y:g} is out of range: allowed (0, 180)")
+        return args.func(args)
+    except (CLIError, ValueError) as exc:
+        print(f"studyapp: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except OSError as exc:
+        print(f"studyapp: error: {exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("studyapp: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
