@@ -8,6 +8,8 @@
 
 from __future__ import annotations
 
+import inspect
+
 from .acuity import DEFAULT_PIVOTS, AcuityMapping
 from .base import FoveationMapping
 from .geometry import DisplayGeometry
@@ -43,11 +45,12 @@ def make_mapping(method: str, width: int, height: int, fov_y_deg: float, gaze=No
         cls = MAPPINGS[str(method).lower()]
     except KeyError:
         raise ValueError(f"method={method!r} is invalid: allowed {', '.join(MAPPINGS)}") from None
+    allowed = [p for p in inspect.signature(cls.__init__).parameters if p not in ("self", "display")]
+    unknown = sorted(set(params) - set(allowed))
+    if unknown:
+        raise ValueError(f"{method}: unknown parameter {unknown[0]!r}: allowed {', '.join(allowed)}")
     display = DisplayGeometry.create(width, height, fov_y_deg, gaze)
-    try:
-        return cls(display, **params)
-    except TypeError as exc:  # an unknown keyword
-        raise ValueError(f"{method}: {exc}".replace("__init__() ", "")) from None
+    return cls(display, **params)
 
 
 __all__ = ["make_mapping", "MAPPINGS", "FoveationMapping", "DisplayGeometry", "VaFRMapping", "LMFRMapping",

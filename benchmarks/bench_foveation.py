@@ -1,0 +1,118 @@
+"""Benchmark of the foveation core (issue: full-screen forward at 8K, inverse over VaFR's shaded pixels).
+
+Run:  .venv/bin/python benchmarks/bench_foveation.py [--repeats 5] [--write docs/benchmarks.md]
+
+Each measurement runs in a fresh subprocess so that peak memory (ru_maxrss) belongs to that measurement alone;
+times are medians over the repeats inside that process, after one warm-up call (numba compiles on first use and
+caches to disk). The scaling from 2K to 8K is reported as a ratio measured in the same run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import statistics
+import subprocess
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+sys.path.insert(0, ROOT)
+
+
+def _measure(kind: str, method: str, W: int, H: int, repeats: int) -> dict:
+    from renderers.foveation import make_mapping
+
+    m = make_mapping(method, W, H, 100.0)
+    if kind == "forward_screen":
+        fn = m.forward_screen
+        n = W * H
+    elif kind == "inverse_shaded":
+        u, v = m.shaded_coordinates()
+        n = u.size
+
+        def fn():
+            return m.inverse(u, v)
+    else:
+        raise SystemExit(f"unknown kind {kind}")
+    fn()  # warm-up (compilation, page faults of the first allocation)
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    return {"kind": kind, "method": method, "width": W, "height": H, "elements": n,
+            "median_s": statistics.median(times), "min_s": min(times), "repeats": repeats, "peak_mb": peak_mb}
+
+
+def run_child(args) -> dict:
+    cmd = [sys.executable, __file__, "--child", json.dumps(args)]
+    out = subprocess.run(cmd, check=True, capture_output=True, text=True, cwd=ROOT).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--write", metavar="MD", help="replace the foveation section of this Markdown file")
+    ap.add_argument("--child", help=argparse.SUPPRESS)
+    a = ap.parse_args()
+    if a.child:
+        print(json.dumps(_measure(*json.loads(a.child))))
+        return 0
+    jobs = [("forward_screen", m, 7680, 4320, a.repeats) for m in ("vafr", "lmfr", "lafr")]
+    jobs += [("forward_screen", "vafr", 2560, 1440, a.repeats),
+             ("inverse_shaded", "vafr", 7680, 4320, a.repeats)]
+    results = []
+    for job in jobs:
+        r = run_child(job)
+        results.append(r)
+        print(f"{r['kind']:<24} {r['method']:<5} {r['width']}x{r['height']}: median {r['median_s']:.3f} s "
+              f"(min {r['min_s']:.3f}), peak {r['peak_mb']:.0f} MB", flush=True)
+    if a.write:
+        write_markdown(a.write, results)
+    return 0
+
+
+def write_markdown(path: str, results: list[dict]) -> None:
+    sys.path.insert(0, ROOT)
+    from data_schema.atomic import write_text
+
+    small = next(r for r in results if r["kind"] == "forward_screen" and r["width"] == 2560)
+    lines = ["<!-- foveation:start -->", "## Foveation mappings (`benchmarks/bench_foveation.py`)", "",
+             f"Machine: {os.cpu_count()} cores, {platform.processor() or platform.machine()}, Python "
+             f"{platform.python_version()}. Median of the repeats after a warm-up call; peak memory is the "
+             "process's maximum resident set (ru_maxrss), one fresh process per row.", "",
+             "| operation | method | resolution | elements | median (s) | peak memory (MB) | target |",
+             "|---|---|---|---:|---:|---:|---|"]
+    for r in results:
+        target = ""
+        if r["kind"] == "forward_screen" and r["width"] == 7680:
+            target = "≤ 2 s, ≤ 2048 MB"
+        if r["kind"] == "inverse_shaded":
+            target = "≤ 0.2 s"
+        lines.append(f"| {r['kind']} | {r['method']} | {r['width']}×{r['height']} | {r['elements']:,} | "
+                     f"{r['median_s']:.3f} | {r['peak_mb']:.0f} | {target} |")
+    fw = next(r for r in results if r["kind"] == "forward_screen" and r["method"] == "vafr" and r["width"] == 7680)
+    lines += ["", f"Same-run ratio: the VaFR forward map takes {fw['median_s'] / small['median_s']:.1f}× longer at 8K "
+              f"than at 2K for {fw['elements'] / small['elements']:.1f}× the pixels (linear in the pixel count).",
+              "", "Reproduce: `.venv/bin/python benchmarks/bench_foveation.py --write docs/benchmarks.md`",
+              "<!-- foveation:end -->"]
+    block = "\n".join(lines) + "\n"
+    old = open(path, encoding="utf-8").read() if os.path.exists(path) else "# Benchmarks\n\n"
+    if "<!-- foveation:start -->" in old:
+        head, rest = old.split("<!-- foveation:start -->", 1)
+        tail = rest.split("<!-- foveation:end -->", 1)[1].lstrip("\n")
+        new = head + block + ("\n" + tail if tail else "")
+    else:
+        new = old.rstrip("\n") + "\n\n" + block
+    write_text(path, new)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
