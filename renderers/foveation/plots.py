@@ -90,59 +90,53 @@ def figure5(out: Path, fov: float, plt) -> list[Path]:
     return paths
 
 
-def figure8(out: Path, fov: float, plt) -> Path:
-    """Seed Fig 8: LMFR and LaFR move with resolution (1920×1080 -> 7680×4320); VaFR does not."""
+PAPER = {"lmfr": {"delta": 1.8}, "lafr": ({"delta": 1.8, **PAPER_LAFR},)}
+
+
+def _layered_figure(out: Path, plt, name: str, title: str, layers: list[dict], **finish) -> Path:
+    """One figure from layers of ``_curves`` keyword sets; the x range covers every layer."""
     fig, ax = plt.subplots(figsize=(7.5, 4.8))
-    e_top = _curves(ax, 1920, 1080, fov, lmfr={"delta": 1.8}, lafr=({"delta": 1.8, **PAPER_LAFR},), style="--",
-                    suffix=" 1920×1080", vafr=False)
-    e_top = max(e_top, _curves(ax, 7680, 4320, fov, lmfr={"delta": 1.8}, lafr=({"delta": 1.8, **PAPER_LAFR},),
-                               suffix=" 7680×4320"))
-    _finish(ax, f"Fig 8: resolution dependence, 1920×1080 (dashed) vs 7680×4320 (solid), FOV {fov:g}°", e_top,
-            y_top=60.0)
-    p = out / "fig08_resolution_1920x1080_to_7680x4320.png"
+    e_top = max(_curves(ax, **layer) for layer in layers)
+    _finish(ax, title, e_top, **finish)
+    p = out / name
     _save(fig, p, plt)
     return p
+
+
+def figure8(out: Path, fov: float, plt) -> Path:
+    """Seed Fig 8: LMFR and LaFR move with resolution (1920×1080 -> 7680×4320); VaFR does not."""
+    return _layered_figure(out, plt, "fig08_resolution_1920x1080_to_7680x4320.png",
+                           f"Fig 8: resolution dependence, 1920×1080 (dashed) vs 7680×4320 (solid), FOV {fov:g}°",
+                           [dict(W=1920, H=1080, fov=fov, style="--", suffix=" 1920×1080", vafr=False, **PAPER),
+                            dict(W=7680, H=4320, fov=fov, suffix=" 7680×4320", **PAPER)], y_top=60.0)
 
 
 def figure9(out: Path, fov: float, plt) -> Path:
     """Seed Fig 9: retinal resolution, the papers' parameters and the tuned ones (δ=8, α=0.78, β=0.9)."""
-    fig, ax = plt.subplots(figsize=(7.5, 4.8))
-    W, H = 11520, 6480
-    e_top = _curves(ax, W, H, fov, lmfr={"delta": 1.8}, lafr=({"delta": 1.8, **PAPER_LAFR},), vafr=False)
-    _curves(ax, W, H, fov, lmfr={"delta": TUNED["delta"]}, lafr=(TUNED,), style="--", suffix=" (tuned)")
-    _finish(ax, f"Fig 9: retinal {W}×{H}, paper (solid) and tuned (dashed) parameters, FOV {fov:g}°", e_top,
-            y_top=120.0)
-    p = out / "fig09_retinal_tuned.png"
-    _save(fig, p, plt)
-    return p
+    return _layered_figure(out, plt, "fig09_retinal_tuned.png",
+                           f"Fig 9: retinal 11520×6480, paper (solid) and tuned (dashed) parameters, FOV {fov:g}°",
+                           [dict(W=11520, H=6480, fov=fov, **PAPER),
+                            dict(W=11520, H=6480, fov=fov, lmfr={"delta": TUNED["delta"]}, lafr=(TUNED,),
+                                 style="--", suffix=" (tuned)", vafr=False)], y_top=120.0)
 
 
 def figure10(out: Path, fov: float, plt) -> Path:
     """Seed Fig 10: gaze at the centre vs at a corner of a 2560×1440 display."""
-    fig, ax = plt.subplots(figsize=(7.5, 4.8))
-    W, H = 2560, 1440
-    e_top = _curves(ax, W, H, fov, lmfr={"delta": 1.8}, lafr=({"delta": 1.8, **PAPER_LAFR},), suffix=" gaze centre")
-    e_top = max(e_top, _curves(ax, W, H, fov, (0.5, 0.5), lmfr={"delta": 1.8}, lafr=({"delta": 1.8, **PAPER_LAFR},),
-                               style="--", suffix=" gaze corner"))
-    _finish(ax, f"Fig 10: gaze at centre (solid) vs top-left corner (dashed), {W}×{H}, FOV {fov:g}°", e_top)
-    p = out / "fig10_gaze_centre_vs_corner.png"
-    _save(fig, p, plt)
-    return p
+    return _layered_figure(out, plt, "fig10_gaze_centre_vs_corner.png",
+                           f"Fig 10: gaze at centre (solid) vs top-left corner (dashed), 2560×1440, FOV {fov:g}°",
+                           [dict(W=2560, H=1440, fov=fov, suffix=" gaze centre", **PAPER),
+                            dict(W=2560, H=1440, fov=fov, gaze=(0.5, 0.5), style="--", suffix=" gaze corner",
+                                 **PAPER)])
 
 
 def figure21(out: Path, fov: float, plt) -> Path:
     """Seed Fig 21: tangential shading rates (Eq 20 for LMFR / LaFR; Eq 19 for VaFR) at 2560×1440."""
-    fig, ax = plt.subplots(figsize=(7.5, 4.8))
-    W, H = 2560, 1440
-    e_top = _curves(ax, W, H, fov, lmfr={"delta": 1.8}, lafr=({"delta": 1.8, **PAPER_LAFR},), style="--",
-                    suffix=" tangential", direction="tangential")
-    _curves(ax, W, H, fov, lmfr={"delta": 1.8}, lafr=({"delta": 1.8, **PAPER_LAFR},), vafr=False,
-            suffix=" radial")
-    _finish(ax, f"Fig 21: tangential (dashed) vs radial (solid) shading rate, {W}×{H}, FOV {fov:g}°", e_top,
-            ylabel="shading rate (cycles/degree)")
-    p = out / "fig21_tangential.png"
-    _save(fig, p, plt)
-    return p
+    return _layered_figure(out, plt, "fig21_tangential.png",
+                           f"Fig 21: tangential (dashed) vs radial (solid) shading rate, 2560×1440, FOV {fov:g}°",
+                           [dict(W=2560, H=1440, fov=fov, style="--", suffix=" tangential", direction="tangential",
+                                 **PAPER),
+                            dict(W=2560, H=1440, fov=fov, vafr=False, suffix=" radial", **PAPER)],
+                           ylabel="shading rate (cycles/degree)")
 
 
 def write_plots(out_dir, fov_y_deg: float = DEFAULT_FOV_Y_DEG) -> list[Path]:
