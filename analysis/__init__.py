@@ -1,0 +1,53 @@
+"""Statistics for perceptual user studies of foveated rendering.
+
+Light on purpose: depends only on numpy, scipy (``scipy.special``) and pandas.
+
+Omnibus and post-hoc rank tests
+    :func:`kruskal`, :func:`mann_whitney`, :func:`dunn`, :func:`pairwise_kruskal`,
+    :func:`pairwise_matrix`, :func:`format_p`
+Multiple comparisons
+    :func:`holm`, :func:`adjust_pvalues`
+Effect sizes
+    :func:`cohens_d`, :func:`hedges_g`, :func:`effect_size_label`, :func:`bootstrap_ci_d`
+Tables
+    :func:`summary_table`
+
+Conventions: NaN observations are dropped (pairwise for paired data); inputs are
+validated at the boundary and problems raise ``ValueError`` with a one-line message;
+every p-value is two-sided and lies in [0, 1]. Reference values in the tests come from
+R 4.2.2 (``kruskal.test``, ``wilcox.test``, ``p.adjust``).
+"""
+
+from .effect_size import SAWILOWSKY_BINS, BootstrapCI, bootstrap_ci_d, cohens_d, effect_size_label, hedges_g
+from .multicomp import adjust_pvalues, holm
+from .stats import (
+    KruskalResult,
+    MannWhitneyResult,
+    dunn,
+    format_p,
+    kruskal,
+    mann_whitney,
+    pairwise_kruskal,
+    pairwise_matrix,
+    summary_table,
+)
+
+__all__ = [
+    "BootstrapCI",
+    "KruskalResult",
+    "MannWhitneyResult",
+    "SAWILOWSKY_BINS",
+    "adjust_pvalues",
+    "bootstrap_ci_d",
+    "cohens_d",
+    "dunn",
+    "effect_size_label",
+    "format_p",
+    "hedges_g",
+    "holm",
+    "kruskal",
+    "mann_whitney",
+    "pairwise_kruskal",
+    "pairwise_matrix",
+    "summary_table",
+]
