@@ -124,7 +124,8 @@ class AcuityMapping:
                 for j in range(i + 1, len(cands)):
                     g = cands[i][1](grid) - cands[j][1](grid)
                     for k in np.nonzero(np.sign(g[:-1]) * np.sign(g[1:]) < 0)[0]:
-                        cuts.add(brentq(lambda e: float(cands[i][1](e) - cands[j][1](e)), grid[k], grid[k + 1],
+                        fi, fj = cands[i][1], cands[j][1]
+                        cuts.add(brentq(lambda e, fi=fi, fj=fj: float(fi(e) - fj(e)), grid[k], grid[k + 1],
                                         xtol=1e-14, rtol=1e-15))
             cuts = sorted(cuts)
             for c0, c1 in zip(cuts, cuts[1:]):
@@ -153,7 +154,7 @@ class AcuityMapping:
         n = len(merged)
         P = np.zeros(3 + 6 * n)
         P[0], P[1], P[2] = self.c_r, 1.0, n
-        for k, (e0, e1, kind, w0, m) in enumerate(merged):
+        for k, (e0, _e1, kind, w0, m) in enumerate(merged):
             P[3 + k], P[3 + 2 * n + k] = e0, kind
             P[3 + 3 * n + k], P[3 + 4 * n + k] = w0, m
             P[3 + 5 * n + k] = math.tan(e0 * RAD_PER_DEG)

@@ -82,12 +82,12 @@ class PresetRow:
 def preset_reductions(fov_y_deg: float = DEFAULT_FOV_Y_DEG, resolutions=None) -> list[PresetRow]:
     """Shading load of each VaFR preset relative to the default pivots (seed 001 §3.3: 20 % and 8 %)."""
     resolutions = resolutions or TABLE1_RESOLUTIONS
-    W, H = next(iter(resolutions.values()))
-    base = make_mapping("vafr", W, H, fov_y_deg).shading_points
+    first = next(iter(resolutions.values()))
+    base = make_mapping("vafr", *first, fov_y_deg).shading_points
     rows = []
     for preset in PRESETS:
-        per_display = preset == "auto"
-        for res, (W, H) in (resolutions.items() if per_display else [("any", (W, H))]):
+        per_display = preset == "auto"  # the constant caps do not depend on the display
+        for res, (W, H) in (resolutions.items() if per_display else [("any", first)]):
             n = make_mapping("vafr", W, H, fov_y_deg, preset=preset).shading_points
             rows.append(PresetRow(preset, res, n, 1.0 - n / base, SEED_PRESET_REDUCTION.get(preset)))
     return rows
