@@ -11,6 +11,8 @@ Effect sizes
     :func:`cohens_d`, :func:`hedges_g`, :func:`effect_size_label`, :func:`bootstrap_ci_d`
 Tables
     :func:`summary_table`
+Paired-comparison scaling (2AFC, top-k of N)
+    :func:`thurstone_jod`, :func:`bradley_terry`, :func:`plackett_luce`
 
 Conventions: NaN observations are dropped (pairwise for paired data); inputs are
 validated at the boundary and problems raise ``ValueError`` with a one-line message;
@@ -20,6 +22,7 @@ R 4.2.2 (``kruskal.test``, ``wilcox.test``, ``p.adjust``).
 
 from .effect_size import SAWILOWSKY_BINS, BootstrapCI, bootstrap_ci_d, cohens_d, effect_size_label, hedges_g
 from .multicomp import adjust_pvalues, holm
+from .scaling import JOD_SIGMA, bradley_terry, plackett_luce, thurstone_jod
 from .stats import (
     KruskalResult,
     MannWhitneyResult,
@@ -34,6 +37,10 @@ from .stats import (
 
 __all__ = [
     "BootstrapCI",
+    "JOD_SIGMA",
+    "bradley_terry",
+    "plackett_luce",
+    "thurstone_jod",
     "KruskalResult",
     "MannWhitneyResult",
     "SAWILOWSKY_BINS",
