@@ -36,19 +36,28 @@ def _end_progress() -> None:
 
 
 # --- foveation ------------------------------------------------------------------------------------------------
-def cmd_foveation_table(args) -> int:
+def _foveation_table(fov_y: float, out: Path | None):
+    """Compute Table 1 and the preset reductions; write them into ``out`` if given. Returns rows, md, paths."""
     from data_schema.atomic import write_text
     from renderers.foveation import table as T
 
-    rows = T.table1(args.fov_y, progress=_progress)
-    presets = T.preset_reductions(args.fov_y)
+    rows = T.table1(fov_y, progress=_progress)
+    presets = T.preset_reductions(fov_y)
     _end_progress()
-    md = T.table1_markdown(rows, presets, args.fov_y)
-    if args.out:
-        out = Path(args.out)
+    md = T.table1_markdown(rows, presets, fov_y)
+    paths = []
+    if out is not None:
         paths = [write_text(out / "table1.md", md), write_text(out / "table1.csv", T.rows_csv(rows)),
                  write_text(out / "vafr_presets.csv", T.rows_csv(presets)),
                  write_text(out / "table1.json", json.dumps(T.rows_json(rows), indent=2) + "\n")]
+    return rows, md, paths
+
+
+def cmd_foveation_table(args) -> int:
+    from renderers.foveation import table as T
+
+    rows, md, paths = _foveation_table(args.fov_y, Path(args.out) if args.out else None)
+    if args.out:
         if not args.json:
             for p in paths:
                 print(p)
@@ -69,20 +78,11 @@ def cmd_foveation_plots(args) -> int:
 
 # --- demo -----------------------------------------------------------------------------------------------------
 def cmd_demo(args) -> int:
-    from data_schema.atomic import write_text
-    from renderers.foveation import table as T
     from renderers.foveation.plots import write_plots
 
-    out = Path(args.out)
-    fov_dir = out / "foveation"
+    fov_dir = Path(args.out) / "foveation"
     print(f"[1/2] foveation table (seed 001 Table 1) -> {fov_dir}", flush=True)
-    rows = T.table1(args.fov_y, progress=_progress)
-    presets = T.preset_reductions(args.fov_y)
-    _end_progress()
-    md = T.table1_markdown(rows, presets, args.fov_y)
-    written = [write_text(fov_dir / "table1.md", md), write_text(fov_dir / "table1.csv", T.rows_csv(rows)),
-               write_text(fov_dir / "vafr_presets.csv", T.rows_csv(presets)),
-               write_text(fov_dir / "table1.json", json.dumps(T.rows_json(rows), indent=2) + "\n")]
+    _, md, written = _foveation_table(args.fov_y, fov_dir)
     print(f"[2/2] shading-rate plots (seed 001 Fig 5, 8, 9, 10, 21) -> {fov_dir}", flush=True)
     written += write_plots(fov_dir, args.fov_y)
     print(md)
