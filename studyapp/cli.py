@@ -12,12 +12,11 @@ import sys
 from pathlib import Path
 
 from . import __version__
+from .errors import EXIT_USAGE, CLIError
 
-EXIT_USAGE = 2
-
-
-class CLIError(Exception):
-    """Bad input: reported as one line, exit status 2."""
+# Command groups living in their own modules (see studyapp/commands/__init__.py). One line each.
+COMMAND_MODULES = (
+)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -133,6 +132,11 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--fov-y", type=float, default=100.0, metavar="DEG",
                    help="vertical field of view in degrees, in (0, 180) (default: 100)")
     d.set_defaults(func=cmd_demo)
+
+    import importlib
+
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).register(sub, _Parser)
     return p
 
 

@@ -1,0 +1,11 @@
+"""Sub-commands of the ``studyapp`` CLI, one module per command group.
+
+Each module defines ``register(subparsers, parser_class)`` which adds its sub-parsers and sets
+``func=handler`` on them; a handler takes the parsed ``args`` and returns an exit status. Handlers raise
+:class:`studyapp.errors.CLIError` (or ``ValueError``) for bad input, which the CLI prints as one line with
+exit status 2. Modules must import heavy packages (numba, pyvista, psychopy, matplotlib) inside handlers,
+never at module level, so that ``studyapp --help`` stays fast.
+
+A module may also define ``demo_step(out_dir: pathlib.Path, progress) -> list[pathlib.Path]`` for the
+end-to-end demo.
+"""
