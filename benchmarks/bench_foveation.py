@@ -80,8 +80,7 @@ def main() -> int:
 
 
 def write_markdown(path: str, results: list[dict]) -> None:
-    sys.path.insert(0, ROOT)
-    from data_schema.atomic import write_text
+    from _report import replace_section
 
     small = next(r for r in results if r["kind"] == "forward_screen" and r["width"] == 2560)
     lines = ["<!-- foveation:start -->", "## Foveation mappings (`benchmarks/bench_foveation.py`)", "",
@@ -103,15 +102,7 @@ def write_markdown(path: str, results: list[dict]) -> None:
               f"than at 2K for {fw['elements'] / small['elements']:.1f}× the pixels (linear in the pixel count).",
               "", "Reproduce: `.venv/bin/python benchmarks/bench_foveation.py --write docs/benchmarks.md`",
               "<!-- foveation:end -->"]
-    block = "\n".join(lines) + "\n"
-    old = open(path, encoding="utf-8").read() if os.path.exists(path) else "# Benchmarks\n\n"
-    if "<!-- foveation:start -->" in old:
-        head, rest = old.split("<!-- foveation:start -->", 1)
-        tail = rest.split("<!-- foveation:end -->", 1)[1].lstrip("\n")
-        new = head + block + ("\n" + tail if tail else "")
-    else:
-        new = old.rstrip("\n") + "\n\n" + block
-    write_text(path, new)
+    replace_section(path, "foveation", lines[1:-1])
 
 
 if __name__ == "__main__":

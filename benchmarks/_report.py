@@ -1,0 +1,35 @@
+"""Shared by the benchmark scripts: replace one named section of docs/benchmarks.md atomically.
+
+Each script owns the block between ``<!-- NAME:start -->`` and ``<!-- NAME:end -->``; other sections are kept.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def machine_line() -> str:
+    """One line naming the machine the figures were measured on."""
+    return (f"Machine: {os.cpu_count()} cores, {platform.processor() or platform.machine()}, "
+            f"Python {platform.python_version()}.")
+
+
+def replace_section(path: str, name: str, lines: list[str]) -> None:
+    """Write ``lines`` as the section ``name`` of the Markdown file ``path`` (appended if new)."""
+    sys.path.insert(0, ROOT)
+    from data_schema.atomic import write_text
+
+    start, end = f"<!-- {name}:start -->", f"<!-- {name}:end -->"
+    block = "\n".join([start, *lines, end]) + "\n"
+    old = open(path, encoding="utf-8").read() if os.path.exists(path) else "# Benchmarks\n\n"
+    if start in old:
+        head, rest = old.split(start, 1)
+        tail = rest.split(end, 1)[1].lstrip("\n")
+        new = head + block + ("\n" + tail if tail else "")
+    else:
+        new = old.rstrip("\n") + "\n\n" + block
+    write_text(path, new)
