@@ -1,0 +1,334 @@
+"""Study protocols: YAML files checked against ``data_schema/protocol.schema.json`` plus cross-references.
+
+:func:`load_protocol` returns a frozen :class:`Protocol` with every default filled in. Errors are
+:class:`~data_schema.protocol_schema.ProtocolError` with one line ``FILE:LINE: FIELD: problem``.
+
+Display geometry
+----------------
+Pixels per degree at the screen centre, for a flat screen seen from ``distance_cm`` in front of its centre::
+
+    ppd = (width_px / width_cm) * distance_cm * tan(1 deg)
+
+and the eccentricity of a pixel relative to the gaze point ``g`` is the angle between the rays from the eye to
+``g`` and to the pixel (exact for a flat screen, not the small-angle ``r / ppd``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from data_schema.protocol_schema import LoadedYAML, ProtocolError, load_yaml, validate_document
+
+DEFAULT_KEYS = {
+    "2afc": {"answer": {"1": "A", "2": "B"}, "switch": {"left": 0, "right": 1}},
+    "yes_no": {"answer": {"y": "yes", "n": "no"}, "switch": {}},
+}
+DEFAULT_SIMULATION = {"jnd": 0.02, "sensitivity_sd": 0.25, "bias_sd": 0.25, "lapse": 0.02, "criterion_jnd": 1.0,
+                      "rt_mu_s": 0.55, "rt_sigma_s": 0.08, "rt_tau_s": 0.25}
+
+
+def preference_keys(n: int) -> dict:
+    """Preference defaults: digits 1..N show stimulus i, F1..FN pick it, ``return`` ends picking early."""
+    return {"answer": {**{f"f{i + 1}": str(i) for i in range(n)}, "return": "done"},
+            "switch": {str(i + 1): i for i in range(n)}}
+
+
+@dataclass(frozen=True)
+class Condition:
+    """How a condition's stimuli are made: renderer + params, a folder, or a degraded copy of another one."""
+
+    name: str
+    renderer: str | None = None
+    params: dict = field(default_factory=dict)
+    folder: Path | None = None
+    derive_from: str | None = None
+    blur_sigma_px: float = 0.0
+    noise: float = 0.0
+    label: str = ""
+    quality: float | None = None
+    role: str = "main"
+
+    @property
+    def source(self) -> str:
+        return "renderer" if self.renderer else ("folder" if self.folder else "derive")
+
+
+@dataclass(frozen=True)
+class Display:
+    width_px: int
+    height_px: int
+    width_cm: float
+    distance_cm: float
+    refresh_hz: float = 60.0
+    fov_y_deg: float = 90.0
+    fullscreen: bool = False
+    screen: int = 0
+
+    @property
+    def ppd(self) -> float:
+        """Pixels per degree at the screen centre: ``(width_px / width_cm) * distance_cm * tan(1 deg)``."""
+        return self.width_px / self.width_cm * self.distance_cm * math.tan(math.radians(1.0))
+
+    def scaled(self, scale: float) -> "Display":
+        """The same physical display shown with ``scale`` times the pixels (dry runs, the demo)."""
+        return Display(max(16, round(self.width_px * scale)), max(16, round(self.height_px * scale)),
+                       self.width_cm, self.distance_cm, self.refresh_hz, self.fov_y_deg, self.fullscreen,
+                       self.screen)
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """A validated protocol with defaults filled in (see ``data_schema/protocol.schema.json``)."""
+
+    path: Path
+    data: dict
+    name: str
+    version: str
+    family: str
+    question: str
+    instructions: str
+    block: str
+    display: Display
+    fixation: tuple[float, float]
+    fixation_mark: bool
+    scenes: tuple[str, ...]
+    conditions: dict[str, Condition]
+    design_conditions: tuple[str, ...]
+    stimulus_kind: str
+    duration_s: float | None
+    fps: float
+    camera_path: tuple[dict, ...]
+    black_s: float
+    max_response_s: float | None
+    answer_keys: dict[str, str]
+    switch_keys: dict[str, int]
+    repetitions: int
+    scene_order: str
+    trial_order: str
+    max_run: int
+    min_repeat_distance: int
+    position_balance: bool
+    n_picks: int
+    reference: str | None
+    reference_label: str
+    practice: dict | None
+    breaks: dict | None
+    catch: dict | None
+    simulation: dict
+    analysis: dict
+    stimuli_dir: Path
+    content_hash: str
+
+    @property
+    def n_frames(self) -> int:
+        """Frames per stimulus: 1 for images, ``round(duration_s * fps)`` for sequences."""
+        if self.stimulus_kind == "image":
+            return 1
+        return max(1, round(self.duration_s * self.fps))
+
+    def gaze_px(self, display: Display | None = None) -> tuple[float, float]:
+        """Fixation point in pixels of ``display`` (default: the protocol's)."""
+        d = display or self.display
+        return (self.fixation[0] * d.width_px, self.fixation[1] * d.height_px)
+
+    @property
+    def ground_truth(self) -> str | None:
+        """Condition the simulated observer compares against (simulation.ground_truth, else reference/catch)."""
+        return self.simulation.get("ground_truth") or self.reference or (self.catch or {}).get("good")
+
+    def describe(self) -> str:
+        n = len(self.design_conditions)
+        return (f"{self.name} {self.version}: {self.family}, {len(self.scenes)} scene(s), {n} condition(s), "
+                f"{self.repetitions} repetition(s), display {self.display.width_px}x{self.display.height_px} "
+                f"({self.display.ppd:.1f} px/deg)")
+
+
+def content_hash(data: dict) -> str:
+    """SHA-256 of the protocol's canonical JSON (key order, whitespace and comments do not matter)."""
+    text = json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=True, default=str)
+    return hashlib.sha256(text.encode("ascii")).hexdigest()
+
+
+def renderer_names() -> set[str] | None:
+    """Names in ``renderers.registry`` if it is importable, else None (renderer names are then not checked)."""
+    try:
+        from renderers import registry  # noqa: PLC0415 - optional, built by the renderers issue
+    except Exception:  # noqa: BLE001 - any failure means "not available here"
+        return None
+    for attr in ("names", "available", "list_renderers"):
+        fn = getattr(registry, attr, None)
+        if callable(fn):
+            try:
+                return set(fn())
+            except Exception:  # noqa: BLE001
+                return None
+    for attr in ("REGISTRY", "RENDERERS", "registry"):
+        obj = getattr(registry, attr, None)
+        if isinstance(obj, dict):
+            return set(obj)
+    return None
+
+
+def _conditions(doc: LoadedYAML, data: dict, base: Path) -> dict[str, Condition]:
+    out = {}
+    known = renderer_names()
+    for name, spec in data["conditions"].items():
+        where = ("conditions", name)
+        sources = [k for k in ("renderer", "folder", "derive") if k in spec]
+        if len(sources) != 1:
+            raise doc.error(where, "give exactly one of renderer, folder or derive"
+                            + (f" (has {', '.join(sources)})" if sources else ""))
+        if "params" in spec and "renderer" not in spec:
+            raise doc.error(where + ("params",), "params belong to a renderer condition")
+        if "renderer" in spec and known is not None and spec["renderer"] not in known:
+            raise doc.error(where + ("renderer",), f"unknown renderer {spec['renderer']!r}: allowed "
+                            f"{', '.join(sorted(known))}")
+        derive = spec.get("derive", {})
+        if derive and derive["from"] not in data["conditions"]:
+            raise doc.error(where + ("derive", "from"), f"unknown condition {derive['from']!r}")
+        if derive and data["conditions"][derive["from"]].get("derive"):
+            raise doc.error(where + ("derive", "from"), "cannot derive from a derived condition")
+        out[name] = Condition(name=name, renderer=spec.get("renderer"), params=dict(spec.get("params", {})),
+                              folder=(base / spec["folder"]) if "folder" in spec else None,
+                              derive_from=derive.get("from"), blur_sigma_px=float(derive.get("blur_sigma_px", 0)),
+                              noise=float(derive.get("noise", 0)), label=spec.get("label", name),
+                              quality=spec.get("quality"), role=spec.get("role", "main"))
+    return out
+
+
+def _check_condition(doc, conditions, field_path, name, allow_roles=("main", "catch", "practice")):
+    if name not in conditions:
+        raise doc.error(field_path, f"unknown condition {name!r}: defined are {', '.join(conditions)}")
+    if conditions[name].role not in allow_roles:
+        raise doc.error(field_path, f"condition {name!r} has role {conditions[name].role}")
+
+
+def load_protocol(path, stimuli_dir=None) -> Protocol:
+    """Read, validate and complete a protocol file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The YAML file.
+    stimuli_dir : str or Path, optional
+        Override of the protocol's ``stimuli_dir`` (default ``stimuli/<name>`` next to the protocol file).
+
+    Raises
+    ------
+    ProtocolError
+        One line naming the file, the line and the field.
+    """
+    path = Path(path)
+    doc = load_yaml(path)
+    data = validate_document(doc)
+    base = path.resolve().parent
+    family = data["family"]
+    conditions = _conditions(doc, data, base)
+
+    design = data["design"]
+    if "conditions" in design:
+        for i, c in enumerate(design["conditions"]):
+            _check_condition(doc, conditions, ("design", "conditions", i), c)
+        design_conditions = tuple(design["conditions"])
+    else:
+        design_conditions = tuple(n for n, c in conditions.items() if c.role == "main")
+    need = 2 if family in ("2afc", "preference") else 1
+    if len(design_conditions) < need:
+        raise doc.error(("design",), f"{family} needs at least {need} conditions in the design, has "
+                        f"{len(design_conditions)}")
+    n_picks = int(design.get("n_picks", 2 if family == "preference" else 1))
+    if family == "preference" and n_picks >= len(design_conditions):
+        raise doc.error(("design", "n_picks"), f"{n_picks} picks of {len(design_conditions)} conditions: "
+                        f"allowed 1..{len(design_conditions) - 1}")
+    if family != "preference" and "n_picks" in design:
+        raise doc.error(("design", "n_picks"), "only the preference family picks favourites")
+    if family != "2afc" and design.get("position_balance"):
+        raise doc.error(("design", "position_balance"), "only 2afc trials have positions to balance")
+    reference = design.get("reference", {})
+    if reference:
+        _check_condition(doc, conditions, ("design", "reference", "condition"), reference["condition"])
+
+    stim = data.get("stimulus", {})
+    kind = stim.get("kind", "image")
+    if kind == "sequence" and ("duration_s" not in stim or "fps" not in stim):
+        raise doc.error(("stimulus",), "a sequence needs duration_s and fps")
+    if kind == "image" and "fps" in stim:
+        raise doc.error(("stimulus", "fps"), "still images have no frame rate (use kind: sequence)")
+
+    disp = dict(data["display"])
+    display = Display(**{"refresh_hz": 60.0, "fov_y_deg": 90.0, **disp})
+
+    keys = data.get("keys", {})
+    default = preference_keys(len(design_conditions)) if family == "preference" else DEFAULT_KEYS[family]
+    answer_keys = dict(keys.get("answer", default["answer"]))
+    switch_keys = dict(keys.get("switch", default["switch"]))
+    allowed = {"2afc": {"A", "B"}, "yes_no": {"yes", "no"},
+               "preference": {str(i) for i in range(len(design_conditions))} | {"done"}}[family]
+    for k, v in answer_keys.items():
+        if v not in allowed:
+            raise doc.error(("keys", "answer", k), f"answer {v!r} is not one of {', '.join(sorted(allowed))}")
+    for k, v in switch_keys.items():
+        if v >= len(design_conditions) or (family == "2afc" and v > 1):
+            raise doc.error(("keys", "switch", k), f"stimulus index {v} is out of range")
+    overlap = set(answer_keys) & set(switch_keys)
+    if overlap:
+        raise doc.error(("keys",), f"key {sorted(overlap)[0]!r} both answers and switches")
+    if "escape" in answer_keys or "escape" in switch_keys:
+        raise doc.error(("keys",), "escape is reserved for pausing the session")
+
+    practice = data.get("practice")
+    if practice:
+        for i, c in enumerate(practice["conditions"]):
+            _check_condition(doc, conditions, ("practice", "conditions", i), c)
+        if family == "2afc" and len(practice["conditions"]) < 2:
+            raise doc.error(("practice", "conditions"), "2afc practice needs at least two conditions")
+        if family == "preference" and len(practice["conditions"]) != len(design_conditions):
+            raise doc.error(("practice", "conditions"), f"preference practice offers as many conditions as "
+                            f"the design ({len(design_conditions)})")
+    catch = data.get("catch")
+    if catch and family == "preference":
+        raise doc.error(("catch",), "catch trials are for the 2afc and yes_no families")
+    if catch:
+        catch = {"pass_fraction": 0.75, **catch}
+        if catch["kind"] == "degraded":
+            for key in ("good", "bad"):
+                if key not in catch:
+                    raise doc.error(("catch",), f"degraded catch trials need {key!r}")
+                _check_condition(doc, conditions, ("catch", key), catch[key])
+        elif family != "2afc":
+            raise doc.error(("catch", "kind"), "repeat catch trials are for 2afc (a repeated pair)")
+    simulation = {**DEFAULT_SIMULATION, **data.get("simulation", {})}
+    if "ground_truth" in simulation:
+        _check_condition(doc, conditions, ("simulation", "ground_truth"), simulation["ground_truth"])
+    analysis = {"by": [], "alpha": 0.05, **data["analysis"]}
+    if "reference" in analysis and analysis["reference"] not in design_conditions:
+        raise doc.error(("analysis", "reference"), f"unknown condition {analysis['reference']!r}: the design "
+                        f"has {', '.join(design_conditions)}")
+    want_dv = {"yes_no": "response", "2afc": "chosen", "preference": "votes"}[family]
+    if analysis["dv"] != want_dv:
+        raise doc.error(("analysis", "dv"), f"{family} trials record {want_dv!r}, not {analysis['dv']!r}")
+
+    fix = data.get("fixation", {"x": 0.5, "y": 0.5})
+    timing = data.get("timing", {})
+    sdir = Path(stimuli_dir) if stimuli_dir is not None else base / data.get("stimuli_dir",
+                                                                                f"stimuli/{data['name']}")
+    return Protocol(
+        path=path, data=data, name=data["name"], version=data["version"], family=family,
+        question=data["question"], instructions=data.get("instructions", ""), block=data.get("block", ""),
+        display=display, fixation=(float(fix["x"]), float(fix["y"])), fixation_mark=fix.get("mark", True),
+        scenes=tuple(data["scenes"]), conditions=conditions, design_conditions=design_conditions,
+        stimulus_kind=kind, duration_s=stim.get("duration_s"), fps=float(stim.get("fps", 0.0)),
+        camera_path=tuple(stim.get("camera_path", ())), black_s=float(timing.get("black_s", 0.5)),
+        max_response_s=timing.get("max_response_s"), answer_keys=answer_keys, switch_keys=switch_keys,
+        repetitions=int(design["repetitions"]), scene_order=design.get("scene_order", "fixed"),
+        trial_order=design.get("trial_order", "blocked"), max_run=int(design.get("max_run", 0)),
+        min_repeat_distance=int(design.get("min_repeat_distance", 0)),
+        position_balance=bool(design.get("position_balance", family == "2afc")), n_picks=n_picks,
+        reference=reference.get("condition"), reference_label=reference.get("label", "This is the reference"),
+        practice=practice, breaks=data.get("breaks"), catch=catch, simulation=simulation, analysis=analysis,
+        stimuli_dir=sdir, content_hash=content_hash(data))
