@@ -317,7 +317,7 @@ def test_cli_quality_json_and_npy(tmp_path, stimuli, monkeypatch, capsys):
     _folder, gt, _ = stimuli
     np.save(tmp_path / "gt.npy", gt / 255.0)
     np.save(tmp_path / "half.npy", gt / 510.0)
-    argv = ["quality", "--gt", str(tmp_path / "gt.npy"), "--fov-y", "90", "--gaze", "1000,1000", "--json",
+    argv = ["quality", "--gt", str(tmp_path / "gt.npy"), "--fov-y", "90", "--gaze=-1000,1000", "--json",
             str(tmp_path / "half.npy")]
     assert _main(monkeypatch, argv) == 0
     records = json.loads(capsys.readouterr().out)

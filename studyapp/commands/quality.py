@@ -31,7 +31,8 @@ def register(subparsers, parser_class) -> None:
     q.add_argument("--fov-y", type=float, required=True, metavar="DEG",
                    help="vertical field of view of the display in degrees, in (0, 180)")
     q.add_argument("--gaze", metavar="X,Y", default=None,
-                   help="gaze point in pixels, x right, y down (default: the image centre)")
+                   help="gaze point in pixels, x right, y down (default: the image centre); write "
+                        "negative values as --gaze=-10,5")
     q.add_argument("--fovea-deg", type=float, default=5.0, metavar="DEG",
                    help="fovea radius in degrees of eccentricity, in (0, 90) (default: 5)")
     q.add_argument("--data-range", type=float, default=None, metavar="L",
