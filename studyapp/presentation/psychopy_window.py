@@ -1,0 +1,593 @@
+"""A real PsychoPy window implementing :class:`studyapp.presentation.base.Presenter`.
+
+This is the only module of studyapp that imports PsychoPy, and it does so lazily (inside :meth:`open`), so that
+importing it on a machine without a display or without PsychoPy costs nothing and fails only when a window is
+really asked for.
+
+What a trial looks like (:meth:`PsychoPyPresenter.present`)
+----------------------------------------------------------
+1. **Black interval** of ``trial.black_before_s`` seconds (with the trial label, e.g. "this is the ground
+   truth", and the progress indicator in dim text). The trial's stimuli are decoded and uploaded to the GPU
+   *inside* this interval (:class:`psychopy.core.StaticPeriod`); if loading overran the interval the overrun is
+   recorded in :attr:`PsychoPyPresenter.trial_info`. Calling :meth:`preload` earlier starts the black interval
+   and the loading at once; :meth:`present` then only waits for what is left of the interval.
+2. **Stimulus**: still images are drawn until answered; sequences (``Stimulus.frames`` pre-decoded into one
+   texture each) are drawn one frame per flip, frame ``k = floor((t_flip - t_onset) * fps)`` of the sequence,
+   so a dropped flip skips a frame instead of stretching the sequence. ``yes_no`` sequences play once for
+   ``duration_s`` (answers are accepted from onset; the sequence always plays to its end, then the question
+   stays up until answered); in ``2afc``/``preference`` trials sequences loop and the participant switches
+   among the stimuli with ``trial.switch_keys`` (a switch restarts the sequence) before committing.
+3. **Fixation mark** at ``trial.fixation_px`` (stimulus pixel coordinates: x right, y down, origin at the
+   image's top-left corner, as the foveation mappings use), drawn over every stimulus frame.
+4. **Answers**: ``trial.answer_keys`` maps key names (psychtoolbox names: ``left``, ``a``, ``1``, ``space``...)
+   to the recorded answer. ``preference`` trials collect ``trial.n_picks`` distinct picks; a key whose answer is
+   ``""`` ends the picking early ("only one"). ``rt_s`` runs from the onset flip of the first stimulus frame
+   (the keyboard clock is reset with ``win.callOnFlip``) to the key press that completed the answer.
+5. **Escape** ends the trial at once with ``escaped=True`` and no answer; the runner then calls :meth:`pause`
+   ("R" resume / "E" end) and re-presents the trial on resume.
+
+Per trial the presenter records the onset time (``win.flip()`` time stamp on PsychoPy's monotonic clock), the
+number of dropped frames (``win.recordFrameIntervals`` / ``win.nDroppedFrames``) and, with an eye tracker
+(``eyetracker="mousegaze"`` simulates one with the mouse through ``psychopy.iohub``), every gaze sample and
+whether the gaze left the foveal disc of radius ``fovea_deg`` around the fixation point.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Literal
+
+import numpy as np
+
+from .base import DisplaySettings, TrialDisplay, TrialResult
+
+ESCAPE = "escape"
+RESUME_KEY, END_KEY = "r", "e"
+EventHook = Callable[[str, dict], None]
+
+
+class PresentationError(RuntimeError):
+    """A window could not be opened or used as required (one-line message)."""
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a ``img_w`` x ``img_h`` stimulus lands in a ``win_w`` x ``win_h`` window.
+
+    The image is centred and shown at its own pixel size (``scale = 1``) when it fits, else shrunk to fit
+    (``scale < 1``). ``left``/``top`` are whole window pixels from the window's top-left corner, so that at
+    ``scale = 1`` every image pixel maps onto exactly one window pixel.
+    """
+
+    win_w: int
+    win_h: int
+    img_w: int
+    img_h: int
+    scale: float
+    left: int
+    top: int
+
+    @classmethod
+    def fit(cls, win_w: int, win_h: int, img_w: int, img_h: int) -> "Placement":
+        scale = min(1.0, win_w / img_w, win_h / img_h)
+        w, h = img_w * scale, img_h * scale
+        return cls(win_w, win_h, img_w, img_h, scale, int((win_w - w) // 2), int((win_h - h) // 2))
+
+    @property
+    def size(self) -> tuple[float, float]:
+        """Drawn size in window pixels."""
+        return (self.img_w * self.scale, self.img_h * self.scale)
+
+    @property
+    def centre_pix(self) -> tuple[float, float]:
+        """Image centre in PsychoPy ``pix`` units (origin at the window centre, y up)."""
+        w, h = self.size
+        return (self.left + w / 2.0 - self.win_w / 2.0, self.win_h / 2.0 - (self.top + h / 2.0))
+
+    def image_to_window(self, x: float, y: float) -> tuple[float, float]:
+        """Image pixel coordinates (x right, y down, top-left origin) -> window pixels (same convention)."""
+        return (self.left + x * self.scale, self.top + y * self.scale)
+
+    def image_to_pix(self, x: float, y: float) -> tuple[float, float]:
+        """Image pixel coordinates -> PsychoPy ``pix`` units (origin at the window centre, y up)."""
+        wx, wy = self.image_to_window(x, y)
+        return (wx - self.win_w / 2.0, self.win_h / 2.0 - wy)
+
+
+def pixels_per_degree(display: DisplaySettings) -> float:
+    """Pixels per degree of visual angle at the screen centre.
+
+    ``ppd = width_px / width_cm * distance_cm * tan(1°)`` -- the size in pixels of 1° seen from ``distance_cm``,
+    the same as PsychoPy's ``deg2pix`` (small-angle form, ``cm = distance * tan(deg)``).
+    """
+    return display.width_px / display.width_cm * display.distance_cm * math.tan(math.radians(1.0))
+
+
+def sequence_frame(elapsed_s: float, fps: float, n_frames: int, loop: bool) -> int:
+    """Index of the frame of an ``n_frames``-frame sequence at ``fps`` to show ``elapsed_s`` after onset.
+
+    ``k = floor(elapsed_s * fps)`` (with a 1e-6 s guard against a flip time stamp landing a hair before a frame
+    boundary), wrapped modulo ``n_frames`` when looping, else held on the last frame.
+    """
+    if n_frames <= 1 or fps <= 0:
+        return 0
+    k = int(math.floor(max(0.0, elapsed_s) * fps + 1e-6))
+    return k % n_frames if loop else min(k, n_frames - 1)
+
+
+def validate_display(display: DisplaySettings) -> None:
+    """One-line errors for impossible display settings."""
+    for name in ("width_px", "height_px"):
+        v = getattr(display, name)
+        if isinstance(v, bool) or not isinstance(v, int) or v < 16:
+            raise ValueError(f"display.{name}={v!r} is out of range: must be a whole number of pixels >= 16")
+    for name in ("width_cm", "distance_cm", "refresh_hz"):
+        v = getattr(display, name)
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise ValueError(f"display.{name}={v!r} is out of range: must be a finite number > 0")
+    if not isinstance(display.screen, int) or display.screen < 0:
+        raise ValueError(f"display.screen={display.screen!r} is out of range: must be an integer >= 0")
+
+
+def validate_trial(trial: TrialDisplay) -> None:
+    """One-line errors for a trial the window cannot show."""
+    n = len(trial.stimuli)
+    need = {"yes_no": (1, 1), "2afc": (2, 2), "preference": (2, 64)}[trial.family]
+    if not need[0] <= n <= need[1]:
+        raise ValueError(f"trial {trial.index}: family {trial.family!r} needs {need[0]}..{need[1]} stimuli, got {n}")
+    for s in trial.stimuli:
+        if not s.frames:
+            raise ValueError(f"trial {trial.index}: stimulus {s.condition!r} has no frames")
+        if s.is_sequence and not s.fps > 0:
+            raise ValueError(f"trial {trial.index}: sequence {s.condition!r} needs fps > 0, got {s.fps!r}")
+    for key, idx in trial.switch_keys.items():
+        if not 0 <= idx < n:
+            raise ValueError(f"trial {trial.index}: switch key {key!r} -> {idx} is out of range 0..{n - 1}")
+    if trial.family == "preference" and not 1 <= trial.n_picks <= n:
+        raise ValueError(f"trial {trial.index}: n_picks={trial.n_picks} is out of range 1..{n}")
+    if trial.black_before_s < 0 or (trial.duration_s is not None and not trial.duration_s > 0):
+        raise ValueError(f"trial {trial.index}: black_before_s must be >= 0 and duration_s > 0 or None")
+    if not trial.answer_keys and trial.duration_s is None:
+        raise ValueError(f"trial {trial.index}: a trial without answer keys needs a duration_s")
+
+
+def _stim_labels(trial: TrialDisplay) -> list[str]:
+    if trial.family == "2afc":
+        return ["A", "B"]
+    if trial.family == "preference":
+        return [str(i + 1) for i in range(len(trial.stimuli))]
+    return [""]
+
+
+class _Loaded:
+    """A trial's stimuli decoded into textures: ``frames[i]`` is the list of ImageStims of stimulus ``i``."""
+
+    def __init__(self, trial: TrialDisplay, frames: list[list], placements: list[Placement], load_s: float):
+        self.trial = trial
+        self.frames = frames
+        self.placements = placements
+        self.load_s = load_s
+
+
+class PsychoPyPresenter:
+    """A PsychoPy window that shows trials and collects keyboard answers (see the module docstring).
+
+    Parameters
+    ----------
+    fixation_rgb : colour of the fixation cross (0-255 RGB); ``None`` draws no fixation mark.
+    fixation_size_px, fixation_line_px : arm length and line width of the cross, window pixels.
+    show_labels : draw "A"/"B" (2AFC) or "1".."N" (preference) in the top-left corner while switching.
+    eyetracker : ``None`` or ``"mousegaze"`` (psychopy.iohub's mouse-driven simulated eye tracker).
+    fovea_deg : radius of the foveal disc around the fixation point; a gaze sample farther away sets
+        ``TrialResult.gaze_left_fovea``.
+    screenshot_dir : if set, the back buffer of the first frame of every stimulus shown is saved there as
+        ``trial{index:04d}_stim{i}_{n}.png`` (for tests and for checking a protocol; costs a read-back).
+    on_event : called as ``on_event(name, info)`` at ``instructions``, ``black``, ``onset``, ``switch``,
+        ``pick``, ``question``, ``pause`` and ``message`` (after the flip that shows it), e.g. to drive tests.
+    """
+
+    def __init__(self, *, fixation_rgb: tuple[int, int, int] | None = (255, 0, 0), fixation_size_px: int = 16,
+                 fixation_line_px: int = 2, show_labels: bool = True, eyetracker: str | None = None,
+                 fovea_deg: float = 2.5, screenshot_dir: str | Path | None = None,
+                 on_event: EventHook | None = None, text_height_px: int = 24):
+        if eyetracker not in (None, "mousegaze"):
+            raise ValueError(f"eyetracker={eyetracker!r} is not supported: use None or 'mousegaze'")
+        if not (math.isfinite(fovea_deg) and fovea_deg > 0):
+            raise ValueError(f"fovea_deg={fovea_deg!r} is out of range: must be > 0")
+        self.fixation_rgb = fixation_rgb
+        self.fixation_size_px = int(fixation_size_px)
+        self.fixation_line_px = int(fixation_line_px)
+        self.show_labels = show_labels
+        self.eyetracker = eyetracker
+        self.fovea_deg = float(fovea_deg)
+        self.screenshot_dir = Path(screenshot_dir) if screenshot_dir is not None else None
+        self.on_event = on_event
+        self.text_height_px = int(text_height_px)
+        self.win = None
+        self.display: DisplaySettings | None = None
+        self.facts: dict = {}
+        self.trial_info: list[dict] = []  # one dict per presented trial: load time, overrun, onsets, gaze...
+        self._loaded: dict[int, _Loaded] = {}
+        self._black_since: float | None = None
+        self._io = None
+        self._tracker = None
+        self._n_shots = 0
+
+    # ------------------------------------------------------------------ window
+    def open(self, display: DisplaySettings) -> dict:
+        """Open the window and the psychtoolbox keyboard; return measured facts.
+
+        Raises :class:`PresentationError` if PsychoPy cannot open a window or if the keyboard backend is not
+        psychtoolbox (PsychoPy silently falls back to a polling backend whose key names and times differ).
+        """
+        validate_display(display)
+        try:
+            import psychopy
+            from psychopy import core, logging, monitors, visual
+            from psychopy.hardware import keyboard
+        except Exception as exc:  # no display, missing package...
+            raise PresentationError(f"cannot import PsychoPy's window modules: {type(exc).__name__}: {exc}") from None
+        self._core, self._visual = core, visual
+        self._now = logging.defaultClock.getTime  # the clock of win.flip()'s time stamps
+        mon = monitors.Monitor("studyapp", width=display.width_cm, distance=display.distance_cm)
+        mon.setSizePix([display.width_px, display.height_px])
+        try:
+            self.win = visual.Window(size=(display.width_px, display.height_px), fullscr=display.fullscreen,
+                                     screen=display.screen, monitor=mon, units="pix", color=(-1, -1, -1),
+                                     colorSpace="rgb", allowGUI=not display.fullscreen, checkTiming=False,
+                                     waitBlanking=True)
+        except Exception as exc:
+            raise PresentationError(f"cannot open a PsychoPy window: {type(exc).__name__}: {exc}") from None
+        self.kb = keyboard.Keyboard()
+        backend = self.kb.getBackend()
+        if backend != "ptb":
+            self.close()
+            raise PresentationError(
+                f"keyboard backend is {backend!r}, not 'ptb': psychtoolbox did not load (on Debian install "
+                "libjack-jackd2-0); refusing to run with imprecise reaction times")
+        self.display = display
+        measured = self.win.getActualFrameRate(nIdentical=10, nMaxFrames=120, nWarmUpFrames=10, threshold=1)
+        period = 1.0 / (measured or display.refresh_hz)
+        self.win.refreshThreshold = 1.2 * period
+        self._frame_period = period
+        import pyglet
+
+        self.facts = {
+            "refresh_hz": float(measured) if measured else None,
+            "refresh_hz_nominal": float(display.refresh_hz),
+            "keyboard_backend": backend,
+            "psychopy_version": psychopy.__version__,
+            "pyglet_version": pyglet.version,
+            "window_size_px": [int(v) for v in self.win.size],
+            "fullscreen": bool(display.fullscreen),
+            "screen": int(display.screen),
+            "pixels_per_degree": pixels_per_degree(display),
+            "gl_renderer": str(getattr(self.win, "glRenderer", "")) or None,
+            "eyetracker": None,
+        }
+        self._make_stims()
+        if self.eyetracker:
+            self.facts["eyetracker"] = self._start_eyetracker()
+        return dict(self.facts)
+
+    def _make_stims(self) -> None:
+        visual, win = self._visual, self.win
+        h = self.text_height_px
+        self._text = visual.TextStim(win, text="", height=h, color=(0.8, 0.8, 0.8), wrapWidth=win.size[0] * 0.8,
+                                     units="pix")
+        self._dim = visual.TextStim(win, text="", height=h * 0.75, color=(-0.3, -0.3, -0.3), units="pix",
+                                    pos=(0, -win.size[1] / 2 + h))
+        self._corner = visual.TextStim(win, text="", height=h, color=(1, 1, 1), units="pix", anchorHoriz="left", alignText="left",
+                                       anchorVert="top", pos=(-win.size[0] / 2 + 8, win.size[1] / 2 - 8))
+        self._fix = []
+        if self.fixation_rgb is not None:
+            arm, line = self.fixation_size_px, self.fixation_line_px
+            for w, hh in ((arm, line), (line, arm)):
+                self._fix.append(visual.Rect(win, width=w, height=hh, units="pix", fillColor=self.fixation_rgb,
+                                             lineColor=None, colorSpace="rgb255", lineWidth=0))
+
+    def close(self) -> None:
+        """Close the window and the eye tracker (safe to call twice)."""
+        self._loaded.clear()
+        if self._io is not None:
+            try:
+                self._tracker.setRecordingState(False)
+                self._io.quit()
+            except Exception:
+                pass
+            self._io = self._tracker = None
+        if self.win is not None:
+            self.win.close()
+            self.win = None
+
+    def _require_open(self):
+        if self.win is None:
+            raise PresentationError("the window is not open: call open(display) first")
+
+    def _emit(self, name: str, **info) -> None:
+        if self.on_event is not None:
+            self.on_event(name, info)
+
+    # ------------------------------------------------------------------ eye tracking
+    def _start_eyetracker(self) -> dict:
+        """Start iohub with MouseGaze; return a fact dict (``{"ok": False, "reason": ...}`` if unusable)."""
+        try:
+            from psychopy.iohub import launchHubServer
+
+            cfg = {"eyetracker.hw.mouse.EyeTracker": {
+                "name": "tracker", "controls": {"move": [], "blink": ["LEFT_BUTTON"], "saccade_threshold": 0.5}}}
+            self._io = launchHubServer(window=self.win, **cfg)
+            self._tracker = self._io.getDevice("tracker")
+            self._tracker.setRecordingState(True)
+        except Exception as exc:
+            self._io = self._tracker = None
+            return {"kind": self.eyetracker, "ok": False, "reason": f"{type(exc).__name__}: {exc}"}
+        return {"kind": self.eyetracker, "ok": True}
+
+    def _gaze_window_px(self) -> tuple[float, float] | None:
+        """Last gaze sample in window pixels (x right, y down, top-left origin), or None."""
+        if self._tracker is None:
+            return None
+        g = self._tracker.getLastGazePosition()
+        if g is None or len(g) < 2:
+            return None
+        # iohub reports display coordinates (origin at the screen centre, y up); convert via the window position
+        hnd = self.win.winHandle
+        sw, sh = hnd.screen.width, hnd.screen.height
+        wx, wy = hnd.get_location() if not self.display.fullscreen else (0, 0)
+        return (float(g[0]) + sw / 2.0 - wx, sh / 2.0 - float(g[1]) - wy)
+
+    # ------------------------------------------------------------------ drawing helpers
+    def _draw_text(self, text: str, dim: str = "") -> None:
+        self._text.text = text
+        self._text.draw()
+        if dim:
+            self._dim.text = dim
+            self._dim.draw()
+
+    def _progress_text(self, trial: TrialDisplay) -> str:
+        if trial.progress is None:
+            return ""
+        k, n = trial.progress
+        return f"{k} / {n}"
+
+    def screenshot(self) -> np.ndarray:
+        """The back buffer as an ``(H, W, 3)`` uint8 RGB array, row 0 at the top (call before ``flip``)."""
+        self._require_open()
+        im = self.win.getMovieFrame(buffer="back")
+        self.win.movieFrames.clear()
+        return np.asarray(im.convert("RGB"))
+
+    def _save_shot(self, trial: TrialDisplay, stim: int) -> None:
+        from PIL import Image
+
+        from data_schema.atomic import atomic_path
+
+        self.screenshot_dir.mkdir(parents=True, exist_ok=True)
+        path = self.screenshot_dir / f"trial{trial.index:04d}_stim{stim}_{self._n_shots}.png"
+        self._n_shots += 1
+        with atomic_path(path) as tmp:
+            Image.fromarray(self.screenshot()).save(tmp, format="PNG")
+
+    # ------------------------------------------------------------------ loading
+    def load_image_stim(self, path: Path, placement: Placement | None = None):
+        """Decode ``path`` and upload it into an ImageStim placed by ``placement`` (fit to the window if None).
+
+        Returns ``(stim, placement)``. The texture is uploaded as 8-bit RGBA without interpolation, so at
+        ``scale = 1`` the window shows the file's pixel values unchanged.
+        """
+        from PIL import Image
+
+        try:
+            im = Image.open(path)
+            im.load()
+        except (OSError, ValueError) as exc:
+            raise PresentationError(f"cannot read stimulus frame {path}: {exc}") from None
+        if im.mode not in ("RGB", "RGBA"):
+            im = im.convert("RGB")
+        if placement is None:
+            w, h = (int(v) for v in self.win.size)
+            placement = Placement.fit(w, h, im.size[0], im.size[1])
+        stim = self._visual.ImageStim(self.win, image=im, units="pix", size=placement.size,
+                                      pos=placement.centre_pix, interpolate=placement.scale != 1.0)
+        return stim, placement
+
+    def _load(self, trial: TrialDisplay) -> _Loaded:
+        t0 = time.perf_counter()
+        frames, placements = [], []
+        for s in trial.stimuli:
+            seq, placement = [], None
+            for f in s.frames:
+                stim, placement = self.load_image_stim(Path(f), placement)
+                seq.append(stim)
+            frames.append(seq)
+            placements.append(placement)
+        return _Loaded(trial, frames, placements, time.perf_counter() - t0)
+
+    def _start_black(self, trial: TrialDisplay) -> None:
+        self._draw_text(trial.label, self._progress_text(trial))
+        self.win.flip()
+        self._black_since = self._now()
+        self._emit("black", trial=trial.index)
+
+    def preload(self, trial: TrialDisplay) -> None:
+        """Start the black interval before ``trial`` and load its stimuli in it (see the module docstring)."""
+        self._require_open()
+        validate_trial(trial)
+        if trial.index in self._loaded:
+            return
+        self._start_black(trial)
+        self._loaded = {trial.index: self._load(trial)}
+
+    # ------------------------------------------------------------------ trials
+    def present(self, trial: TrialDisplay) -> TrialResult:
+        """Black interval (stimuli loaded in it), then the stimulus until answered; see the module docstring."""
+        self._require_open()
+        validate_trial(trial)
+        core, win, kb = self._core, self.win, self.kb
+        if trial.index in self._loaded and self._black_since is not None:
+            loaded = self._loaded.pop(trial.index)
+            remaining = trial.black_before_s - (self._now() - self._black_since)
+            overran = remaining < 0
+            if remaining > 0:
+                core.wait(remaining, hogCPUperiod=min(remaining, 0.02))
+        else:
+            self._start_black(trial)
+            period = core.StaticPeriod(win=win, screenHz=1.0 / self._frame_period)
+            period.start(trial.black_before_s)
+            loaded = self._loaded.pop(trial.index, None) or self._load(trial)
+            overran = period.complete() != 1
+        self._loaded.clear()
+        self._black_since = None
+        info = {"trial": trial.index, "load_s": loaded.load_s, "black_overran": bool(overran), "onsets": [],
+                "gaze": []}
+        self.trial_info.append(info)
+
+        labels = _stim_labels(trial)
+        loop = trial.family != "yes_no"
+        keys_wanted = sorted({*trial.answer_keys, *trial.switch_keys, ESCAPE})
+        ppd = pixels_per_degree(self.display)
+        picks: list[str] = []
+        current, switches = 0, 0
+        onset = None  # first stimulus onset (the RT origin)
+        stim_onset = None  # onset of the current stimulus (sequence time origin)
+        shot_pending = self.screenshot_dir is not None
+        answered_at = None
+        playback_over = False
+        gaze_left = False if self._tracker is not None else None
+        dropped0 = win.nDroppedFrames
+        win.recordFrameIntervals = True
+        stim_onset_pending = True
+        next_flip = self._now() + self._frame_period
+        try:
+            while True:
+                seq = loaded.frames[current]
+                placement = loaded.placements[current]
+                stimulus = trial.stimuli[current]
+                if stim_onset is None:
+                    elapsed = 0.0
+                else:
+                    elapsed = next_flip - stim_onset
+                if trial.duration_s is not None and onset is not None and not loop:
+                    playback_over = next_flip - onset >= trial.duration_s
+                if playback_over:
+                    self._draw_text(trial.question, self._progress_text(trial))
+                else:
+                    k = sequence_frame(elapsed, stimulus.fps, len(seq), loop)
+                    seq[k].draw()
+                    if trial.fixation_px is not None:
+                        fx, fy = placement.image_to_pix(*trial.fixation_px)
+                        for r in self._fix:
+                            r.pos = (fx, fy)
+                            r.draw()
+                    if self.show_labels and len(labels) > 1:
+                        picked = "  picked: " + ", ".join(labels[int(p)] for p in picks if p.isdigit()) if picks else ""
+                        self._corner.text = labels[current] + picked
+                        self._corner.draw()
+                    if shot_pending:
+                        self._save_shot(trial, current)
+                        shot_pending = False
+                if stim_onset_pending:
+                    if onset is None:
+                        win.callOnFlip(kb.clock.reset)
+                        win.callOnFlip(kb.clearEvents)
+                t_flip = win.flip()
+                next_flip = t_flip + self._frame_period
+                if stim_onset_pending:
+                    stim_onset = t_flip
+                    if onset is None:
+                        onset = t_flip
+                    info["onsets"].append([current, t_flip])
+                    stim_onset_pending = False
+                    self._emit("onset", trial=trial.index, stimulus=current, t=t_flip)
+                if playback_over and answered_at is None and info.get("question_shown") is None:
+                    info["question_shown"] = t_flip
+                    self._emit("question", trial=trial.index)
+                if self._tracker is not None and not playback_over:
+                    g = self._gaze_window_px()
+                    if g is not None:
+                        info["gaze"].append([t_flip - onset, g[0], g[1]])
+                        if trial.fixation_px is not None:
+                            fx, fy = placement.image_to_window(*trial.fixation_px)
+                            if math.hypot(g[0] - fx, g[1] - fy) > self.fovea_deg * ppd:
+                                gaze_left = True
+                for key in kb.getKeys(keyList=keys_wanted, waitRelease=False, clear=True):
+                    name = key.name
+                    if name == ESCAPE:
+                        return TrialResult(answers=[], rt_s=float("nan"), onset_s=float(onset),
+                                           dropped_frames=win.nDroppedFrames - dropped0, switches=switches,
+                                           gaze_left_fovea=gaze_left, escaped=True)
+                    if answered_at is not None:
+                        continue
+                    if name in trial.switch_keys and trial.switch_keys[name] != current and not playback_over:
+                        current = trial.switch_keys[name]
+                        switches += 1
+                        stim_onset_pending = True
+                        shot_pending = self.screenshot_dir is not None
+                        self._emit("switch", trial=trial.index, stimulus=current)
+                    if name in trial.answer_keys:
+                        ans = trial.answer_keys[name]
+                        if trial.family == "preference":
+                            if ans == "" and picks:
+                                answered_at = float(key.rt)
+                            elif ans != "" and ans not in picks:
+                                picks.append(ans)
+                                self._emit("pick", trial=trial.index, answer=ans)
+                                if len(picks) >= trial.n_picks:
+                                    answered_at = float(key.rt)
+                        elif ans != "":
+                            picks = [ans]
+                            answered_at = float(key.rt)
+                done_playing = trial.duration_s is None or loop or playback_over
+                if answered_at is not None and done_playing:
+                    break
+                if not trial.answer_keys and playback_over:
+                    break
+        finally:
+            win.recordFrameIntervals = False
+        return TrialResult(answers=picks, rt_s=answered_at if answered_at is not None else float("nan"),
+                           onset_s=float(onset), dropped_frames=int(win.nDroppedFrames - dropped0),
+                           switches=switches, gaze_left_fovea=gaze_left)
+
+    # ------------------------------------------------------------------ screens
+    def _wait_keys(self, key_list: list[str] | None) -> str:
+        self.kb.clearEvents()
+        while True:
+            keys = self.kb.getKeys(keyList=key_list, waitRelease=False, clear=True)
+            if keys:
+                return keys[0].name
+            self._core.wait(0.005, hogCPUperiod=0)
+
+    def instructions(self, text: str) -> None:
+        """Show ``text`` until any key but Escape is pressed."""
+        self._require_open()
+        self._draw_text(text, "press any key to continue")
+        self.win.flip()
+        self._emit("instructions")
+        while self._wait_keys(None) == ESCAPE:
+            pass
+        self._black_since = None
+
+    def pause(self) -> Literal["resume", "end"]:
+        """Ask whether to resume (R) or end (E) the session."""
+        self._require_open()
+        self._draw_text("Paused.\n\nPress R to resume or E to end the session.")
+        self.win.flip()
+        self._emit("pause")
+        key = self._wait_keys([RESUME_KEY, END_KEY])
+        self._black_since = None
+        return "resume" if key == RESUME_KEY else "end"
+
+    def message(self, text: str, seconds: float) -> None:
+        """Show ``text`` for ``seconds`` (breaks, end of session)."""
+        self._require_open()
+        if not (math.isfinite(seconds) and seconds >= 0):
+            raise ValueError(f"seconds={seconds!r} is out of range: must be >= 0")
+        self._draw_text(text)
+        self.win.flip()
+        self._emit("message", text=text)
+        self._core.wait(seconds)
+        self._black_since = None

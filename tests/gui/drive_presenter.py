@@ -1,0 +1,80 @@
+"""Drive a real PsychoPyPresenter from a JSON spec (run under Xvfb by the GUI tests).
+
+Spec: ``{"display": {...DisplaySettings}, "presenter": {...kwargs}, "steps": [...], "result": path}``; a step is
+``{"instructions": text}``, ``{"trial": {...TrialDisplay}}`` (stimuli as ``{"condition", "frames", "fps"}``),
+``{"preload": {...}}`` or ``{"message": text, "seconds": s}``. A trial that comes back escaped is followed by
+``pause()`` and, on "resume", shown again. Every presenter event is printed as ``EVENT {json}`` (flushed), so
+the test knows when to press keys; the results are written as JSON to ``result``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import faulthandler
+import json
+import math
+import sys
+from pathlib import Path
+
+from studyapp.presentation.base import DisplaySettings, Stimulus, TrialDisplay
+from studyapp.presentation.psychopy_window import PsychoPyPresenter
+
+
+def emit(name: str, info: dict) -> None:
+    print("EVENT " + json.dumps({"event": name, **info}), flush=True)
+
+
+def make_trial(d: dict) -> TrialDisplay:
+    d = dict(d)
+    d["stimuli"] = tuple(Stimulus(s["condition"], tuple(Path(f) for f in s["frames"]), s.get("fps", 0.0))
+                         for s in d["stimuli"])
+    for k in ("fixation_px", "progress"):
+        if d.get(k) is not None:
+            d[k] = tuple(d[k])
+    return TrialDisplay(**d)
+
+
+def clean(x):
+    if isinstance(x, float) and math.isnan(x):
+        return None
+    return x
+
+
+def main(spec_path: str) -> int:
+    faulthandler.dump_traceback_later(20, exit=True)  # a hung window shows where it hangs, then exits
+    spec = json.loads(Path(spec_path).read_text())
+    pres = PsychoPyPresenter(on_event=emit, **spec.get("presenter", {}))
+    out = {"facts": pres.open(DisplaySettings(**spec["display"])), "trials": [], "pauses": []}
+    emit("opened", {})
+    try:
+        for step in spec["steps"]:
+            if "instructions" in step:
+                pres.instructions(step["instructions"])
+            elif "message" in step:
+                pres.message(step["message"], step["seconds"])
+            elif "preload" in step:
+                pres.preload(make_trial(step["preload"]))
+            else:
+                trial = make_trial(step["trial"])
+                while True:
+                    r = pres.present(trial)
+                    out["trials"].append({k: clean(v) for k, v in dataclasses.asdict(r).items()}
+                                         | {"index": trial.index})
+                    if not r.escaped:
+                        break
+                    choice = pres.pause()
+                    out["pauses"].append(choice)
+                    if choice == "end":
+                        break
+                if out["pauses"][-1:] == ["end"]:
+                    break
+        out["trial_info"] = pres.trial_info
+    finally:
+        pres.close()
+    Path(spec["result"]).write_text(json.dumps(out))
+    emit("closed", {})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1]))

@@ -1,0 +1,136 @@
+"""GUI tests of the PsychoPy presenter: a real window under a private Xvfb, real key presses from xdotool.
+
+Each test starts its own Xvfb (``tests/gui/xvfb.py``), runs ``tests/gui/drive_presenter.py`` in a subprocess
+with DISPLAY set, waits for the presenter's events and injects keys. It checks the recorded answers against the
+keys pressed, that reaction times are positive, and that the back-buffer screenshots show the stimulus pixels
+and the fixation mark at the gaze point. No timing assertions: Xvfb has no vsync.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+sys.path.insert(0, str(Path(__file__).resolve().parent / "gui"))
+from xvfb import Driver, Xvfb, missing_tools  # noqa: E402
+
+pytestmark = pytest.mark.skipif(bool(missing_tools()), reason=f"GUI tests need {missing_tools()} (Debian: xvfb, "
+                                "xdotool)")
+pytest.importorskip("psychopy")
+
+WIN_W, WIN_H = 640, 480
+IMG_W, IMG_H = 320, 240
+RED = (255, 0, 0)
+DISPLAY = {"width_px": WIN_W, "height_px": WIN_H, "width_cm": 30.0, "distance_cm": 60.0}
+
+
+def blocks_image(path: Path, seed: int, size=(IMG_W, IMG_H)) -> np.ndarray:
+    """A stimulus of 16x16-pixel blocks of random colours (no pure red, so the fixation mark stands out)."""
+    rng = np.random.default_rng(seed)
+    w, h = size
+    cells = rng.integers(0, 200, (h // 16, w // 16, 3), dtype=np.uint8)
+    arr = np.repeat(np.repeat(cells, 16, axis=0), 16, axis=1)
+    Image.fromarray(arr).save(path)
+    return arr
+
+
+def shot_of(shots: Path, trial: int, stim: int) -> np.ndarray:
+    files = sorted(shots.glob(f"trial{trial:04d}_stim{stim}_*.png"))
+    assert files, f"no screenshot for trial {trial} stimulus {stim}: {sorted(p.name for p in shots.iterdir())}"
+    return np.asarray(Image.open(files[0]).convert("RGB"))
+
+
+def assert_shows(shot: np.ndarray, img: np.ndarray, fixation: tuple[int, int], rng_seed: int = 0) -> None:
+    """Pixels of ``shot`` at 200 random image positions away from the fixation cross and the corner label equal
+    the stimulus; the pixels at the fixation point are the fixation colour; outside the image is black."""
+    left, top = (WIN_W - IMG_W) // 2, (WIN_H - IMG_H) // 2
+    assert shot.shape == (WIN_H, WIN_W, 3)
+    rng = np.random.default_rng(rng_seed)
+    fx, fy = fixation
+    checked = 0
+    for x, y in zip(rng.integers(0, IMG_W, 400), rng.integers(0, IMG_H, 400)):
+        if max(abs(x - fx), abs(y - fy)) <= 10:
+            continue
+        np.testing.assert_array_equal(shot[top + y, left + x], img[y, x], err_msg=f"image pixel ({x}, {y})")
+        checked += 1
+        if checked == 200:
+            break
+    assert checked == 200
+    for dx, dy in ((-1, -1), (0, 0), (-6, 0), (5, -1), (0, 5), (-1, -7)):
+        np.testing.assert_array_equal(shot[top + fy + dy, left + fx + dx], RED,
+                                      err_msg=f"fixation pixel offset ({dx}, {dy})")
+    assert (shot[40: top - 1] == 0).all() and (shot[top + IMG_H + 1:, :] == 0).all()
+
+
+def stim(cond: str, *frames: Path, fps: float = 0.0) -> dict:
+    return {"condition": cond, "frames": [str(f) for f in frames], "fps": fps}
+
+
+def test_gui_trials_keys_screenshots_and_pause(tmp_path):
+    a = blocks_image(tmp_path / "a.png", 1)
+    b = blocks_image(tmp_path / "b.png", 2)
+    c = blocks_image(tmp_path / "c.png", 3)
+    seq = [blocks_image(tmp_path / f"s{i}.png", 10 + i) for i in range(3)]
+    fix = (100, 80)
+    shots = tmp_path / "shots"
+    t_2afc = {"index": 0, "family": "2afc", "stimuli": [stim("GT", tmp_path / "a.png"), stim("VaFR", tmp_path / "b.png")],
+              "question": "Which looks better?", "answer_keys": {"a": "A", "b": "B"},
+              "switch_keys": {"left": 0, "right": 1}, "fixation_px": fix, "black_before_s": 0.2,
+              "progress": [1, 4]}
+    t_seq = {"index": 1, "family": "yes_no",
+             "stimuli": [stim("EC", *(tmp_path / f"s{i}.png" for i in range(3)), fps=10.0)],
+             "question": "Is this sequence the ground truth?", "answer_keys": {"y": "yes", "n": "no"},
+             "fixation_px": fix, "duration_s": 0.3, "black_before_s": 0.2, "progress": [2, 4]}
+    t_pref = {"index": 2, "family": "preference",
+              "stimuli": [stim("m1", tmp_path / "a.png"), stim("m2", tmp_path / "b.png"),
+                          stim("m3", tmp_path / "c.png")],
+              "question": "Pick your top two", "answer_keys": {"1": "0", "2": "1", "3": "2", "space": ""},
+              "switch_keys": {"z": 0, "x": 1, "c": 2}, "fixation_px": fix, "n_picks": 2, "black_before_s": 0.2}
+    t_esc = {"index": 3, "family": "yes_no", "stimuli": [stim("GT", tmp_path / "c.png")], "question": "GT?",
+             "answer_keys": {"y": "yes", "n": "no"}, "fixation_px": fix, "black_before_s": 0.1}
+    spec = {"display": DISPLAY, "presenter": {"screenshot_dir": str(shots)},
+            "steps": [{"instructions": "Welcome"}, {"trial": t_2afc}, {"preload": t_seq}, {"trial": t_seq},
+                      {"trial": t_pref}, {"trial": t_esc}]}
+    with Xvfb() as x:
+        d = Driver(x, spec, tmp_path)
+        try:
+            for event, match, keys in [
+                    ("instructions", {}, ["space"]),
+                    ("onset", {"trial": 0, "stimulus": 0}, ["Right"]),
+                    ("onset", {"trial": 0, "stimulus": 1}, ["Left"]),
+                    ("onset", {"trial": 0, "stimulus": 0}, ["b"]),
+                    ("question", {"trial": 1}, ["n"]),
+                    ("onset", {"trial": 2, "stimulus": 0}, ["c"]),
+                    ("onset", {"trial": 2, "stimulus": 2}, ["3"]),
+                    ("pick", {"trial": 2}, ["x", "3", "1"]),  # "3" again is ignored; "1" is the second pick
+                    ("onset", {"trial": 3}, ["Escape"]),
+                    ("pause", {}, ["r"]),
+                    ("onset", {"trial": 3}, ["y"])]:
+                d.wait_for(event, **match)
+                x.key(*keys)
+            result = d.finish()
+        finally:
+            d.kill()
+    assert result["facts"]["keyboard_backend"] == "ptb"
+    assert result["facts"]["window_size_px"] == [WIN_W, WIN_H]
+    trials = result["trials"]
+    assert [t["index"] for t in trials] == [0, 1, 2, 3, 3]
+    assert [t["answers"] for t in trials] == [["B"], ["no"], ["2", "0"], [], ["yes"]]
+    assert [t["escaped"] for t in trials] == [False, False, False, True, False]
+    assert [t["switches"] for t in trials] == [2, 0, 2, 0, 0]
+    assert result["pauses"] == ["resume"]
+    for t in trials:
+        assert t["onset_s"] > 0 and t["dropped_frames"] >= 0 and t["gaze_left_fovea"] is None
+        if not t["escaped"]:
+            assert t["rt_s"] > 0
+    assert trials[1]["rt_s"] >= 0.3  # answered at the question, after the whole sequence had played
+    assert_shows(shot_of(shots, 0, 0), a, fix)
+    assert_shows(shot_of(shots, 0, 1), b, fix)
+    assert_shows(shot_of(shots, 1, 0), seq[0], fix)
+    assert_shows(shot_of(shots, 2, 2), c, fix)
+    # trial 0 was shown A, B, A: three onsets, alternating stimuli
+    assert [o[0] for o in result["trial_info"][0]["onsets"]] == [0, 1, 0]
