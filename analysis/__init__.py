@@ -13,6 +13,10 @@ Tables
     :func:`summary_table`
 Paired-comparison scaling (2AFC, top-k of N)
     :func:`thurstone_jod`, :func:`bradley_terry`, :func:`plackett_luce`
+Image quality against GT, fovea and periphery (scikit-image, imported lazily)
+    :func:`image_quality`, :func:`eccentricity_map`, :func:`region_masks`, :func:`error_heatmap`
+A study's whole analysis (``studyapp analyze``)
+    :func:`read_log`, :class:`AnalysisPlan`, :func:`analyze_log`, :func:`write_report`
 
 Conventions: NaN observations are dropped (pairwise for paired data); inputs are
 validated at the boundary and problems raise ``ValueError`` with a one-line message;
@@ -22,7 +26,21 @@ R 4.2.2 (``kruskal.test``, ``wilcox.test``, ``p.adjust``).
 
 from .effect_size import SAWILOWSKY_BINS, BootstrapCI, bootstrap_ci_d, cohens_d, effect_size_label, hedges_g
 from .multicomp import adjust_pvalues, holm
+from .io import LogError, read_log
+from .plan import AnalysisPlan, plan_from_mapping
+from .quality import (
+    QUALITY_COLUMNS,
+    RegionMasks,
+    eccentricity_map,
+    error_heatmap,
+    fovea_radius_px,
+    image_quality,
+    region_masks,
+    squared_error_map,
+)
+from .report import report_json, write_report
 from .scaling import JOD_SIGMA, bradley_terry, plackett_luce, thurstone_jod
+from .study import StudyAnalysis, analyze_log
 from .stats import (
     KruskalResult,
     MannWhitneyResult,
@@ -36,6 +54,22 @@ from .stats import (
 )
 
 __all__ = [
+    "AnalysisPlan",
+    "LogError",
+    "QUALITY_COLUMNS",
+    "RegionMasks",
+    "StudyAnalysis",
+    "analyze_log",
+    "eccentricity_map",
+    "error_heatmap",
+    "fovea_radius_px",
+    "image_quality",
+    "plan_from_mapping",
+    "read_log",
+    "region_masks",
+    "report_json",
+    "squared_error_map",
+    "write_report",
     "BootstrapCI",
     "JOD_SIGMA",
     "bradley_terry",

@@ -16,6 +16,8 @@ from .errors import EXIT_USAGE, CLIError
 
 # Command groups living in their own modules (see studyapp/commands/__init__.py). One line each.
 COMMAND_MODULES = (
+    "studyapp.commands.analyze",
+    "studyapp.commands.quality",
 )
 
 
