@@ -1,0 +1,98 @@
+"""Compiled LP-buffer kernels: the bilinear inverse mapping (LP buffer -> screen) and its footprint.
+
+LP layout: column ``c`` holds ``n[c]`` shaded rows; row ``j`` of column ``c`` is the polar angle
+``theta = 2 pi (j + 0.5) / L[c]`` (VaFR: ``L[c] = l(e(c + 0.5))``, seed 001 Eq 8-9; LMFR/LaFR: ``L[c] = h``,
+Eq 1), at the eccentricity of column centre ``c + 0.5``. A screen pixel with forward-mapped column ``u``
+(seed 001 Eq 5 / Eq 1, 14-15) and polar angle ``theta`` is the bilinear blend of its two neighbouring columns
+``c0 = floor(u - 0.5)``, ``c1 = c0 + 1``, and in each column of the two rows around
+``t = theta L[c] / (2 pi) - 0.5``, rows wrapping around modulo ``n[c]`` (the angular seam).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .foveation._kernels import FORWARD, angle, point
+
+TWO_PI = 2.0 * math.pi
+
+
+@njit(cache=True, inline="always")
+def _rows(theta, Lc, nc):
+    t = theta * Lc / TWO_PI - 0.5
+    r0 = math.floor(t)
+    f = t - r0
+    r0 = int(r0) % nc
+    r1 = (r0 + 1) % nc
+    return r0, r1, f
+
+
+@njit(cache=True, inline="always")
+def footprint(method, P, dx, dy, L, n, w_eff):
+    """Columns, rows and weights of the bilinear fetch of screen offset ``(dx, dy)`` from the gaze."""
+    u, _ = point(method, FORWARD, dx, dy, P)
+    theta = angle(dx, dy)
+    uc = min(max(u - 0.5, 0.0), w_eff - 1.0)
+    c0 = int(math.floor(uc))
+    fu = uc - c0
+    c1 = min(c0 + 1, w_eff - 1)
+    a0, a1, fa = _rows(theta, L[c0], n[c0])
+    b0, b1, fb = _rows(theta, L[c1], n[c1])
+    return c0, c1, fu, a0, a1, fa, b0, b1, fb
+
+
+@njit(cache=True, parallel=True)
+def inverse_map(lp, method, P, gx, gy, L, n, w_eff, x0, y0, out):
+    """Screen tile ``out[(y0 + j), (x0 + i)]`` sampled bilinearly from the LP buffer ``lp`` (h, w, 3)."""
+    th, tw = out.shape[0], out.shape[1]
+    for j in prange(th):
+        dy = y0 + j + 0.5 - gy
+        for i in range(tw):
+            dx = x0 + i + 0.5 - gx
+            c0, c1, fu, a0, a1, fa, b0, b1, fb = footprint(method, P, dx, dy, L, n, w_eff)
+            for ch in range(3):
+                va = lp[a0, c0, ch] * (1.0 - fa) + lp[a1, c0, ch] * fa
+                vb = lp[b0, c1, ch] * (1.0 - fb) + lp[b1, c1, ch] * fb
+                out[j, i, ch] = va * (1.0 - fu) + vb * fu
+
+
+@njit(cache=True)
+def mark_footprint(method, P, gx, gy, L, n, w_eff, xs, ys, need):
+    """Mark in ``need`` (h, w) the LP pixels that the bilinear fetch of screen points ``(xs, ys)`` reads."""
+    for q in range(xs.size):
+        c0, c1, fu, a0, a1, fa, b0, b1, fb = footprint(method, P, xs[q] - gx, ys[q] - gy, L, n, w_eff)
+        need[a0, c0] = True
+        need[a1, c0] = True
+        need[b0, c1] = True
+        need[b1, c1] = True
+
+
+@njit(cache=True, parallel=True)
+def wrap_pad(lp, n, pad, out):
+    """``out[pad + j, c] = lp[j mod n[c], c]`` for ``j`` in ``[-pad, h + pad)``: rows continued around the seam."""
+    H = out.shape[0]
+    for c in prange(lp.shape[1]):
+        nc = n[c]
+        for jj in range(H):
+            j = (jj - pad) % nc
+            for ch in range(lp.shape[2]):
+                out[jj, c, ch] = lp[j, c, ch]
+
+
+@njit(cache=True, parallel=True)
+def eccentricity_bands(gx, gy, c_r, x0, y0, edges, out):
+    """Band index of each pixel of a tile: number of ``edges`` (degrees) below its eccentricity (Eq 3)."""
+    th, tw = out.shape
+    for j in prange(th):
+        dy = y0 + j + 0.5 - gy
+        for i in range(tw):
+            dx = x0 + i + 0.5 - gx
+            e = math.degrees(math.atan(c_r * math.sqrt(dx * dx + dy * dy)))
+            b = 0
+            for q in range(edges.size):
+                if e >= edges[q]:
+                    b += 1
+            out[j, i] = b

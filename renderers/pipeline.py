@@ -1,0 +1,219 @@
+"""Rendering pipelines: GT, and the foveated ray-casting and deferred pipelines (seed 001 §3.4, §5.1, §6.1).
+
+Ray casting (§6.1): one ray per shaded LP-buffer pixel, from the screen position of the pixel's centre given by
+the inverse mapping; the hit point is shaded; the LP buffer is anti-aliased (VaFR: FXAA, LMFR/LaFR: 3x3
+Gaussian); the screen image is the bilinear inverse mapping of the LP buffer (:mod:`._lp`), followed for
+LMFR/LaFR by the foveal-aware Gaussian.
+
+Deferred (§3.4): visibility (a G-buffer of triangle id and depth) at native resolution; shading only at the LP
+samples, each reading the G-buffer pixel under its screen position; then the same anti-aliasing and inverse
+mapping.
+
+Only LP pixels whose screen position lies on the display, or that the bilinear fetch of a border pixel reads,
+are shaded (``offscreen_lp_pixels`` counts the others). The screen is processed in row tiles of at most
+``TILE_PIXELS`` pixels so that memory stays bounded at any resolution.
+
+Binocular rendering (§5.1): ``dup`` renders each eye (cameras offset by -ipd/2 and +ipd/2 along the camera's
+right vector); ``rep`` renders the left eye and builds the right eye's LP buffer by warping the left LP buffer's
+hit points into the right view (forward point warping with a depth test, a simplification of Wissmann et al.'s
+grid warping), re-shading the right LP pixels that received no sample (disoccluded).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from . import _lp
+from .antialias import FOVEAL_RADII, foveal_gaussian, lp_filter
+from .foveation import make_mapping
+from .scene import Camera
+from .tracer import Tracer, camera_rays
+
+TILE_PIXELS = 1 << 18
+MAPPING_KERNEL = {"vafr": 0, "lmfr": 1, "lafr": 2}
+
+
+def _row_tiles(width: int, height: int):
+    rows = max(1, TILE_PIXELS // max(1, width))
+    for y0 in range(0, height, rows):
+        yield y0, min(height, y0 + rows)
+
+
+def render_gt(tracer: Tracer, camera: Camera, width: int, height: int) -> np.ndarray:
+    """One ray per pixel centre, every pixel shaded."""
+    img = np.empty((height, width, 3), dtype=np.float32)
+    xs = np.arange(width, dtype=np.float64) + 0.5
+    for y0, y1 in _row_tiles(width, height):
+        ys = np.arange(y0, y1, dtype=np.float64) + 0.5
+        X, Y = np.meshgrid(xs, ys)
+        img[y0:y1] = tracer.render_points(camera, width, height, X, Y).reshape(y1 - y0, width, 3)
+    return img
+
+
+class LPLayout:
+    """Column periods ``L``, row counts ``n`` and the shaded mask of a mapping's LP buffer (see :mod:`._lp`)."""
+
+    def __init__(self, mapping):
+        self.mapping = mapping
+        w, h = mapping.lp_shape
+        self.method = mapping.method
+        if self.method == "vafr":
+            uc = np.arange(w, dtype=np.float64) + 0.5
+            n = mapping.column_heights()
+            self.w_eff = int(np.count_nonzero(uc <= mapping.u_max)) or 1
+            L = mapping.shading_height(mapping.acuity.e_of_u(uc)[0])
+            n = np.where(np.arange(w) < self.w_eff, np.maximum(n, 1), 0)
+        else:
+            L = np.full(w, float(h))
+            n = np.full(w, h, dtype=np.int64)
+            self.w_eff = w
+        self.w, self.h = w, h
+        self.L = np.ascontiguousarray(L, dtype=np.float64)
+        self.n = np.ascontiguousarray(n, dtype=np.int64)
+        self.mask = np.arange(h)[:, None] < self.n[None, :]
+        self.P = np.ascontiguousarray(mapping._params_vector(), dtype=np.float64)
+        self.kernel = MAPPING_KERNEL[self.method]
+
+    def shaded_pixels(self):
+        """``(jj, ii, x, y, needed)``: LP pixel indices, their screen positions and which must be shaded."""
+        m = self.mapping
+        disp = m.display
+        jj, ii = np.nonzero(self.mask)
+        x, y = m.inverse(ii + 0.5, jj + 0.5)
+        need = np.zeros((self.h, self.w), dtype=np.bool_)
+        W, H = disp.width, disp.height
+        bx = np.concatenate([np.arange(W) + 0.5] * 2 + [np.full(H, 0.5), np.full(H, W - 0.5)])
+        by = np.concatenate([np.full(W, 0.5), np.full(W, H - 0.5)] + [np.arange(H) + 0.5] * 2)
+        _lp.mark_footprint(self.kernel, self.P, disp.gaze_x, disp.gaze_y, self.L, self.n, self.w_eff,
+                           bx, by, need)
+        need[jj, ii] |= disp.contains(x, y)
+        sel = need[jj, ii]
+        return jj, ii, x, y, sel
+
+    def lp_coords(self, x, y):
+        """LP pixel (row, column) containing screen positions ``(x, y)`` (nearest-sample splatting)."""
+        disp = self.mapping.display
+        u, _ = self.mapping.forward(x, y)
+        c = np.clip(np.floor(u).astype(np.int64), 0, self.w_eff - 1)
+        theta = np.mod(np.arctan2(y - disp.gaze_y, x - disp.gaze_x), 2 * math.pi)
+        r = np.floor(theta * self.L[c] / (2 * math.pi)).astype(np.int64) % np.maximum(self.n[c], 1)
+        return r, c
+
+
+def _inverse_map(tracer, layout: LPLayout, lp, aa_post: bool, width: int, height: int) -> np.ndarray:
+    """Screen image from the LP buffer (bilinear, tiled), with LMFR's foveal Gaussian when ``aa_post``."""
+    c = tracer.counters
+    disp = layout.mapping.display
+    img = np.empty((height, width, 3), dtype=np.float32)
+    halo = max(FOVEAL_RADII) if aa_post else 0
+    for y0, y1 in _row_tiles(width, height):
+        t0 = time.perf_counter()
+        a0, a1 = max(0, y0 - halo), min(height, y1 + halo)
+        tile = np.empty((a1 - a0, width, 3), dtype=np.float32)
+        _lp.inverse_map(lp, layout.kernel, layout.P, disp.gaze_x, disp.gaze_y, layout.L, layout.n,
+                        layout.w_eff, 0.0, float(a0), tile)
+        t0 = c.add_time("inverse_map", t0)
+        if aa_post:
+            img[y0:y1] = foveal_gaussian(tile, disp.gaze, disp.c_r, a0, rows=(y0 - a0, y1 - a0))
+            c.add_time("antialias", t0)
+        else:
+            img[y0:y1] = tile
+    return img
+
+
+class GBuffer:
+    """Visibility at native resolution (deferred pipeline): triangle id and hit distance of each pixel."""
+
+    def __init__(self, tracer: Tracer, camera: Camera, width: int, height: int):
+        self.prim = np.empty((height, width), dtype=np.int32)
+        self.tfar = np.empty((height, width), dtype=np.float32)
+        xs = np.arange(width, dtype=np.float64) + 0.5
+        for y0, y1 in _row_tiles(width, height):
+            X, Y = np.meshgrid(xs, np.arange(y0, y1, dtype=np.float64) + 0.5)
+            p, t = tracer.trace(camera, width, height, X, Y)
+            self.prim[y0:y1] = p.reshape(y1 - y0, width)
+            self.tfar[y0:y1] = t.reshape(y1 - y0, width)
+        self.camera, self.width, self.height = camera, width, height
+
+    def shade(self, tracer: Tracer, x, y):
+        """Shade the G-buffer pixels under screen positions ``(x, y)`` (clamped to the display)."""
+        px = np.clip(np.floor(x), 0, self.width - 1).astype(np.int64)
+        py = np.clip(np.floor(y), 0, self.height - 1).astype(np.int64)
+        d = camera_rays(self.camera, self.width, self.height, px + 0.5, py + 0.5)
+        return tracer.shade_hits(np.asarray(self.camera.position), d, self.prim[py, px], self.tfar[py, px])
+
+
+def render_lp(tracer: Tracer, camera: Camera, layout: LPLayout, pipeline: str, width: int, height: int):
+    """Shade the LP buffer of one eye: ``(lp, jj, ii, x, y, prim, tfar)`` of the shaded pixels (for reprojection)."""
+    jj, ii, x, y, sel = layout.shaded_pixels()
+    tracer.counters.offscreen_lp_pixels += int(sel.size - np.count_nonzero(sel))
+    lp = np.zeros((layout.h, layout.w, 3), dtype=np.float32)
+    xs, ys = x[sel], y[sel]
+    if pipeline == "deferred":
+        gb = GBuffer(tracer, camera, width, height)
+        lp[jj[sel], ii[sel]] = gb.shade(tracer, xs, ys)
+        px = np.clip(np.floor(xs), 0, width - 1).astype(np.int64)
+        py = np.clip(np.floor(ys), 0, height - 1).astype(np.int64)
+        return lp, jj[sel], ii[sel], px + 0.5, py + 0.5, gb.prim[py, px], gb.tfar[py, px]
+    else:
+        lp[jj[sel], ii[sel]], prim, tfar = tracer.render_points(camera, width, height, xs, ys, keep_hits=True)
+    return lp, jj[sel], ii[sel], xs, ys, prim, tfar
+
+
+def finish(tracer: Tracer, layout: LPLayout, lp, params: dict, width: int, height: int, exposure: float):
+    """LP-buffer anti-aliasing, inverse mapping and post anti-aliasing."""
+    t0 = time.perf_counter()
+    if layout.method == "vafr" and params.get("fxaa", False):
+        lp = lp_filter(lp, layout.n, "fxaa", exposure)
+    elif layout.method != "vafr" and params.get("aa", False):
+        lp = lp_filter(lp, layout.n, "gaussian3")
+    tracer.counters.add_time("antialias", t0)
+    aa_post = layout.method != "vafr" and params.get("aa", False)
+    return _inverse_map(tracer, layout, lp, aa_post, width, height)
+
+
+def reproject(tracer: Tracer, layout: LPLayout, lp_left, jj, ii, xs, ys, prim, tfar, left: Camera,
+              right: Camera, width: int, height: int):
+    """Right-eye LP buffer from the left one (seed 001 §5.1): warp, depth-test, re-shade the holes.
+
+    Each shaded left LP pixel's hit point (or, for a miss, its direction at infinity) is projected into the
+    right view, forward-mapped into the LP buffer and splatted to the LP pixel containing it, nearest depth
+    winning. Needed right LP pixels that receive no sample are re-shaded by ray casting from the right eye.
+    Returns the right LP buffer and the number of re-shaded pixels.
+    """
+    t0 = time.perf_counter()
+    d = camera_rays(left, width, height, xs, ys)
+    hit = prim >= 0
+    f, r, u = right.basis()
+    rel = np.where(hit[:, None], np.asarray(left.position) + d * tfar[:, None].astype(np.float64)
+                   - np.asarray(right.position), d)
+    zf = rel @ f
+    t = math.tan(math.radians(right.fov_y) / 2.0)
+    front = zf > 0
+    sx = np.where(front, rel @ r, 0.0) / np.where(front, zf, 1.0)
+    sy = np.where(front, rel @ u, 0.0) / np.where(front, zf, 1.0)
+    xr = (sx / t + width / height) * height / 2.0
+    yr = (1.0 - sy / t) * height / 2.0
+    rows, cols = layout.lp_coords(xr[front], yr[front])
+    depth = np.where(hit, zf, np.inf)[front]
+    lin = rows * layout.w + cols
+    order = np.argsort(-depth, kind="stable")      # farthest first: the nearest sample is written last
+    right_lp = np.zeros_like(lp_left)
+    flat = right_lp.reshape(-1, 3)
+    covered = np.zeros(layout.h * layout.w, dtype=np.bool_)
+    src = lp_left[jj, ii][front]
+    flat[lin[order]] = src[order]
+    covered[lin[order]] = True
+    need = np.zeros(layout.h * layout.w, dtype=np.bool_)
+    need[jj * layout.w + ii] = True
+    holes = need & ~covered
+    tracer.counters.add_time("shading", t0)
+    hole_idx = np.nonzero(holes)[0]
+    if hole_idx.size:
+        hj, hi = np.divmod(hole_idx, layout.w)
+        x, y = layout.mapping.inverse(hi + 0.5, hj + 0.5)
+        flat[hole_idx] = tracer.render_points(right, width, height, x, y)
+    return right_lp, int(hole_idx.size)
