@@ -47,7 +47,8 @@ class TrialDisplay:
     ``stimuli`` holds 1 stimulus (``yes_no``), 2 (``2afc``, first = A/left) or N (``preference``). For
     ``2afc`` and ``preference`` the participant may switch among the stimuli (keys in ``switch_keys``) before
     committing; ``answer_keys`` maps a key name to the answer it records (``"A"``/``"B"``, ``"yes"``/``"no"``,
-    or a stimulus index as a string for preference picks).
+    or a stimulus index as a string for preference picks; ``"done"`` ends a preference trial after fewer than
+    ``n_picks`` picks; ``"seen"`` acknowledges a reference, ``kind == "reference"``).
     """
 
     index: int
@@ -62,6 +63,8 @@ class TrialDisplay:
     label: str = ""  # e.g. "this is the ground truth" for the GT reference sequence
     n_picks: int = 1  # preference: 2 for "top two of N"
     progress: tuple[int, int] | None = None  # (trial number, of how many), shown to the participant
+    scene: str = ""  # scene the stimuli show (the simulated observer compares against this scene's GT)
+    kind: str = "trial"  # "trial", "practice", "catch" or "reference" (shown, answered with any key)
 
 
 @dataclass

@@ -123,6 +123,7 @@ class Protocol:
     analysis: dict
     stimuli_dir: Path
     content_hash: str
+    unregistered: tuple[str, ...] = ()  # renderers unknown to the registry (check_renderers=False)
 
     @property
     def n_frames(self) -> int:
@@ -154,29 +155,26 @@ def content_hash(data: dict) -> str:
     return hashlib.sha256(text.encode("ascii")).hexdigest()
 
 
-def renderer_names() -> set[str] | None:
-    """Names in ``renderers.registry`` if it is importable, else None (renderer names are then not checked)."""
+def _registry():
     try:
-        from renderers import registry  # noqa: PLC0415 - optional, built by the renderers issue
+        from renderers import registry  # noqa: PLC0415 - optional (the renderers extra)
+        registry.available()
     except Exception:  # noqa: BLE001 - any failure means "not available here"
         return None
-    for attr in ("names", "available", "list_renderers"):
-        fn = getattr(registry, attr, None)
-        if callable(fn):
-            try:
-                return set(fn())
-            except Exception:  # noqa: BLE001
-                return None
-    for attr in ("REGISTRY", "RENDERERS", "registry"):
-        obj = getattr(registry, attr, None)
-        if isinstance(obj, dict):
-            return set(obj)
-    return None
+    return registry
 
 
-def _conditions(doc: LoadedYAML, data: dict, base: Path) -> dict[str, Condition]:
+def renderer_names() -> set[str] | None:
+    """Names in ``renderers.registry`` if it is importable, else None (renderer names are then not checked)."""
+    reg = _registry()
+    return None if reg is None else set(reg.available())
+
+
+def _conditions(doc: LoadedYAML, data: dict, base: Path, check_renderers: bool,
+                unregistered: list) -> dict[str, Condition]:
     out = {}
-    known = renderer_names()
+    reg = _registry()
+    known = None if reg is None else set(reg.available())
     for name, spec in data["conditions"].items():
         where = ("conditions", name)
         sources = [k for k in ("renderer", "folder", "derive") if k in spec]
@@ -186,8 +184,15 @@ def _conditions(doc: LoadedYAML, data: dict, base: Path) -> dict[str, Condition]
         if "params" in spec and "renderer" not in spec:
             raise doc.error(where + ("params",), "params belong to a renderer condition")
         if "renderer" in spec and known is not None and spec["renderer"] not in known:
-            raise doc.error(where + ("renderer",), f"unknown renderer {spec['renderer']!r}: allowed "
-                            f"{', '.join(sorted(known))}")
+            if check_renderers:
+                raise doc.error(where + ("renderer",), f"unknown renderer {spec['renderer']!r}: allowed "
+                                f"{', '.join(sorted(known))}")
+            unregistered.append(spec["renderer"])
+        elif "renderer" in spec and known is not None:
+            try:
+                reg.resolve_params(spec["renderer"], spec.get("params", {}))
+            except ValueError as exc:
+                raise doc.error(where + ("params",), str(exc)) from None
         derive = spec.get("derive", {})
         if derive and derive["from"] not in data["conditions"]:
             raise doc.error(where + ("derive", "from"), f"unknown condition {derive['from']!r}")
@@ -208,7 +213,7 @@ def _check_condition(doc, conditions, field_path, name, allow_roles=("main", "ca
         raise doc.error(field_path, f"condition {name!r} has role {conditions[name].role}")
 
 
-def load_protocol(path, stimuli_dir=None) -> Protocol:
+def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Protocol:
     """Read, validate and complete a protocol file.
 
     Parameters
@@ -217,6 +222,10 @@ def load_protocol(path, stimuli_dir=None) -> Protocol:
         The YAML file.
     stimuli_dir : str or Path, optional
         Override of the protocol's ``stimuli_dir`` (default ``stimuli/<name>`` next to the protocol file).
+    check_renderers : bool
+        When ``renderers.registry`` is importable, an unknown renderer is an error (default); with False it is
+        only listed in ``Protocol.unregistered`` (simulated runs, which render nothing). Parameters of known
+        renderers are always checked against the registry.
 
     Raises
     ------
@@ -228,7 +237,8 @@ def load_protocol(path, stimuli_dir=None) -> Protocol:
     data = validate_document(doc)
     base = path.resolve().parent
     family = data["family"]
-    conditions = _conditions(doc, data, base)
+    unregistered: list[str] = []
+    conditions = _conditions(doc, data, base, check_renderers, unregistered)
 
     design = data["design"]
     if "conditions" in design:
@@ -331,4 +341,4 @@ def load_protocol(path, stimuli_dir=None) -> Protocol:
         position_balance=bool(design.get("position_balance", family == "2afc")), n_picks=n_picks,
         reference=reference.get("condition"), reference_label=reference.get("label", "This is the reference"),
         practice=practice, breaks=data.get("breaks"), catch=catch, simulation=simulation, analysis=analysis,
-        stimuli_dir=sdir, content_hash=content_hash(data))
+        stimuli_dir=sdir, content_hash=content_hash(data), unregistered=tuple(sorted(set(unregistered))))

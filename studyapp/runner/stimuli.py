@@ -1,0 +1,359 @@
+"""Stimulus sets: where a protocol's stimuli live, building them (``prepare``), and synthetic sets.
+
+Layout (the same for prepared sets and for folders a lab rendered elsewhere)::
+
+    <root>/<CONDITION>/<SCENE>.png                     still image
+    <root>/<CONDITION>/<SCENE>/frame_00000.png ...     sequence (round(duration_s * fps) frames)
+
+``root`` is the protocol's ``stimuli_dir`` (``scale<F>`` below it for ``--scale F``); a ``folder`` condition
+reads ``<folder>/<SCENE>.png`` or ``<folder>/<SCENE>/*.png`` (sorted) instead. Renderer conditions are built by
+``renderers.stimuli.render_stimulus`` (with its content-addressed cache); ``derive`` conditions are made from
+another condition's frames by a Gaussian blur and seeded noise, here.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import shutil
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from data_schema.atomic import atomic_path
+
+from .protocol import Display, Protocol
+
+
+@dataclass(frozen=True)
+class Needed:
+    """One (condition, scene) stimulus the protocol's schedules can show."""
+
+    condition: str
+    scene: str
+
+
+def scaled_display(protocol: Protocol, scale: float) -> Display:
+    return protocol.display if scale == 1.0 else protocol.display.scaled(scale)
+
+
+def stimulus_root(protocol: Protocol, scale: float = 1.0, root: Path | None = None) -> Path:
+    base = Path(root) if root is not None else protocol.stimuli_dir
+    return base if scale == 1.0 else base / f"scale{scale:g}"
+
+
+def needed_stimuli(protocol: Protocol) -> list[Needed]:
+    """Every (condition, scene) a schedule of ``protocol`` may show, sources of derived conditions first."""
+    want: list[Needed] = []
+
+    def add(cond, scene):
+        c = protocol.conditions[cond]
+        if c.derive_from:
+            add(c.derive_from, scene)
+        n = Needed(cond, scene)
+        if n not in want:
+            want.append(n)
+
+    for scene in protocol.scenes:
+        for cond in protocol.design_conditions:
+            add(cond, scene)
+        if protocol.reference:
+            add(protocol.reference, scene)
+        if protocol.catch and protocol.catch["kind"] == "degraded":
+            add(protocol.catch["good"], scene)
+            add(protocol.catch["bad"], scene)
+    if protocol.practice:
+        for cond in protocol.practice["conditions"]:
+            add(cond, protocol.practice["scene"])
+    if protocol.ground_truth:  # what the simulated observer compares against
+        for scene in protocol.scenes + ((protocol.practice["scene"],) if protocol.practice else ()):
+            add(protocol.ground_truth, scene)
+    return want
+
+
+def frame_paths(protocol: Protocol, condition: str, scene: str, scale: float = 1.0,
+                root: Path | None = None) -> tuple[Path, ...]:
+    """The frame files of one stimulus (they may not exist yet)."""
+    cond = protocol.conditions[condition]
+    if cond.folder is not None:
+        single = cond.folder / f"{scene}.png"
+        seq_dir = cond.folder / scene
+        if seq_dir.is_dir():
+            frames = tuple(sorted(seq_dir.glob("*.png")))
+            return frames if frames else (seq_dir / "frame_00000.png",)
+        return (single,)
+    base = stimulus_root(protocol, scale, root) / condition
+    if protocol.n_frames == 1:
+        return (base / f"{scene}.png",)
+    return tuple(base / scene / f"frame_{i:05d}.png" for i in range(protocol.n_frames))
+
+
+def missing_stimuli(protocol: Protocol, scale: float = 1.0, root: Path | None = None) -> list[tuple[Needed, Path]]:
+    out = []
+    for n in needed_stimuli(protocol):
+        for f in frame_paths(protocol, n.condition, n.scene, scale, root):
+            if not f.is_file():
+                out.append((n, f))
+                break
+    return out
+
+
+def camera_at(protocol: Protocol, frame: int) -> dict | None:
+    """Camera keyframe interpolated linearly at ``t = frame / (n_frames - 1)`` (None: the scene's camera)."""
+    path = sorted(protocol.camera_path, key=lambda k: k["t"])
+    if not path:
+        return None
+    n = protocol.n_frames
+    t = 0.0 if n <= 1 else frame / (n - 1)
+    keys = [k for k in path[0] if k != "t"]
+    if t <= path[0]["t"]:
+        return {k: path[0][k] for k in keys}
+    for a, b in zip(path, path[1:]):
+        if a["t"] <= t <= b["t"]:
+            w = 0.0 if b["t"] == a["t"] else (t - a["t"]) / (b["t"] - a["t"])
+            out = {}
+            for k in keys:
+                va, vb = a.get(k), b.get(k, a.get(k))
+                if isinstance(va, list):
+                    out[k] = [x + w * (y - x) for x, y in zip(va, vb)]
+                elif va is not None:
+                    out[k] = va + w * (vb - va)
+            return out
+    return {k: path[-1][k] for k in keys if k in path[-1]}
+
+
+def absolute_camera(scene: str, camera: dict | None) -> dict | None:
+    """Turn ``yaw_deg``/``pitch_deg`` offsets into the renderer's ``look_at`` for the scene's own camera.
+
+    Yaw turns the view direction about the camera's up vector, pitch about its right vector; the position
+    stays. Keys ``position``/``look_at`` pass through unchanged.
+    """
+    if not camera or not ({"yaw_deg", "pitch_deg"} & set(camera)):
+        return camera
+    from renderers.scene import resolve  # noqa: PLC0415 - only when rendering
+
+    cam = resolve(scene).camera
+    f, r, u = cam.basis()
+    pos = np.asarray(camera.get("position", cam.position), dtype=np.float64)
+    dist = float(np.linalg.norm(np.subtract(cam.look_at, cam.position)))
+    yaw, pitch = math.radians(camera.get("yaw_deg", 0.0)), math.radians(camera.get("pitch_deg", 0.0))
+    d = math.cos(pitch) * (math.cos(yaw) * f + math.sin(yaw) * r) + math.sin(pitch) * u
+    out = {k: v for k, v in camera.items() if k not in ("yaw_deg", "pitch_deg")}
+    out["position"] = [float(x) for x in pos]
+    out["look_at"] = [float(x) for x in pos + dist * d]
+    return out
+
+
+# -- images ------------------------------------------------------------------------------------------------
+def load_gray(path: Path) -> np.ndarray:
+    """Rec. 709 luma of an 8-bit image in [0, 1], float32 (H, W)."""
+    from PIL import Image
+
+    with Image.open(path) as im:
+        a = np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
+    return a @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+
+
+def save_png(path: Path, rgb: np.ndarray) -> Path:
+    """Write a float RGB image in [0, 1] as an 8-bit PNG, atomically."""
+    from PIL import Image
+
+    a = np.clip(np.rint(np.asarray(rgb) * 255.0), 0, 255).astype(np.uint8)
+    with atomic_path(path) as tmp:
+        Image.fromarray(a).save(tmp, format="PNG")
+    return Path(path)
+
+
+def gaussian_blur(img: np.ndarray, sigma: float) -> np.ndarray:
+    """Separable Gaussian blur (reflect borders) of an (H, W[, C]) float image."""
+    if sigma <= 0:
+        return img
+    from scipy.ndimage import gaussian_filter
+
+    s = (sigma, sigma) + ((0,) if img.ndim == 3 else ())
+    return gaussian_filter(img, s, mode="reflect")
+
+
+def _seed_of(*parts) -> int:
+    return int.from_bytes(hashlib.sha256("|".join(map(str, parts)).encode()).digest()[:8], "little")
+
+
+def degrade(rgb: np.ndarray, blur_sigma_px: float, noise: float, seed: int) -> np.ndarray:
+    """A strongly degraded copy: Gaussian blur then additive Gaussian noise of SD ``noise``, clipped to [0, 1]."""
+    out = gaussian_blur(np.asarray(rgb, dtype=np.float32), blur_sigma_px)
+    if noise > 0:
+        out = out + np.random.default_rng(seed).normal(0.0, noise, out.shape).astype(np.float32)
+    return np.clip(out, 0.0, 1.0)
+
+
+def _load_rgb(path: Path) -> np.ndarray:
+    from PIL import Image
+
+    with Image.open(path) as im:
+        return np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
+
+
+def make_derived(protocol: Protocol, need: Needed, scale: float = 1.0, root: Path | None = None) -> list[Path]:
+    """Build a ``derive`` condition's frames from its source condition's frames."""
+    cond = protocol.conditions[need.condition]
+    src = frame_paths(protocol, cond.derive_from, need.scene, scale, root)
+    dst = frame_paths(protocol, need.condition, need.scene, scale, root)
+    if len(src) != len(dst):
+        dst = tuple(dst[0].parent / f"frame_{i:05d}.png" for i in range(len(src))) if len(src) > 1 else dst
+    out = []
+    sigma = cond.blur_sigma_px * scale
+    for i, (s, d) in enumerate(zip(src, dst)):
+        out.append(save_png(d, degrade(_load_rgb(s), sigma, cond.noise, _seed_of(need.condition, need.scene, i))))
+    return out
+
+
+# -- prepare -----------------------------------------------------------------------------------------------
+def render_function():
+    """``renderers.stimuli.render_stimulus`` or a ValueError saying why it is not usable here."""
+    try:
+        from renderers.stimuli import render_stimulus  # noqa: PLC0415 - built by the renderers issue
+    except Exception as exc:  # noqa: BLE001 - any import failure: the renderers are not usable
+        raise ValueError(f"the renderers are not usable here ({type(exc).__name__}: {exc}): render the stimuli "
+                         "elsewhere and use folder conditions, or use run --simulate (declared qualities)") from None
+    return render_stimulus
+
+
+def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, cache_dir: Path | None = None,
+            progress: Callable[[int, int, float], None] | None = None, render=None) -> dict:
+    """Build every missing stimulus of ``protocol``: render renderer conditions, derive degraded ones.
+
+    ``progress(done_frames, total_frames, seconds_left)`` is called after every frame; the time left is the
+    mean seconds per rendered frame so far times the frames left. Returns counts and the elapsed time.
+    """
+    if not 0.0 < scale <= 1.0:
+        raise ValueError(f"--scale={scale:g} is out of range: allowed (0, 1]")
+    disp = scaled_display(protocol, scale)
+    gaze = protocol.gaze_px(disp)
+    root_dir = stimulus_root(protocol, scale, root)
+    cache = Path(cache_dir) if cache_dir is not None else root_dir.parent / ".cache"
+    todo = []
+    for need in needed_stimuli(protocol):
+        cond = protocol.conditions[need.condition]
+        frames = frame_paths(protocol, need.condition, need.scene, scale, root)
+        if all(f.is_file() for f in frames):
+            continue
+        if cond.folder is not None:
+            missing = next(f for f in frames if not f.is_file())
+            raise ValueError(f"missing stimulus file {missing} (condition {need.condition}, scene {need.scene}): "
+                             "folder conditions are rendered elsewhere")
+        todo.append((need, cond, frames))
+    n_render = sum(len(fr) for _, c, fr in todo if c.renderer)
+    total = sum(len(fr) for _, _, fr in todo)
+    if n_render and render is None:
+        render = render_function()
+    t0, done, rendered, t_render = time.perf_counter(), 0, 0, 0.0
+    for need, cond, frames in todo:
+        if cond.renderer:
+            for i, dst in enumerate(frames):
+                if dst.is_file():
+                    done += 1
+                    continue
+                t1 = time.perf_counter()
+                png = render(need.scene, cond.renderer, dict(cond.params), disp.width_px, disp.height_px, gaze,
+                             camera=absolute_camera(need.scene, camera_at(protocol, i)), cache_dir=cache)
+                dst.parent.mkdir(parents=True, exist_ok=True)
+                with atomic_path(dst) as tmp:
+                    shutil.copyfile(png, tmp)
+                t_render += time.perf_counter() - t1
+                rendered += 1
+                done += 1
+                if progress:
+                    left = (n_render - rendered) * (t_render / rendered) if rendered else math.nan
+                    progress(done, total, left)
+        else:
+            make_derived(protocol, need, scale, root)
+            done += len(frames)
+            if progress:
+                progress(done, total, (n_render - rendered) * (t_render / rendered) if rendered else 0.0)
+    return {"frames": total, "rendered": rendered, "seconds": time.perf_counter() - t0}
+
+
+# -- synthetic stimulus sets (demo, tests, dry runs without renderers) --------------------------------------
+def eccentricity_map(display: Display, gaze: tuple[float, float]) -> np.ndarray:
+    """Eccentricity in degrees of every pixel centre relative to ``gaze`` on a flat screen.
+
+    The eye sits ``distance_cm`` in front of the screen centre; a pixel at ``(x, y)`` is the point
+    ``p = ((x - W/2) s, (y - H/2) s, D)`` with ``s = width_cm / width_px`` and
+    ``e = atan2(|p x g|, p . g)``, the angle between the rays to the pixel and to the gaze point.
+    """
+    s = display.width_cm / display.width_px
+    d = display.distance_cm
+    x = (np.arange(display.width_px, dtype=np.float64) + 0.5 - display.width_px / 2) * s
+    y = (np.arange(display.height_px, dtype=np.float64) + 0.5 - display.height_px / 2) * s
+    gx, gy = (gaze[0] - display.width_px / 2) * s, (gaze[1] - display.height_px / 2) * s
+    X, Y = np.meshgrid(x, y)
+    dot = X * gx + Y * gy + d * d
+    cx = Y * d - d * gy
+    cy = d * gx - X * d
+    cz = X * gy - Y * gx
+    cross = np.sqrt(cx * cx + cy * cy + cz * cz)
+    return np.degrees(np.arctan2(cross, dot))
+
+
+def synthetic_scene(width: int, height: int, scene: str, frame: int = 0) -> np.ndarray:
+    """A procedural 'ground truth' image with fine detail everywhere (gratings, checks, edges), RGB in [0, 1]."""
+    rng = np.random.default_rng(_seed_of("scene", scene))
+    y, x = np.mgrid[0:height, 0:width].astype(np.float32)
+    x = x + 1.5 * frame
+    img = np.zeros((height, width, 3), dtype=np.float32)
+    for c in range(3):
+        f1, f2 = rng.uniform(0.05, 0.35, 2)
+        th = rng.uniform(0, np.pi)
+        img[..., c] = 0.5 + 0.22 * np.sin(f1 * (x * np.cos(th) + y * np.sin(th))) \
+            + 0.12 * np.sin(f2 * (x * np.sin(th) - y * np.cos(th)))
+    check = ((x // max(2, width // 40) + y // max(2, width // 40)) % 2).astype(np.float32)
+    img += 0.15 * (check[..., None] - 0.5) * rng.uniform(0.5, 1.0, 3).astype(np.float32)
+    return np.clip(img, 0.0, 1.0)
+
+
+def foveated_degrade(rgb: np.ndarray, ecc: np.ndarray, quality: float, seed: int) -> np.ndarray:
+    """Stand-in for a foveated renderer of declared ``quality`` in [0, 1]: blur and noise that grow with
+    eccentricity, ``w(e) = min(1, e / 10 deg)``, scaled by ``1 - quality`` (quality 1 returns the input)."""
+    k = 1.0 - float(quality)
+    if k <= 0:
+        return rgb
+    w = np.minimum(1.0, ecc / 10.0).astype(np.float32)[..., None]
+    blurred = gaussian_blur(rgb, 0.5 + 4.0 * k)
+    noise = np.random.default_rng(seed).normal(0.0, 0.12 * k, rgb.shape).astype(np.float32)
+    mix = np.clip(0.25 * k + w * (0.3 + k), 0.0, 1.0)
+    return np.clip(rgb * (1 - mix) + blurred * mix + noise * (0.2 + w), 0.0, 1.0)
+
+
+def write_synthetic_stimuli(protocol: Protocol, scale: float = 1.0, root: Path | None = None,
+                            max_frames: int | None = None) -> Path:
+    """Write a synthetic stimulus set for every stimulus the protocol needs (no renderer involved).
+
+    The ground truth of a scene is :func:`synthetic_scene`; a renderer or folder condition is
+    :func:`foveated_degrade` of it at the condition's declared ``quality`` (1.0 if none is declared); a derived
+    condition is made from its source as :func:`prepare` would. Sequences get ``max_frames`` frames at most
+    (the files are named as the protocol expects; later frames repeat the last one).
+    """
+    disp = scaled_display(protocol, scale)
+    ecc = eccentricity_map(disp, protocol.gaze_px(disp))
+    base = stimulus_root(protocol, scale, root)
+    for need in needed_stimuli(protocol):
+        cond = protocol.conditions[need.condition]
+        frames = frame_paths(protocol, need.condition, need.scene, scale, root)
+        if cond.folder is not None:  # a lab's own images: never overwritten
+            continue
+        if cond.derive_from:
+            make_derived(protocol, need, scale, root)
+            continue
+        q = 1.0 if cond.quality is None else cond.quality
+        for i, f in enumerate(frames):
+            j = i if max_frames is None else min(i, max_frames - 1)
+            if j < i:
+                f.parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(frames[j], f)
+                continue
+            gt = synthetic_scene(disp.width_px, disp.height_px, need.scene, j)
+            save_png(f, foveated_degrade(gt, ecc, q, _seed_of(need.condition, need.scene, j)))
+    return base
