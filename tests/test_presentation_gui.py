@@ -8,7 +8,10 @@ and the fixation mark at the gaze point. No timing assertions: Xvfb has no vsync
 
 from __future__ import annotations
 
+import os
+import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -63,7 +66,7 @@ def assert_shows(shot: np.ndarray, img: np.ndarray, fixation: tuple[int, int], r
     for dx, dy in ((-1, -1), (0, 0), (-6, 0), (5, -1), (0, 5), (-1, -7)):
         np.testing.assert_array_equal(shot[top + fy + dy, left + fx + dx], RED,
                                       err_msg=f"fixation pixel offset ({dx}, {dy})")
-    assert (shot[40: top - 1] == 0).all() and (shot[top + IMG_H + 1:, :] == 0).all()
+    assert (shot[40: top - 1] == 0).all() and (shot[top + IMG_H + 1: top + IMG_H + 20] == 0).all()
 
 
 def stim(cond: str, *frames: Path, fps: float = 0.0) -> dict:
@@ -134,3 +137,67 @@ def test_gui_trials_keys_screenshots_and_pause(tmp_path):
     assert_shows(shot_of(shots, 2, 2), c, fix)
     # trial 0 was shown A, B, A: three onsets, alternating stimuli
     assert [o[0] for o in result["trial_info"][0]["onsets"]] == [0, 1, 0]
+
+
+def test_gui_mousegaze_flags_gaze_outside_fovea_and_pause_end(tmp_path):
+    """iohub's MouseGaze follows the pointer moved by xdotool: a gaze kept on the fixation point leaves the trial
+    unflagged, a gaze moved 9 degrees away flags it; Escape then "E" ends the session (saved as "end")."""
+    blocks_image(tmp_path / "a.png", 1)
+    fix = (100, 80)
+    trials = [{"index": i, "family": "yes_no", "stimuli": [stim("GT", tmp_path / "a.png")], "question": "GT?",
+               "answer_keys": {"y": "yes", "n": "no"}, "fixation_px": fix, "black_before_s": 0.5}
+              for i in range(3)]
+    spec = {"display": DISPLAY, "presenter": {"eyetracker": "mousegaze", "fovea_deg": 2.5},
+            "steps": [{"trial": t} for t in trials]}
+    left, top = (WIN_W - IMG_W) // 2, (WIN_H - IMG_H) // 2
+    with Xvfb() as x:
+        d = Driver(x, spec, tmp_path)
+        try:
+            facts = d.wait_for("opened")
+            assert facts["eyetracker"] == {"kind": "mousegaze", "ok": True}
+            wx, wy = facts["window_pos_px"]
+
+            def gaze_at(ix, iy):  # image pixel -> screen pixel under the pointer
+                x.xdotool("mousemove", str(wx + left + ix), str(wy + top + iy))
+
+            for i, far in enumerate((False, True)):
+                d.wait_for("black", trial=i)
+                gaze_at(*fix)
+                d.wait_for("onset", trial=i)
+                if far:
+                    gaze_at(fix[0] + 200, fix[1] + 0)  # 200 px = 9.0 deg at 22.3 px/deg
+                time.sleep(0.4)
+                x.key("ny"[i])
+            d.wait_for("onset", trial=2)
+            x.key("Escape")
+            d.wait_for("pause")
+            x.key("e")
+            result = d.finish()
+        finally:
+            d.kill()
+    got = result["trials"]
+    assert [t["answers"] for t in got] == [["no"], ["yes"], []]
+    assert [t["gaze_left_fovea"] for t in got[:2]] == [False, True]
+    assert got[2]["escaped"] is True and result["pauses"] == ["end"]
+    g0 = np.array(result["trial_info"][0]["gaze"])
+    g1 = np.array(result["trial_info"][1]["gaze"])
+    assert len(g0) > 3 and len(g1) > 3
+    np.testing.assert_allclose(g0[:, 1:], [[left + fix[0], top + fix[1]]] * len(g0), atol=1.0)
+    np.testing.assert_allclose(g1[-1, 1:], [left + fix[0] + 200, top + fix[1]], atol=1.0)
+
+
+def test_gui_refuses_a_keyboard_without_psychtoolbox(tmp_path):
+    """If psychtoolbox cannot be imported, PsychoPy silently falls back to its 'event' keyboard; open() refuses."""
+    fake = tmp_path / "fake" / "psychtoolbox"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text('raise ImportError("simulated: libjack missing")\n')
+    code = ("from studyapp.presentation.psychopy_window import PsychoPyPresenter, PresentationError\n"
+            "from studyapp.presentation.base import DisplaySettings\n"
+            "try:\n    PsychoPyPresenter().open(DisplaySettings(640, 480, 30.0, 60.0))\n"
+            "except PresentationError as e:\n    print('REFUSED', e)\n")
+    with Xvfb() as x:
+        env = dict(x.env, PYTHONPATH=f"{fake.parent}{os.pathsep}{x.env['PYTHONPATH']}")
+        out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60)
+    lines = [ln for ln in out.stdout.splitlines() if ln.startswith("REFUSED")]
+    assert lines == ["REFUSED keyboard backend is 'event', not 'ptb': psychtoolbox did not load (on Debian "
+                     "install libjack-jackd2-0); refusing to run with imprecise reaction times"], out.stderr[-2000:]

@@ -74,7 +74,9 @@ class Placement:
     def fit(cls, win_w: int, win_h: int, img_w: int, img_h: int) -> "Placement":
         scale = min(1.0, win_w / img_w, win_h / img_h)
         w, h = img_w * scale, img_h * scale
-        return cls(win_w, win_h, img_w, img_h, scale, int((win_w - w) // 2), int((win_h - h) // 2))
+        # 1e-9 absorbs the round-off of w = img_w * (win_w / img_w) when the image is shrunk to fit
+        return cls(win_w, win_h, img_w, img_h, scale, int(math.floor((win_w - w) / 2 + 1e-9)),
+                   int(math.floor((win_h - h) / 2 + 1e-9)))
 
     @property
     def size(self) -> tuple[float, float]:
@@ -100,8 +102,8 @@ class Placement:
 def pixels_per_degree(display: DisplaySettings) -> float:
     """Pixels per degree of visual angle at the screen centre.
 
-    ``ppd = width_px / width_cm * distance_cm * tan(1°)`` -- the size in pixels of 1° seen from ``distance_cm``,
-    the same as PsychoPy's ``deg2pix`` (small-angle form, ``cm = distance * tan(deg)``).
+    ``ppd = width_px / width_cm * distance_cm * tan(1°)``: the size in pixels of 1° seen from ``distance_cm`` on a
+    flat screen, as PsychoPy's ``deg2pix(1, monitor, correctFlat=True)``.
     """
     return display.width_px / display.width_cm * display.distance_cm * math.tan(math.radians(1.0))
 
@@ -160,6 +162,19 @@ def _stim_labels(trial: TrialDisplay) -> list[str]:
     if trial.family == "preference":
         return [str(i + 1) for i in range(len(trial.stimuli))]
     return [""]
+
+
+def _has_display() -> bool:
+    import os
+    import sys
+
+    return not sys.platform.startswith("linux") or bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def _set_text(stim, text: str) -> None:
+    """Set a TextStim's text only when it changes (a change re-lays out the text, too slow for every frame)."""
+    if stim.text != text:
+        stim.text = text
 
 
 class _Loaded:
@@ -229,7 +244,9 @@ class PsychoPyPresenter:
             from psychopy import core, logging, monitors, visual
             from psychopy.hardware import keyboard
         except Exception as exc:  # no display, missing package...
-            raise PresentationError(f"cannot import PsychoPy's window modules: {type(exc).__name__}: {exc}") from None
+            hint = " (no DISPLAY: run under a display or Xvfb, e.g. xvfb-run -a)" if not _has_display() else ""
+            raise PresentationError(f"cannot import PsychoPy's window modules: {type(exc).__name__}: "
+                                    f"{exc}{hint}") from None
         self._core, self._visual = core, visual
         self._now = logging.defaultClock.getTime  # the clock of win.flip()'s time stamps
         mon = monitors.Monitor("studyapp", width=display.width_cm, distance=display.distance_cm)
@@ -262,6 +279,7 @@ class PsychoPyPresenter:
             "psychopy_version": psychopy.__version__,
             "pyglet_version": pyglet.version,
             "window_size_px": [int(v) for v in self.win.size],
+            "window_pos_px": [int(v) for v in self._window_location()],
             "fullscreen": bool(display.fullscreen),
             "screen": int(display.screen),
             "pixels_per_degree": pixels_per_degree(display),
@@ -280,8 +298,11 @@ class PsychoPyPresenter:
                                      units="pix")
         self._dim = visual.TextStim(win, text="", height=h * 0.75, color=(-0.3, -0.3, -0.3), units="pix",
                                     pos=(0, -win.size[1] / 2 + h))
-        self._corner = visual.TextStim(win, text="", height=h, color=(1, 1, 1), units="pix", anchorHoriz="left", alignText="left",
-                                       anchorVert="top", pos=(-win.size[0] / 2 + 8, win.size[1] / 2 - 8))
+        self._question = visual.TextStim(win, text="", height=h, color=(0.8, 0.8, 0.8), units="pix",
+                                         wrapWidth=win.size[0] * 0.9)
+        self._corner = visual.TextStim(win, text="", height=h, color=(1, 1, 1), units="pix", anchorHoriz="left",
+                                       alignText="left", anchorVert="top",
+                                       pos=(-win.size[0] / 2 + 8, win.size[1] / 2 - 8))
         self._fix = []
         if self.fixation_rgb is not None:
             arm, line = self.fixation_size_px, self.fixation_line_px
@@ -327,6 +348,12 @@ class PsychoPyPresenter:
             return {"kind": self.eyetracker, "ok": False, "reason": f"{type(exc).__name__}: {exc}"}
         return {"kind": self.eyetracker, "ok": True}
 
+    def _window_location(self) -> tuple[int, int]:
+        """Top-left corner of the window on its screen, pixels (0, 0 in fullscreen)."""
+        if self.display.fullscreen:
+            return (0, 0)
+        return tuple(self.win.winHandle.get_location())
+
     def _gaze_window_px(self) -> tuple[float, float] | None:
         """Last gaze sample in window pixels (x right, y down, top-left origin), or None."""
         if self._tracker is None:
@@ -335,18 +362,27 @@ class PsychoPyPresenter:
         if g is None or len(g) < 2:
             return None
         # iohub reports display coordinates (origin at the screen centre, y up); convert via the window position
-        hnd = self.win.winHandle
-        sw, sh = hnd.screen.width, hnd.screen.height
-        wx, wy = hnd.get_location() if not self.display.fullscreen else (0, 0)
+        screen = self.win.winHandle.screen
+        wx, wy = self._window_location()
+        sw, sh = screen.width, screen.height
         return (float(g[0]) + sw / 2.0 - wx, sh / 2.0 - float(g[1]) - wy)
 
     # ------------------------------------------------------------------ drawing helpers
     def _draw_text(self, text: str, dim: str = "") -> None:
-        self._text.text = text
+        _set_text(self._text, text)
         self._text.draw()
         if dim:
-            self._dim.text = dim
+            _set_text(self._dim, dim)
             self._dim.draw()
+
+    def _draw_question_in_margin(self, question: str, placement: Placement) -> None:
+        """Draw ``question`` centred in the margin below the stimulus if that margin is at least 2 lines high
+        (never over the stimulus; in a full-screen stimulus the question shows only after a sequence)."""
+        margin = placement.win_h - (placement.top + placement.size[1])
+        if question and margin >= 2 * self.text_height_px:
+            _set_text(self._question, question)
+            self._question.pos = (0, -placement.win_h / 2.0 + margin / 2.0)
+            self._question.draw()
 
     def _progress_text(self, trial: TrialDisplay) -> str:
         if trial.progress is None:
@@ -457,7 +493,7 @@ class PsychoPyPresenter:
         shot_pending = self.screenshot_dir is not None
         answered_at = None
         playback_over = False
-        gaze_left = False if self._tracker is not None else None
+        gaze_left = False if self._tracker is not None and trial.fixation_px is not None else None
         dropped0 = win.nDroppedFrames
         win.recordFrameIntervals = True
         stim_onset_pending = True
@@ -485,8 +521,9 @@ class PsychoPyPresenter:
                             r.draw()
                     if self.show_labels and len(labels) > 1:
                         picked = "  picked: " + ", ".join(labels[int(p)] for p in picks if p.isdigit()) if picks else ""
-                        self._corner.text = labels[current] + picked
+                        _set_text(self._corner, labels[current] + picked)
                         self._corner.draw()
+                    self._draw_question_in_margin(trial.question, placement)
                     if shot_pending:
                         self._save_shot(trial, current)
                         shot_pending = False
@@ -510,7 +547,7 @@ class PsychoPyPresenter:
                     g = self._gaze_window_px()
                     if g is not None:
                         info["gaze"].append([t_flip - onset, g[0], g[1]])
-                        if trial.fixation_px is not None:
+                        if gaze_left is not None:
                             fx, fy = placement.image_to_window(*trial.fixation_px)
                             if math.hypot(g[0] - fx, g[1] - fy) > self.fovea_deg * ppd:
                                 gaze_left = True

@@ -45,7 +45,7 @@ def main(spec_path: str) -> int:
     spec = json.loads(Path(spec_path).read_text())
     pres = PsychoPyPresenter(on_event=emit, **spec.get("presenter", {}))
     out = {"facts": pres.open(DisplaySettings(**spec["display"])), "trials": [], "pauses": []}
-    emit("opened", {})
+    emit("opened", out["facts"])
     try:
         for step in spec["steps"]:
             if "instructions" in step:

@@ -1,0 +1,157 @@
+"""Window-free tests of the PsychoPy presenter: placement geometry, frame timing, validation, lazy import."""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, strategies as st
+
+from studyapp.presentation.base import DisplaySettings, Stimulus, TrialDisplay
+from studyapp.presentation.psychopy_window import (Placement, pixels_per_degree, sequence_frame, validate_display,
+                                                   validate_trial)
+
+ROOT = Path(__file__).resolve().parent.parent
+sizes = st.integers(16, 5000)
+
+
+@given(sizes, sizes, sizes, sizes)
+def test_placement_fits_centres_and_maps_pixels(win_w, win_h, img_w, img_h):
+    p = Placement.fit(win_w, win_h, img_w, img_h)
+    w, h = p.size
+    assert 0 < p.scale <= 1.0
+    assert p.left >= 0 and p.top >= 0 and p.left + w <= win_w + 1e-9 and p.top + h <= win_h + 1e-9
+    # centred to within one pixel, and the image touches the window on at least one axis when shrunk
+    assert abs((win_w - w) / 2 - p.left) < 1 and abs((win_h - h) / 2 - p.top) < 1
+    if p.scale < 1:
+        assert math.isclose(w, win_w) or math.isclose(h, win_h)
+    else:
+        assert (w, h) == (img_w, img_h)
+    # image corners -> window corners of the drawn rectangle; pix units have the origin at the centre, y up
+    assert p.image_to_window(0, 0) == (p.left, p.top)
+    x1, y1 = p.image_to_window(img_w, img_h)
+    assert math.isclose(x1, p.left + w) and math.isclose(y1, p.top + h)
+    cx, cy = p.image_to_pix(img_w / 2, img_h / 2)
+    assert math.isclose(cx, p.centre_pix[0], abs_tol=1e-9) and math.isclose(cy, p.centre_pix[1], abs_tol=1e-9)
+    px, py = p.image_to_pix(0, 0)
+    assert math.isclose(px, p.left - win_w / 2) and math.isclose(py, win_h / 2 - p.top)
+
+
+def test_placement_native_size_is_pixel_exact():
+    p = Placement.fit(640, 480, 321, 241)
+    assert (p.scale, p.left, p.top) == (1.0, 159, 119)
+    assert p.image_to_window(10, 20) == (169, 139)
+
+
+@given(st.floats(0, 100), st.sampled_from([10.0, 24.0, 30.0, 60.0]), st.integers(1, 500), st.booleans())
+def test_sequence_frame_is_floor_of_elapsed_frames(t, fps, n, loop):
+    k = sequence_frame(t, fps, n, loop)
+    raw = math.floor(t * fps + 1e-6)
+    assert 0 <= k < n
+    assert k == (raw % n if loop else min(raw, n - 1)) or n == 1
+
+
+def test_sequence_frame_values():
+    # 30 fps sequence of 240 frames (8 s): frame boundaries every 1/30 s, held on the last frame after 8 s
+    assert [sequence_frame(t, 30.0, 240, False) for t in (0.0, 0.0333, 1 / 30, 7.99, 8.0, 12.0)] == \
+        [0, 0, 1, 239, 239, 239]
+    assert [sequence_frame(t, 30.0, 240, True) for t in (8.0, 8.0 + 1 / 30, 16.0)] == [0, 1, 0]
+    assert sequence_frame(3.0, 0.0, 1, True) == 0
+
+
+def test_pixels_per_degree_matches_psychopy_flat_screen():
+    d = DisplaySettings(2560, 1440, 59.8, 57.0)
+    expected = 2560 / 59.8 * 57.0 * math.tan(math.radians(1.0))
+    assert math.isclose(pixels_per_degree(d), expected)
+    mu = pytest.importorskip("psychopy.tools.monitorunittools")
+    from psychopy import monitors
+
+    mon = monitors.Monitor("t", width=59.8, distance=57.0)
+    mon.setSizePix([2560, 1440])
+    assert math.isclose(pixels_per_degree(d), mu.deg2pix(np.array([[1.0, 0.0]]), mon, correctFlat=True)[0, 0],
+                        rel_tol=1e-9)
+
+
+def _trial(**kw) -> TrialDisplay:
+    img = (Path("a.png"),)
+    base = dict(index=3, family="2afc", stimuli=(Stimulus("A", img), Stimulus("B", img)), question="?",
+                answer_keys={"a": "A", "b": "B"}, switch_keys={"left": 0, "right": 1})
+    return TrialDisplay(**{**base, **kw})
+
+
+@pytest.mark.parametrize("kw, message", [
+    (dict(stimuli=(Stimulus("A", (Path("a.png"),)),)), "trial 3: family '2afc' needs 2..2 stimuli, got 1"),
+    (dict(family="yes_no"), "trial 3: family 'yes_no' needs 1..1 stimuli, got 2"),
+    (dict(switch_keys={"x": 2}), "trial 3: switch key 'x' -> 2 is out of range 0..1"),
+    (dict(family="preference", n_picks=3), "trial 3: n_picks=3 is out of range 1..2"),
+    (dict(stimuli=(Stimulus("A", ()), Stimulus("B", (Path("b.png"),)))), "trial 3: stimulus 'A' has no frames"),
+    (dict(stimuli=(Stimulus("A", (Path("a"), Path("b"))), Stimulus("B", (Path("b"),)))),
+     "trial 3: sequence 'A' needs fps > 0, got 0.0"),
+    (dict(duration_s=0.0), "trial 3: black_before_s must be >= 0 and duration_s > 0 or None"),
+    (dict(answer_keys={}), "trial 3: a trial without answer keys needs a duration_s"),
+])
+def test_validate_trial_one_line_errors(kw, message):
+    with pytest.raises(ValueError) as e:
+        validate_trial(_trial(**kw))
+    assert str(e.value) == message
+
+
+def test_validate_trial_accepts_the_families():
+    validate_trial(_trial())
+    validate_trial(_trial(family="preference", n_picks=2, answer_keys={"1": "0", "2": "1", "space": ""}))
+    validate_trial(_trial(family="yes_no", stimuli=(Stimulus("GT", (Path("a"), Path("b")), 30.0),),
+                          answer_keys={}, switch_keys={}, duration_s=8.0, label="this is the ground truth"))
+
+
+@pytest.mark.parametrize("kw, message", [
+    (dict(width_px=8), "display.width_px=8 is out of range: must be a whole number of pixels >= 16"),
+    (dict(distance_cm=float("nan")), "display.distance_cm=nan is out of range: must be a finite number > 0"),
+    (dict(refresh_hz=0), "display.refresh_hz=0 is out of range: must be a finite number > 0"),
+    (dict(screen=-1), "display.screen=-1 is out of range: must be an integer >= 0"),
+])
+def test_validate_display_one_line_errors(kw, message):
+    d = DisplaySettings(**{**dict(width_px=640, height_px=480, width_cm=30.0, distance_cm=60.0), **kw})
+    with pytest.raises(ValueError) as e:
+        validate_display(d)
+    assert str(e.value) == message
+
+
+def _run(code: str, env: dict) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120,
+                          cwd=str(ROOT))
+
+
+def test_importing_the_window_module_does_not_import_psychopy():
+    code = ("import sys; import studyapp.presentation.psychopy_window as m; "
+            "print(sorted(k for k in sys.modules if k.split('.')[0] in ('psychopy', 'pyglet')))")
+    out = _run(code, dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"
+
+
+def test_open_without_a_display_is_a_one_line_error():
+    pytest.importorskip("psychopy")
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env["PYTHONPATH"] = str(ROOT)
+    code = ("from studyapp.presentation.psychopy_window import PsychoPyPresenter, PresentationError\n"
+            "from studyapp.presentation.base import DisplaySettings\n"
+            "try:\n    PsychoPyPresenter().open(DisplaySettings(640, 480, 30.0, 60.0))\n"
+            "except PresentationError as e:\n    print('ERR', e)\n")
+    out = _run(code, env)
+    line = [ln for ln in out.stdout.splitlines() if ln.startswith("ERR")]
+    assert len(line) == 1 and line[0].startswith("ERR cannot import PsychoPy's window modules: ")
+    assert line[0].endswith("(no DISPLAY: run under a display or Xvfb, e.g. xvfb-run -a)")
+
+
+def test_presenter_options_are_validated():
+    from studyapp.presentation.psychopy_window import PsychoPyPresenter
+
+    with pytest.raises(ValueError, match=r"^eyetracker='tobii' is not supported: use None or 'mousegaze'$"):
+        PsychoPyPresenter(eyetracker="tobii")
+    with pytest.raises(ValueError, match=r"^fovea_deg=0\.0 is out of range: must be > 0$"):
+        PsychoPyPresenter(fovea_deg=0.0)
