@@ -36,9 +36,10 @@ def _read_csv(path: Path) -> pd.DataFrame:
         head = pd.read_csv(path, nrows=0)
         dtypes = {c: "category" for c in head.columns if c in TEXT_COLUMNS}
         return pd.read_csv(path, dtype=dtypes, keep_default_na=False, na_values=[""])
-    with open(path, "rb") as fh:
-        first = fh.readline().decode("utf-8-sig").strip()
-    names = [c.strip() for c in first.split(",")] if first else []
+    import csv
+
+    with open(path, encoding="utf-8-sig", newline="") as fh:
+        names = [c.strip() for c in next(csv.reader(fh), [])]
     types = {c: pa.dictionary(pa.int32(), pa.string()) for c in names if c in TEXT_COLUMNS}
     table = pacsv.read_csv(
         path,

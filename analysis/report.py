@@ -151,7 +151,10 @@ def write_report(res: StudyAnalysis, out_dir, title: str = "Study analysis", fig
                 from .figures import scale_figure
 
                 p = fdir / f"{fam}_scale.png"
-                written.append(scale_figure(sc, p, f"{what} scale", labels))
+                fig_title = "Thurstone Case V scale" if fam == "2afc" else "Plackett-Luce scale"
+                if res.plan.n_boot:
+                    fig_title += f" (95 % bootstrap intervals, {res.plan.n_boot} replicates)"
+                written.append(scale_figure(sc, p, fig_title, labels))
                 md += [f"![scale]({p.relative_to(out).as_posix()})", ""]
     say("report")
     written.append(write_text(out / "analysis.json", json.dumps(report_json(res), indent=2, sort_keys=False)

@@ -86,6 +86,27 @@ def _codes(series: pd.Series, categories: list[str]) -> np.ndarray:
     return np.asarray(s.codes if hasattr(s, "codes") else s.cat.codes, dtype=np.int64)
 
 
+def _dense_unique(codes: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(codes, return_inverse=True)`` for codes in ``[0, size)`` in O(n + size), no sort."""
+    present = np.bincount(codes, minlength=size) > 0
+    remap = np.cumsum(present) - 1
+    return np.flatnonzero(present), remap[codes]
+
+
+def _compact(df: pd.DataFrame) -> pd.DataFrame:
+    """Drop unused categories of every categorical column (bincount, not pandas' sort-based version)."""
+    for c in df.columns:
+        if isinstance(df[c].dtype, pd.CategoricalDtype):
+            codes = df[c].cat.codes.to_numpy()
+            cats = df[c].cat.categories
+            used = np.bincount(codes[codes >= 0], minlength=len(cats)) > 0
+            if used.all():
+                continue
+            remap = np.where(used, np.cumsum(used) - 1, -1)
+            df[c] = pd.Categorical.from_codes(np.where(codes >= 0, remap[codes], -1), cats[used])
+    return df
+
+
 def _unit_keys(df: pd.DataFrame, unit: str) -> tuple[np.ndarray, pd.DataFrame]:
     """Code of each row's unit of analysis and a frame describing the units."""
     cols = {"participant": ["participant"], "participant_block": ["participant", "block"],
@@ -98,7 +119,7 @@ def _unit_keys(df: pd.DataFrame, unit: str) -> tuple[np.ndarray, pd.DataFrame]:
         codes += cc * mult
         mult *= len(df[c].cat.categories)
         parts.append(c)
-    uniq, inv = np.unique(codes, return_inverse=True)
+    uniq, inv = _dense_unique(codes, mult)
     desc = {}
     rem = uniq.copy()
     for c in parts:  # reversed order: last column first
@@ -302,7 +323,9 @@ def _scale_2afc(df, shown, picks, conds, reference, plan) -> pd.DataFrame:
     win = picks[:, 0]
     lose = np.where(shown[:, 0] == win, shown[:, 1], shown[:, 0])
     key = (p * k + win) * k + lose
-    uk, counts = np.unique(key, return_counts=True)
+    counts = np.bincount(key, minlength=len(df["participant"].cat.categories) * k * k)
+    uk = np.flatnonzero(counts)
+    counts = counts[uk]
     agg = pd.DataFrame({"observer": uk // (k * k), "condition_1": np.asarray(conds, dtype=object)[(uk // k) % k],
                         "condition_2": np.asarray(conds, dtype=object)[uk % k], "selection": 1,
                         "count": counts})
@@ -351,10 +374,7 @@ def analyze_log(df: pd.DataFrame, plan: AnalysisPlan | None = None, progress=Non
     fams = [f for f in ("2afc", "preference", "yes_no") if (df["family"] == f).any()]
     res = StudyAnalysis(plan=plan, families=fams, conditions={})
     for fam in fams:
-        sub = df.loc[(df["family"] == fam).to_numpy()].reset_index(drop=True)
-        for c in sub.columns:
-            if isinstance(sub[c].dtype, pd.CategoricalDtype):
-                sub[c] = sub[c].cat.remove_unused_categories()
+        sub = _compact(df.loc[(df["family"] == fam).to_numpy()].reset_index(drop=True))
         res.n_trials[fam] = len(sub)
         res.n_participants[fam] = len(sub["participant"].cat.categories)
         say(f"{fam}: {len(sub):,} trials")
@@ -386,10 +406,7 @@ def analyze_log(df: pd.DataFrame, plan: AnalysisPlan | None = None, progress=Non
 
         omni, pair_rows, dunn_rows, summ_rows, unit_frames = [], [], [], [], []
         for block, scene, mask in _group_frames(sub, plan):
-            part = sub.loc[mask].reset_index(drop=True)
-            for c in part.columns:
-                if isinstance(part[c].dtype, pd.CategoricalDtype):
-                    part[c] = part[c].cat.remove_unused_categories()
+            part = _compact(sub.loc[mask].reset_index(drop=True))
             if fam == "yes_no":
                 units = _unit_values_response(part, conds, plan)
             else:
@@ -434,8 +451,12 @@ def _unit_note(fam: str, plan: AnalysisPlan, dv: str, reference: str) -> str:
     if plan.unit == "trial":
         what = "chosen (1/0) each time a condition was shown" if dv == "votes" else "score (1 = yes/acceptable)"
     d = "paired d_z over participants" if plan.paired else "pooled-SD Cohen's d of independent groups"
-    return (f"{fam}: dependent variable {what}; unit of analysis: {unit}; reference {reference!r}; "
-            f"p: two-sided Kruskal-Wallis (pairs adjusted by Holm); effect size: {d}, Sawilowsky labels.")
+    tests = ("pairwise p: two-sided Kruskal-Wallis on each pair, Holm-adjusted across the pairs; "
+             if plan.test == "kruskal_holm" else "")
+    return (f"{fam}: dependent variable {what}; unit of analysis: {unit}; reference {reference!r}; {tests}"
+            "p against the reference: two-sided Mann-Whitney (= two-group Kruskal-Wallis), unadjusted, as in "
+            f"seed 003 Tables 5-6; effect size: {d} (condition minus reference, SDs with ddof = 1), "
+            "Sawilowsky (2009) labels.")
 
 
 def label_or_undefined(d: float) -> str:

@@ -78,18 +78,38 @@ def cmd_foveation_plots(args) -> int:
 
 
 # --- demo -----------------------------------------------------------------------------------------------------
+#: Demo steps after the foveation table and plots: (command module, output sub-folder, what it shows).
+DEMO_STEPS = (
+    ("studyapp.commands.analyze", "analysis", "analysis of synthetic logs shaped like the seeds' studies"),
+)
+
+
 def cmd_demo(args) -> int:
+    import importlib
+    import time
+
     from renderers.foveation.plots import write_plots
 
-    fov_dir = Path(args.out) / "foveation"
-    print(f"[1/2] foveation table (seed 001 Table 1) -> {fov_dir}", flush=True)
+    out = Path(args.out)
+    fov_dir = out / "foveation"
+    n = 2 + len(DEMO_STEPS)
+    print(f"[1/{n}] foveation table (seed 001 Table 1) -> {fov_dir}", flush=True)
     _, md, written = _foveation_table(args.fov_y, fov_dir)
-    print(f"[2/2] shading-rate plots (seed 001 Fig 5, 8, 9, 10, 21) -> {fov_dir}", flush=True)
+    print(f"[2/{n}] shading-rate plots (seed 001 Fig 5, 8, 9, 10, 21) -> {fov_dir}", flush=True)
     written += write_plots(fov_dir, args.fov_y)
     print(md)
-    print("Demo output:")
-    for p in written:
-        print(f"  {p}")
+    for i, (module, sub, what) in enumerate(DEMO_STEPS, start=3):
+        print(f"[{i}/{n}] {what} -> {out / sub}", flush=True)
+        t0 = time.perf_counter()
+        step = importlib.import_module(module).demo_step
+        paths = step(out / sub, _progress)
+        _end_progress()
+        written += paths
+        print(f"      {len(paths)} files in {time.perf_counter() - t0:.1f} s", flush=True)
+        for p in paths:
+            if p.name == "report.md":
+                print(f"      report: {p}")
+    print(f"Demo output: {len(written)} files under {out}")
     return 0
 
 
