@@ -96,3 +96,69 @@ def eccentricity_bands(gx, gy, c_r, x0, y0, edges, out):
                 if e >= edges[q]:
                     b += 1
             out[j, i] = b
+
+
+@njit(cache=True, inline="always")
+def fast_angle(dx, dy):
+    """``atan2(dy, dx)`` in ``[0, 2 pi)`` by a minimax polynomial (|error| < 1.2e-5 rad)."""
+    ax, ay = abs(dx), abs(dy)
+    mx = max(ax, ay)
+    if mx == 0.0:
+        return 0.0
+    z = min(ax, ay) / mx
+    s = z * z
+    a = ((-0.0464964749 * s + 0.15931422) * s - 0.327622764) * s * z + z
+    if ay > ax:
+        a = 0.5 * math.pi - a
+    if dx < 0.0:
+        a = math.pi - a
+    if dy < 0.0:
+        a = TWO_PI - a
+    if a >= TWO_PI:
+        a -= TWO_PI
+    return a
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def inverse_map_table(lp, utab, inv_step, gx, gy, Lr, n, w_eff, y0, out):
+    """:func:`inverse_map` with ``u(r)`` read from a table (``utab[k] = u(k / inv_step)``, linear
+    interpolation) and a polynomial polar angle; ``Lr = L / (2 pi)``. Every mapping's column depends on the
+    distance from the gaze only (seed 001 Eq 5; Eq 1, 14-15), so the table is exact up to interpolation."""
+    th, tw = out.shape[0], out.shape[1]
+    kmax = utab.size - 2
+    for j in prange(th):
+        dy = y0 + j + 0.5 - gy
+        for i in range(tw):
+            dx = i + 0.5 - gx
+            s = math.sqrt(dx * dx + dy * dy) * inv_step
+            k = min(int(s), kmax)
+            f = s - k
+            u = utab[k] * (1.0 - f) + utab[k + 1] * f
+            theta = fast_angle(dx, dy)
+            uc = min(max(u - 0.5, 0.0), w_eff - 1.0)
+            c0 = int(uc)
+            fu = uc - c0
+            c1 = min(c0 + 1, w_eff - 1)
+            t = theta * Lr[c0] - 0.5
+            a0 = int(math.floor(t))
+            fa = t - a0
+            nc = n[c0]
+            a0 = a0 % nc
+            a1 = a0 + 1
+            if a1 == nc:
+                a1 = 0
+            t = theta * Lr[c1] - 0.5
+            b0 = int(math.floor(t))
+            fb = t - b0
+            nc = n[c1]
+            b0 = b0 % nc
+            b1 = b0 + 1
+            if b1 == nc:
+                b1 = 0
+            w00 = (1.0 - fu) * (1.0 - fa)
+            w01 = (1.0 - fu) * fa
+            w10 = fu * (1.0 - fb)
+            w11 = fu * fb
+            for ch in range(3):
+                out[j, i, ch] = (w00 * lp[a0, c0, ch] + w01 * lp[a1, c0, ch] + w10 * lp[b0, c1, ch]
+                                 + w11 * lp[b1, c1, ch])

@@ -76,6 +76,17 @@ class LPLayout:
         self.mask = np.arange(h)[:, None] < self.n[None, :]
         self.P = np.ascontiguousarray(mapping._params_vector(), dtype=np.float64)
         self.kernel = MAPPING_KERNEL[self.method]
+        # u(r) table for the fast inverse mapping: 4 samples per pixel out to the farthest corner (+2 px).
+        disp = mapping.display
+        self.inv_step = 4.0
+        r = np.arange(int((disp.corner_distance() + 2.0) * self.inv_step) + 2) / self.inv_step
+        self.utab = np.ascontiguousarray(mapping.forward(disp.gaze_x + r, np.full(r.shape, disp.gaze_y))[0])
+        self.Lr = self.L / (2 * math.pi)
+        mid = r[:-1] + 0.5 / self.inv_step
+        exact = mapping.forward(disp.gaze_x + mid, np.full(mid.shape, disp.gaze_y))[0]
+        #: The table is used only where linear interpolation is within 0.01 LP pixel of the exact mapping
+        #: everywhere (VaFR, LMFR); LaFR's infinite slope at the farthest corner needs the exact kernel.
+        self.table_ok = bool(np.max(np.abs(0.5 * (self.utab[:-1] + self.utab[1:]) - exact)) <= 0.01)
 
     def shaded_pixels(self):
         """``(jj, ii, x, y, needed)``: LP pixel indices, their screen positions and which must be shaded."""
@@ -113,8 +124,12 @@ def _inverse_map(tracer, layout: LPLayout, lp, aa_post: bool, width: int, height
         t0 = time.perf_counter()
         a0, a1 = max(0, y0 - halo), min(height, y1 + halo)
         tile = np.empty((a1 - a0, width, 3), dtype=np.float32)
-        _lp.inverse_map(lp, layout.kernel, layout.P, disp.gaze_x, disp.gaze_y, layout.L, layout.n,
-                        layout.w_eff, 0.0, float(a0), tile)
+        if layout.table_ok:
+            _lp.inverse_map_table(lp, layout.utab, layout.inv_step, disp.gaze_x, disp.gaze_y, layout.Lr,
+                                  layout.n, layout.w_eff, float(a0), tile)
+        else:
+            _lp.inverse_map(lp, layout.kernel, layout.P, disp.gaze_x, disp.gaze_y, layout.L, layout.n,
+                            layout.w_eff, 0.0, float(a0), tile)
         t0 = c.add_time("inverse_map", t0)
         if aa_post:
             img[y0:y1] = foveal_gaussian(tile, disp.gaze, disp.c_r, a0, rows=(y0 - a0, y1 - a0))
