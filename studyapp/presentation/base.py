@@ -47,8 +47,9 @@ class TrialDisplay:
     ``stimuli`` holds 1 stimulus (``yes_no``), 2 (``2afc``, first = A/left) or N (``preference``). For
     ``2afc`` and ``preference`` the participant may switch among the stimuli (keys in ``switch_keys``) before
     committing; ``answer_keys`` maps a key name to the answer it records (``"A"``/``"B"``, ``"yes"``/``"no"``,
-    or a stimulus index as a string for preference picks; ``"done"`` ends a preference trial after fewer than
-    ``n_picks`` picks; ``"seen"`` acknowledges a reference, ``kind == "reference"``).
+    or a stimulus index as a string for preference picks; ``""`` ends a preference trial after fewer than
+    ``n_picks`` picks). A labelled reference (``kind == "reference"``) that is a sequence has no answer keys
+    and simply plays; a still reference is acknowledged with a key (answer ``"seen"``).
     """
 
     index: int

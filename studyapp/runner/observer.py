@@ -154,7 +154,7 @@ class SimulatedObserver:
         lapse = rng.random() < p.lapse
         switches = 0
         if trial.kind == "reference":
-            answers = ["seen"]
+            answers = ["seen"] if trial.answer_keys else []
             margin = 0.0
         elif trial.family == "yes_no":
             d = self.impairment(trial.stimuli[0], trial.scene)

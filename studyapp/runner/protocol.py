@@ -33,8 +33,8 @@ DEFAULT_SIMULATION = {"jnd": 0.02, "sensitivity_sd": 0.25, "bias_sd": 0.25, "lap
 
 
 def preference_keys(n: int) -> dict:
-    """Preference defaults: digits 1..N show stimulus i, F1..FN pick it, ``return`` ends picking early."""
-    return {"answer": {**{f"f{i + 1}": str(i) for i in range(n)}, "return": "done"},
+    """Preference defaults: digits 1..N show stimulus i, F1..FN pick it, ``return`` ends picking early (answer "")."""
+    return {"answer": {**{f"f{i + 1}": str(i) for i in range(n)}, "return": ""},
             "switch": {str(i + 1): i for i in range(n)}}
 
 
@@ -278,10 +278,11 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Proto
     answer_keys = dict(keys.get("answer", default["answer"]))
     switch_keys = dict(keys.get("switch", default["switch"]))
     allowed = {"2afc": {"A", "B"}, "yes_no": {"yes", "no"},
-               "preference": {str(i) for i in range(len(design_conditions))} | {"done"}}[family]
+               "preference": {str(i) for i in range(len(design_conditions))} | {""}}[family]
     for k, v in answer_keys.items():
         if v not in allowed:
-            raise doc.error(("keys", "answer", k), f"answer {v!r} is not one of {', '.join(sorted(allowed))}")
+            raise doc.error(("keys", "answer", k), f"answer {v!r} is not one of "
+                            f"{', '.join(repr(a) for a in sorted(allowed))}")
     for k, v in switch_keys.items():
         if v >= len(design_conditions) or (family == "2afc" and v > 1):
             raise doc.error(("keys", "switch", k), f"stimulus index {v} is out of range")

@@ -88,7 +88,8 @@ def trial_display(protocol: Protocol, t: PlannedTrial | PlannedRow, stimuli: Sti
         index=t.index if isinstance(t, PlannedTrial) else t.idx, family=t.family,
         stimuli=tuple(stimuli.stimulus(c, t.scene) for c in t.conditions),
         question="" if ref else protocol.question,
-        answer_keys={"space": "seen"} if ref else dict(protocol.answer_keys),
+        answer_keys=({} if protocol.stimulus_kind == "sequence" else {"space": "seen"}) if ref
+        else dict(protocol.answer_keys),
         switch_keys={} if ref else dict(protocol.switch_keys), fixation_px=display_px,
         duration_s=protocol.duration_s if protocol.stimulus_kind == "sequence" else None,
         black_before_s=protocol.black_s, label=protocol.reference_label if ref else "",
@@ -98,7 +99,7 @@ def trial_display(protocol: Protocol, t: PlannedTrial | PlannedRow, stimuli: Sti
 
 def interpret(protocol: Protocol, t: PlannedRow, result: TrialResult) -> dict:
     """Map the presenter's answers to the logged chosen / chosen_2 / response; check them."""
-    ans = [a for a in result.answers if a != "done"]
+    ans = [a for a in result.answers if a != ""]
     where = f"trial {t.idx}"
     if t.kind == "reference":
         return {"chosen": "", "chosen_2": "", "response": None}
