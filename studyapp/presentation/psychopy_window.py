@@ -164,6 +164,27 @@ def _stim_labels(trial: TrialDisplay) -> list[str]:
     return [""]
 
 
+class _TextureRef:
+    """Hands an already uploaded GL texture to ``ImageStim.image`` (PsychoPy's path for movie/camera frames)."""
+
+    isLumImage = False
+
+    def __init__(self, tex_id):
+        self.colorTexture = tex_id
+
+
+def decode_image(path: Path):
+    """Open and fully decode an image file into a PIL image in ``RGB`` (or ``RGBA``) mode."""
+    from PIL import Image
+
+    try:
+        with Image.open(path) as im:
+            im.load()
+            return im if im.mode in ("RGB", "RGBA") else im.convert("RGB")
+    except (OSError, ValueError) as exc:
+        raise PresentationError(f"cannot read stimulus frame {path}: {exc}") from None
+
+
 def _has_display() -> bool:
     import os
     import sys
@@ -412,35 +433,62 @@ class PsychoPyPresenter:
     def load_image_stim(self, path: Path, placement: Placement | None = None):
         """Decode ``path`` and upload it into an ImageStim placed by ``placement`` (fit to the window if None).
 
-        Returns ``(stim, placement)``. The texture is uploaded as 8-bit RGBA without interpolation, so at
-        ``scale = 1`` the window shows the file's pixel values unchanged.
+        Returns ``(stim, placement)``. See :meth:`image_stim` for the upload.
         """
-        from PIL import Image
+        return self.image_stim(decode_image(path), placement, name=str(path))
 
-        try:
-            im = Image.open(path)
-            im.load()
-        except (OSError, ValueError) as exc:
-            raise PresentationError(f"cannot read stimulus frame {path}: {exc}") from None
-        if im.mode not in ("RGB", "RGBA"):
-            im = im.convert("RGB")
+    def image_stim(self, im, placement: Placement | None = None, name: str = "image"):
+        """Upload a decoded PIL image (``RGB`` or ``RGBA``) into a new ImageStim; return ``(stim, placement)``.
+
+        The rows are uploaded as they are (top row first, 8 bits per channel, ``flipVert`` drawing) with no
+        mipmaps and nearest-texel sampling at ``scale = 1``, so the window shows the file's pixel values unchanged.
+        This skips the flip, RGBA conversion and mipmap generation that ``ImageStim(image=...)`` does, which is
+        most of its cost for a large stimulus (see docs/benchmarks.md, section presentation).
+        """
+        import ctypes
+
+        from pyglet import gl
+
+        w, h = im.size
         if placement is None:
-            w, h = (int(v) for v in self.win.size)
-            placement = Placement.fit(w, h, im.size[0], im.size[1])
-        stim = self._visual.ImageStim(self.win, image=im, units="pix", size=placement.size,
-                                      pos=placement.centre_pix, interpolate=placement.scale != 1.0)
+            ww, wh = (int(v) for v in self.win.size)
+            placement = Placement.fit(ww, wh, w, h)
+        elif (w, h) != (placement.img_w, placement.img_h):
+            raise PresentationError(f"{name}: frame size {w}x{h} differs from the sequence's first frame "
+                                    f"{placement.img_w}x{placement.img_h}")
+        data = np.asarray(im)
+        fmt = gl.GL_RGBA if im.mode == "RGBA" else gl.GL_RGB
+        stim = self._visual.ImageStim(self.win, image=None, units="pix", size=placement.size,
+                                      pos=placement.centre_pix)
+        filt = gl.GL_NEAREST if placement.scale == 1.0 else gl.GL_LINEAR
+        gl.glBindTexture(gl.GL_TEXTURE_2D, stim._texID)
+        for param, value in ((gl.GL_TEXTURE_MIN_FILTER, filt), (gl.GL_TEXTURE_MAG_FILTER, filt),
+                             (gl.GL_TEXTURE_WRAP_S, gl.GL_CLAMP_TO_EDGE), (gl.GL_TEXTURE_WRAP_T, gl.GL_CLAMP_TO_EDGE),
+                             (gl.GL_TEXTURE_MAX_LEVEL, 0)):
+            gl.glTexParameteri(gl.GL_TEXTURE_2D, param, value)
+        gl.glPixelStorei(gl.GL_UNPACK_ALIGNMENT, 1)
+        gl.glTexImage2D(gl.GL_TEXTURE_2D, 0, fmt, w, h, 0, fmt, gl.GL_UNSIGNED_BYTE,
+                        data.ctypes.data_as(ctypes.POINTER(ctypes.c_ubyte)))
+        gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
+        stim.image = _TextureRef(stim._texID)  # draw this texture as a top-row-first RGB image (no recolouring)
         return stim, placement
 
     def _load(self, trial: TrialDisplay) -> _Loaded:
+        """Decode every frame (two threads: PIL releases the GIL while decoding) and upload them in order."""
+        from concurrent.futures import ThreadPoolExecutor
+
         t0 = time.perf_counter()
         frames, placements = [], []
-        for s in trial.stimuli:
-            seq, placement = [], None
-            for f in s.frames:
-                stim, placement = self.load_image_stim(Path(f), placement)
-                seq.append(stim)
-            frames.append(seq)
-            placements.append(placement)
+        paths = [Path(f) for s in trial.stimuli for f in s.frames]
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            decoded = pool.map(decode_image, paths)
+            for s in trial.stimuli:
+                seq, placement = [], None
+                for f in s.frames:
+                    stim, placement = self.image_stim(next(decoded), placement, name=str(f))
+                    seq.append(stim)
+                frames.append(seq)
+                placements.append(placement)
         return _Loaded(trial, frames, placements, time.perf_counter() - t0)
 
     def _start_black(self, trial: TrialDisplay) -> None:
