@@ -110,6 +110,8 @@ class AnalysisPlan:
         return d
 
 
+#: Keys a study database adds to its plan for information (see data_schema.store.read_analysis_plan).
+_INFORMATIONAL = ("family", "protocol")
 _ALIASES = {"unit_of_analysis": "unit", "dependent_variable": "dv", "reference_condition": "reference",
             "order": "conditions", "bootstrap": "n_boot"}
 
@@ -118,8 +120,11 @@ def plan_from_mapping(data: Mapping[str, Any] | None) -> AnalysisPlan:
     """Build a plan from a protocol's ``analysis:`` block (unknown keys are an error).
 
     Accepts the field names of :class:`AnalysisPlan` and the aliases ``unit_of_analysis``,
-    ``dependent_variable``, ``reference_condition``, ``order`` and ``bootstrap``. The test may be written
-    ``kruskal_holm``, ``kruskal-wallis+holm`` or ``kruskal``; ``mann_whitney`` as ``mann-whitney``.
+    ``dependent_variable``, ``reference_condition``, ``order`` and ``bootstrap``, and the protocol schema's
+    vocabulary (data_schema/protocol.schema.json): ``dv: chosen`` (= votes); ``test: summary_table``
+    (= mann_whitney: each condition against the reference); ``pairwise_kruskal``, ``kruskal_dunn``,
+    ``thurstone``, ``bradley_terry``, ``plackett_luce`` (= kruskal_holm, which reports all of them);
+    ``by: [scene, block]`` (per-scene tables on; ``[]`` off). ``family`` and ``protocol`` are ignored.
     """
     if data is None:
         return AnalysisPlan()
@@ -128,17 +133,26 @@ def plan_from_mapping(data: Mapping[str, Any] | None) -> AnalysisPlan:
     known = {f.name for f in fields(AnalysisPlan)}
     kw: dict[str, Any] = {}
     for key, value in data.items():
+        if key in _INFORMATIONAL:
+            continue
+        if key == "by":  # the protocol schema's breakdown list: any breakdown turns per-scene tables on
+            if not isinstance(value, (list, tuple)) or not set(value) <= {"scene", "block"}:
+                raise ValueError("analysis plan: by must be a list of 'scene' and/or 'block'")
+            kw["per_scene"] = bool(value)
+            continue
         name = _ALIASES.get(str(key), str(key))
         if name not in known:
             raise ValueError(f"analysis plan: unknown field {key!r}: allowed {', '.join(sorted(known))}")
         kw[name] = value
     if isinstance(kw.get("test"), str):
         t = kw["test"].strip().lower().replace("-", "_").replace(" ", "_")
-        kw["test"] = {"kruskal": "kruskal_holm", "kruskal_wallis": "kruskal_holm",
+        kw["test"] = {"kruskal": "kruskal_holm", "pairwise_kruskal": "kruskal_holm", "kruskal_dunn": "kruskal_holm",
+                      "thurstone": "kruskal_holm", "bradley_terry": "kruskal_holm", "plackett_luce": "kruskal_holm",
+                      "summary_table": "mann_whitney", "kruskal_wallis": "kruskal_holm",
                       "kruskal_wallis+holm": "kruskal_holm", "kruskal_wallis_holm": "kruskal_holm",
                       "mannwhitney": "mann_whitney", "wilcoxon": "mann_whitney"}.get(t, t)
     if isinstance(kw.get("dv"), str):
-        kw["dv"] = {"preference": "votes", "score": "response", "scores": "response",
+        kw["dv"] = {"preference": "votes", "chosen": "votes", "score": "response", "scores": "response",
                     "choice": "votes"}.get(kw["dv"], kw["dv"])
     if "conditions" in kw and kw["conditions"] is not None:
         if isinstance(kw["conditions"], str) or not hasattr(kw["conditions"], "__iter__"):

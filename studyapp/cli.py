@@ -18,6 +18,8 @@ from .errors import EXIT_USAGE, CLIError
 COMMAND_MODULES = (
     "studyapp.commands.analyze",
     "studyapp.commands.quality",
+    "studyapp.commands.render",
+    "studyapp.commands.study",
 )
 
 
@@ -80,7 +82,9 @@ def cmd_foveation_plots(args) -> int:
 # --- demo -----------------------------------------------------------------------------------------------------
 #: Demo steps after the foveation table and plots: (command module, output sub-folder, what it shows).
 DEMO_STEPS = (
-    ("studyapp.commands.analyze", "analysis", "analysis of synthetic logs shaped like the seeds' studies"),
+    ("studyapp.commands.render", "render", "stimuli: the Cornell box with GT and the foveated renderers"),
+    ("studyapp.commands.study", "", "simulated participants run two shipped protocols into fresh databases"),
+    ("studyapp.commands.analyze", "analysis", "analysis of the simulated studies and of synthetic seed logs"),
 )
 
 

@@ -103,8 +103,9 @@ def cmd_analyze(args) -> int:
 
 
 def demo_step(out_dir: Path, progress=None) -> list[Path]:
-    """Analyse synthetic logs shaped like the seeds' studies (until the runner's simulated log replaces them)."""
-    from analysis.io import validate_log
+    """Analyse the demo's simulated studies (their databases, with their protocols' plans) and synthetic logs
+    of the seeds' sizes (seed 001's 4,500-trial 2AFC study, seed 003 Tables 5-6)."""
+    from analysis.io import read_log, validate_log
     from analysis.plan import AnalysisPlan
     from analysis.report import write_report
     from analysis.study import analyze_log
@@ -113,14 +114,22 @@ def demo_step(out_dir: Path, progress=None) -> list[Path]:
     from data_schema.atomic import write_text
 
     written = []
+    # 1. The studies the simulated participants just ran (studyapp.commands.study.demo_step), if any.
+    for db in sorted((Path(out_dir).parent / "study").glob("*.db")):
+        if progress:
+            progress(f"analyze: {db.name}")
+        plan = load_plan(db, None).with_overrides(n_boot=200)
+        written += write_report(analyze_log(read_log(db), plan), out_dir / f"simulated_{db.stem}",
+                                title=f"Simulated study {db.stem} (studyapp run --simulate)")
+    # 2. Synthetic logs of the seeds' sizes: seed 001 Table 3 layout, seed 003 Tables 5-6.
     log = seed001_2afc_log(seed=0)
-    written.append(write_text(out_dir / "seed001_2afc" / "log.csv", to_csv(log)))
+    written.append(write_text(out_dir / "synthetic_seed001_2afc" / "log.csv", to_csv(log)))
     plan = AnalysisPlan(conditions=SEED001_MODES, reference="GT", n_boot=200)
-    written += write_report(analyze_log(validate_log(log), plan), out_dir / "seed001_2afc",
+    written += write_report(analyze_log(validate_log(log), plan), out_dir / "synthetic_seed001_2afc",
                             title="Synthetic seed 001 2AFC study (4,500 trials)")
     for table in (5, 6):
         log = seed003_yes_no_log(table, seed=0)
-        d = out_dir / f"seed003_table{table}"
+        d = out_dir / f"synthetic_seed003_table{table}"
         written.append(write_text(d / "log.csv", to_csv(log)))
         plan = AnalysisPlan(unit="trial", test="mann_whitney", reference="EC",
                             conditions=tuple(SEED003_TABLES[table]), n_boot=0)
