@@ -308,3 +308,45 @@ def test_practice_and_catch_trials_are_excluded(tmp_path):
     p = tmp_path / "l.csv"
     p.write_text(to_csv(both))
     assert len(read_log(p)) == len(log)
+
+
+# --- a study database from the runner, analysed with its protocol's plan ----------------------------------------
+@pytest.mark.parametrize("name", ["seed001_2afc", "seed001_pilot", "seed003_task1"])
+def test_analyze_a_simulated_study_database(tmp_path, capsys, name):
+    from pathlib import Path
+
+    from data_schema.store import read_analysis_plan
+
+    proto = Path(__file__).resolve().parents[1] / "protocols" / f"{name}.yaml"
+    db = tmp_path / "study.db"
+    for pid in ("P1", "P2", "P3"):
+        assert main(["run", str(proto), "--participant", pid, "--simulate", "--db", str(db), "--quiet",
+                     "--stimuli", str(tmp_path / "none")]) == 0
+    capsys.readouterr()
+    code, out, err = _run(capsys, "analyze", str(db), "--out", str(tmp_path / "o"), "--json", "--n-boot", "20")
+    assert code == 0, err
+    data = json.loads(out)
+    plan = plan_from_mapping(read_analysis_plan(db))
+    assert data["plan"]["unit"] == plan.unit and data["plan"]["reference"] == plan.reference
+    fam = data["families"][0]
+    assert data["n_participants"][fam] == 3
+    assert (tmp_path / "o" / "report.md").exists()
+    if fam == "yes_no":
+        rows = data["tables"]["yes_no_summary"]
+        assert all(r["condition"] != plan.reference for r in rows)
+    else:
+        votes = data["tables"][f"{fam}_votes"]
+        log = read_log(db)
+        picks = log["chosen"].astype(str).ne("").sum() + (
+            log["chosen_2"].astype(str).ne("").sum() if fam == "preference" else 0)
+        assert sum(v["votes"] for v in votes) == picks
+
+
+def test_plan_accepts_the_protocol_schema_vocabulary():
+    plan = plan_from_mapping({"dv": "chosen", "unit": "participant", "reference": "VaFR_Rep",
+                              "test": "pairwise_kruskal", "by": [], "alpha": 0.01, "family": "2afc",
+                              "protocol": "seed001_2afc"})
+    assert (plan.dv, plan.test, plan.per_scene, plan.alpha) == ("votes", "kruskal_holm", False, 0.01)
+    assert plan_from_mapping({"dv": "response", "unit": "trial", "test": "summary_table"}).test == "mann_whitney"
+    with pytest.raises(ValueError, match="by must be a list"):
+        plan_from_mapping({"by": ["headset"]})
