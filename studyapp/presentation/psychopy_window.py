@@ -293,7 +293,15 @@ class PsychoPyPresenter:
         self._frame_period = period
         import pyglet
 
+        try:
+            from importlib.metadata import version
+
+            ptb_version = version("psychtoolbox")
+        except Exception:
+            ptb_version = None
         self.facts = {
+            "presenter": "PsychoPyPresenter",
+            "software": {"psychopy": psychopy.__version__, "pyglet": pyglet.version, "psychtoolbox": ptb_version},
             "refresh_hz": float(measured) if measured else None,
             "refresh_hz_nominal": float(display.refresh_hz),
             "keyboard_backend": backend,

@@ -1,0 +1,123 @@
+"""End to end under Xvfb: `studyapp run PROTOCOL --participant p1 --db FILE` with a real PsychoPy window, answers
+given as real key presses (xdotool), then `studyapp export` must hold exactly those answers.
+
+The CLI has no event hook, so the test watches the study database (WAL, readable while the runner writes): the
+session row says the window is open; each committed response says the next trial is coming. A key pressed
+during a black interval is discarded at stimulus onset, so an answer that did not arrive is pressed again.
+"""
+
+from __future__ import annotations
+
+import csv
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+sys.path.insert(0, str(Path(__file__).resolve().parent / "gui"))
+from xvfb import ROOT, Xvfb, missing_tools  # noqa: E402
+
+pytestmark = pytest.mark.skipif(bool(missing_tools()), reason=f"GUI tests need {missing_tools()} (Debian: xvfb, "
+                                "xdotool)")
+pytest.importorskip("psychopy")
+
+PROTOCOL = """\
+schema_version: 1
+name: gui_e2e
+version: "1.0"
+family: 2afc
+instructions: "Press any key to start."
+question: "Which one do you prefer? 1 = A, 2 = B"
+display: {{width_px: 320, height_px: 240, width_cm: 30.0, distance_cm: 60.0, refresh_hz: 60}}
+fixation: {{x: 0.5, y: 0.5}}
+scenes: [room]
+conditions:
+  GT: {{folder: {root}/GT}}
+  LOW: {{folder: {root}/LOW}}
+  MID: {{folder: {root}/MID}}
+stimulus: {{kind: image}}
+timing: {{black_s: 0.2}}
+design: {{conditions: [GT, LOW, MID], repetitions: 1, scene_order: fixed, trial_order: blocked}}
+analysis: {{dv: chosen, unit: participant, test: bradley_terry}}
+"""
+
+
+def _count(db: Path, sql: str) -> int:
+    if not db.exists():
+        return 0
+    try:
+        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=1.0)
+        try:
+            return con.execute(sql).fetchone()[0]
+        finally:
+            con.close()
+    except sqlite3.OperationalError:  # tables not created yet
+        return 0
+
+
+def _wait(pred, timeout_s: float, proc) -> bool:
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        if pred():
+            return True
+        if proc.poll() is not None:
+            return pred()
+        time.sleep(0.05)
+    return False
+
+
+def test_studyapp_run_with_a_window_records_the_pressed_keys(tmp_path):
+    rng = np.random.default_rng(0)
+    for cond in ("GT", "LOW", "MID"):
+        (tmp_path / cond).mkdir()
+        Image.fromarray(rng.integers(0, 255, (240, 320, 3), dtype=np.uint8)).save(tmp_path / cond / "room.png")
+    proto = tmp_path / "gui_e2e.yaml"
+    proto.write_text(PROTOCOL.format(root=tmp_path))
+    db = tmp_path / "study.db"
+    log = tmp_path / "run.log"
+    # per trial: keys pressed before the answer (switches) and the answer key ("1" = A, "2" = B)
+    plan = [(["Right"], "2"), ([], "1"), (["Right", "Left"], "1")]
+    with Xvfb() as x, open(log, "w") as out:
+        proc = subprocess.Popen([sys.executable, "-m", "studyapp", "run", str(proto), "--participant", "p1",
+                                 "--db", str(db)], env=x.env, cwd=str(ROOT), stdout=out, stderr=subprocess.STDOUT)
+        try:
+            assert _wait(lambda: _count(db, "SELECT count(*) FROM sessions") == 1, 60, proc), log.read_text()[-3000:]
+            time.sleep(1.0)
+            x.key("space")  # leaves the instructions
+            for i, (switches, answer) in enumerate(plan):
+                for attempt in range(3):
+                    time.sleep(0.8)  # past the 0.2 s black interval: keys in it are discarded at onset
+                    x.key(*switches, answer)
+                    if _wait(lambda: _count(db, "SELECT count(*) FROM responses") > i, 4, proc):
+                        break
+                else:
+                    raise AssertionError(f"trial {i} got no answer:\n{log.read_text()[-3000:]}")
+            proc.wait(timeout=30)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    assert proc.returncode == 0, log.read_text()[-3000:]
+    out_csv = tmp_path / "log.csv"
+    exp = subprocess.run([sys.executable, "-m", "studyapp", "export", "--db", str(db), "--format", "csv", "--out",
+                          str(out_csv)], cwd=str(ROOT), capture_output=True, text=True, timeout=120)
+    assert exp.returncode == 0, exp.stderr
+    rows = sorted(csv.DictReader(out_csv.open()), key=lambda r: int(r["trial"]))
+    assert len(rows) == 3
+    for row, (_, answer) in zip(rows, plan):
+        assert row["participant"] == "p1" and row["family"] == "2afc" and row["scene"] == "room"
+        assert row["chosen"] == (row["condition_a"] if answer == "1" else row["condition_b"])
+        assert float(row["rt_s"]) > 0
+    assert {frozenset((r["condition_a"], r["condition_b"])) for r in rows} == \
+        {frozenset(p) for p in (("GT", "LOW"), ("GT", "MID"), ("LOW", "MID"))}
+    con = sqlite3.connect(db)
+    sess = con.execute("SELECT keyboard_backend, presenter, status FROM sessions").fetchall()
+    switches = [r[0] for r in con.execute("SELECT switches FROM responses ORDER BY idx")]
+    con.close()
+    assert sess == [("ptb", "PsychoPyPresenter", "completed")]
+    assert switches == [len(s) for s, _ in plan]
