@@ -207,6 +207,25 @@ class _Loaded:
         self.placements = placements
         self.load_s = load_s
 
+    def release(self) -> None:
+        """Free the GPU textures now. ImageStims sit in reference cycles, so waiting for the garbage collector
+        would hold tens of MB per large stimulus; the ids are then removed so that ``__del__`` cannot delete a
+        texture name that OpenGL has meanwhile handed to a new stimulus."""
+        import ctypes
+
+        from pyglet import gl
+
+        for seq in self.frames:
+            for stim in seq:
+                for attr in ("_texID", "_maskID"):
+                    if hasattr(stim, attr):
+                        gl.glDeleteTextures(1, ctypes.byref(getattr(stim, attr)))
+                        delattr(stim, attr)
+                if hasattr(stim, "_pixbuffID"):
+                    gl.glDeleteBuffers(1, ctypes.byref(stim._pixbuffID))
+                    del stim._pixbuffID
+        self.frames = []
+
 
 class PsychoPyPresenter:
     """A PsychoPy window that shows trials and collects keyboard answers (see the module docstring).
@@ -341,7 +360,7 @@ class PsychoPyPresenter:
 
     def close(self) -> None:
         """Close the window and the eye tracker (safe to call twice)."""
-        self._loaded.clear()
+        self._release_loaded()
         if self._io is not None:
             try:
                 self._tracker.setRecordingState(False)
@@ -499,6 +518,11 @@ class PsychoPyPresenter:
                 placements.append(placement)
         return _Loaded(trial, frames, placements, time.perf_counter() - t0)
 
+    def _release_loaded(self) -> None:
+        for item in self._loaded.values():
+            item.release()
+        self._loaded.clear()
+
     def _start_black(self, trial: TrialDisplay) -> None:
         self._draw_text(trial.label, self._progress_text(trial))
         self.win.flip()
@@ -512,6 +536,7 @@ class PsychoPyPresenter:
         if trial.index in self._loaded:
             return
         self._start_black(trial)
+        self._release_loaded()
         self._loaded = {trial.index: self._load(trial)}
 
     # ------------------------------------------------------------------ trials
@@ -532,7 +557,7 @@ class PsychoPyPresenter:
             period.start(trial.black_before_s)
             loaded = self._loaded.pop(trial.index, None) or self._load(trial)
             overran = period.complete() != 1
-        self._loaded.clear()
+        self._release_loaded()
         self._black_since = None
         info = {"trial": trial.index, "load_s": loaded.load_s, "black_overran": bool(overran), "onsets": [],
                 "gaze": []}
@@ -641,6 +666,7 @@ class PsychoPyPresenter:
                     break
         finally:
             win.recordFrameIntervals = False
+            loaded.release()
         return TrialResult(answers=picks, rt_s=answered_at if answered_at is not None else float("nan"),
                            onset_s=float(onset), dropped_frames=int(win.nDroppedFrames - dropped0),
                            switches=switches, gaze_left_fovea=gaze_left)
