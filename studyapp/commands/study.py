@@ -22,11 +22,7 @@ def _protocol(path: str, stimuli: str | None = None, check_renderers: bool = Tru
     p = Path(path)
     if not p.exists() and not p.suffix and (SHIPPED / f"{path}.yaml").exists():
         p = SHIPPED / f"{path}.yaml"  # shipped protocols by name: `studyapp run seed001_2afc ...`
-    proto = load_protocol(p, stimuli_dir=stimuli, check_renderers=check_renderers)
-    if proto.unregistered:
-        print(f"note: renderer(s) {', '.join(proto.unregistered)} not registered here; the simulated observer "
-              "uses the stimuli found or the declared qualities", file=sys.stderr)
-    return proto
+    return load_protocol(p, stimuli_dir=stimuli, check_renderers=check_renderers)
 
 
 def _fmt_seconds(s: float) -> str:
@@ -113,15 +109,15 @@ def cmd_run(args) -> int:
         raise CLIError(f"--scale={args.scale:g} is out of range: allowed (0, 1]")
     if args.seed is not None and args.seed < 0:
         raise CLIError(f"--seed={args.seed} is out of range: must be >= 0")
+    notes: list[str] = []  # printed once the session has started (errors stay one line)
     p = _protocol(args.protocol, args.stimuli, check_renderers=not args.simulate)
     db = Path(args.db) if args.db else Path(f"{p.name}.db")
     missing = missing_stimuli(p, args.scale)
     if missing and args.simulate:
-        print(f"note: {len(missing)} stimulus set(s) missing: the simulated observer uses the declared qualities "
-              "for them (run `studyapp prepare` to simulate from images)", file=sys.stderr)
+        notes.append(f"note: {len(missing)} stimulus set(s) missing: the simulated observer uses the declared "
+                     "qualities for them (run `studyapp prepare` to simulate from images)")
     elif missing:
-        renderable = all(p.conditions[n.condition].folder is None and p.conditions[n.condition].renderer
-                         not in p.unregistered for n, _ in missing)
+        renderable = all(p.conditions[n.condition].folder is None for n, _ in missing)
         usable = True
         try:
             from studyapp.runner.stimuli import render_function
@@ -139,6 +135,8 @@ def cmd_run(args) -> int:
             args.seed = row["seed"]
 
     def started(sid):
+        for note in notes:
+            print(note, file=sys.stderr)
         print(f"session {sid} started ({db})", flush=True)
 
     bar = ProgressBar("trials") if not args.quiet else None
@@ -233,7 +231,7 @@ def register(subparsers, parser_class) -> None:
 
 
 # -- demo ----------------------------------------------------------------------------------------------------
-DEMO_PARTICIPANTS = 6
+DEMO_PARTICIPANTS = 5
 DEMO_SCALE = 0.25
 
 

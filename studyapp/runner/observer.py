@@ -49,6 +49,7 @@ from .stimuli import eccentricity_map, load_gray
 
 E2_DEG = 2.3
 DECLARED_SCALE_JND = 5.0
+_SHARED: dict[tuple, float] = {}  # impairment per (frames, GT frames, geometry, jnd) within one process
 
 
 def _key(*parts) -> int:
@@ -205,7 +206,15 @@ class SimulatedObserver:
         if key in self._impairment:
             return self._impairment[key]
         gt = self.ground_truth.get(scene)
+        shared = None
         if stim.frames and gt is not None and gt.frames:
+            d = self.display
+            shared = (stim.frames, gt.frames, d.width_cm, d.distance_cm, self.protocol.fixation,
+                      float(self.protocol.simulation["jnd"]))
+            if shared in _SHARED:  # the measure does not depend on the participant
+                self._impairment[key] = _SHARED[shared]
+                return _SHARED[shared]
+        if shared is not None:
             n = len(stim.frames)
             idx = sorted({round(k * (n - 1) / 2) for k in range(3)}) if n > 1 else [0]
             ds = []
@@ -221,4 +230,8 @@ class SimulatedObserver:
                                  "quality for the simulated observer")
             value = DECLARED_SCALE_JND * (1.0 - float(q))
         self._impairment[key] = value
+        if shared is not None:
+            if len(_SHARED) > 4096:
+                _SHARED.clear()
+            _SHARED[shared] = value
         return value

@@ -123,7 +123,6 @@ class Protocol:
     analysis: dict
     stimuli_dir: Path
     content_hash: str
-    unregistered: tuple[str, ...] = ()  # renderers unknown to the registry (check_renderers=False)
 
     @property
     def n_frames(self) -> int:
@@ -170,10 +169,9 @@ def renderer_names() -> set[str] | None:
     return None if reg is None else set(reg.available())
 
 
-def _conditions(doc: LoadedYAML, data: dict, base: Path, check_renderers: bool,
-                unregistered: list) -> dict[str, Condition]:
+def _conditions(doc: LoadedYAML, data: dict, base: Path, check_renderers: bool) -> dict[str, Condition]:
     out = {}
-    reg = _registry()
+    reg = _registry() if check_renderers else None  # simulated runs skip the (slow) renderer import
     known = None if reg is None else set(reg.available())
     for name, spec in data["conditions"].items():
         where = ("conditions", name)
@@ -184,10 +182,8 @@ def _conditions(doc: LoadedYAML, data: dict, base: Path, check_renderers: bool,
         if "params" in spec and "renderer" not in spec:
             raise doc.error(where + ("params",), "params belong to a renderer condition")
         if "renderer" in spec and known is not None and spec["renderer"] not in known:
-            if check_renderers:
-                raise doc.error(where + ("renderer",), f"unknown renderer {spec['renderer']!r}: allowed "
-                                f"{', '.join(sorted(known))}")
-            unregistered.append(spec["renderer"])
+            raise doc.error(where + ("renderer",), f"unknown renderer {spec['renderer']!r}: allowed "
+                            f"{', '.join(sorted(known))}")
         elif "renderer" in spec and known is not None:
             try:
                 reg.resolve_params(spec["renderer"], spec.get("params", {}))
@@ -223,9 +219,9 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Proto
     stimuli_dir : str or Path, optional
         Override of the protocol's ``stimuli_dir`` (default ``stimuli/<name>`` next to the protocol file).
     check_renderers : bool
-        When ``renderers.registry`` is importable, an unknown renderer is an error (default); with False it is
-        only listed in ``Protocol.unregistered`` (simulated runs, which render nothing). Parameters of known
-        renderers are always checked against the registry.
+        When ``renderers.registry`` is importable, renderer names and parameters are checked against it
+        (default); False skips the check (simulated runs, which render nothing, and do not import the
+        renderers).
 
     Raises
     ------
@@ -237,8 +233,7 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Proto
     data = validate_document(doc)
     base = path.resolve().parent
     family = data["family"]
-    unregistered: list[str] = []
-    conditions = _conditions(doc, data, base, check_renderers, unregistered)
+    conditions = _conditions(doc, data, base, check_renderers)
 
     design = data["design"]
     if "conditions" in design:
@@ -342,4 +337,4 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Proto
         position_balance=bool(design.get("position_balance", family == "2afc")), n_picks=n_picks,
         reference=reference.get("condition"), reference_label=reference.get("label", "This is the reference"),
         practice=practice, breaks=data.get("breaks"), catch=catch, simulation=simulation, analysis=analysis,
-        stimuli_dir=sdir, content_hash=content_hash(data), unregistered=tuple(sorted(set(unregistered))))
+        stimuli_dir=sdir, content_hash=content_hash(data))

@@ -196,8 +196,10 @@ def _load_rgb(path: Path) -> np.ndarray:
         return np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
 
 
-def make_derived(protocol: Protocol, need: Needed, scale: float = 1.0, root: Path | None = None) -> list[Path]:
-    """Build a ``derive`` condition's frames from its source condition's frames."""
+def make_derived(protocol: Protocol, need: Needed, scale: float = 1.0, root: Path | None = None,
+                 max_frames: int | None = None) -> list[Path]:
+    """Build a ``derive`` condition's frames from its source condition's frames (frames past ``max_frames``
+    repeat the last one built, as in :func:`write_synthetic_stimuli`)."""
     cond = protocol.conditions[need.condition]
     src = frame_paths(protocol, cond.derive_from, need.scene, scale, root)
     dst = frame_paths(protocol, need.condition, need.scene, scale, root)
@@ -206,6 +208,11 @@ def make_derived(protocol: Protocol, need: Needed, scale: float = 1.0, root: Pat
     out = []
     sigma = cond.blur_sigma_px * scale
     for i, (s, d) in enumerate(zip(src, dst)):
+        if max_frames is not None and i >= max_frames:
+            d.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(out[-1], d)
+            out.append(d)
+            continue
         out.append(save_png(d, degrade(_load_rgb(s), sigma, cond.noise, _seed_of(need.condition, need.scene, i))))
     return out
 
@@ -345,7 +352,7 @@ def write_synthetic_stimuli(protocol: Protocol, scale: float = 1.0, root: Path |
         if cond.folder is not None:  # a lab's own images: never overwritten
             continue
         if cond.derive_from:
-            make_derived(protocol, need, scale, root)
+            make_derived(protocol, need, scale, root, max_frames)
             continue
         q = 1.0 if cond.quality is None else cond.quality
         for i, f in enumerate(frames):
