@@ -119,8 +119,11 @@ def cmd_demo(args) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="studyapp", description=(
-        "Perceptual user studies of foveated rendering: foveation mappings (VaFR, LMFR, LaFR), "
-        "shading-rate analysis, and (as they land) renderers, a study runner and the statistics."))
+        "Perceptual user studies of foveated rendering. Render stimuli with GT and foveated renderers "
+        "(render, scenes, renderers), run studies from protocol files with PsychoPy or a simulated observer "
+        "(validate, prepare, run, sessions, export), and regenerate the papers' tables and figures from the "
+        "logs (analyze, quality). 'studyapp demo' runs everything end to end. Bad input: one line "
+        "'studyapp: error: ...' and exit status 2."))
     p.add_argument("--version", action="version", version=f"studyapp {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
@@ -152,8 +155,9 @@ def build_parser() -> argparse.ArgumentParser:
     pl.set_defaults(func=cmd_foveation_plots)
 
     d = sub.add_parser("demo", help="the end-to-end demo (writes everything into one folder)",
-                       description="Run the end-to-end demo: today the foveation table and plots; it grows "
-                                   "with the renderers, the study runner and the analysis.")
+                       description="Run the end-to-end demo into one folder: the foveation table and plots, "
+                                   "a small rendered stimulus set, simulated participants running shipped "
+                                   "protocols, and the analysis of their logs and of synthetic seed-sized logs.")
     d.add_argument("--out", metavar="DIR", default="demo_out", help="output folder (default: demo_out)")
     d.add_argument("--fov-y", type=float, default=100.0, metavar="DEG",
                    help="vertical field of view in degrees, in (0, 180) (default: 100)")
