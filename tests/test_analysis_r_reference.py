@@ -20,6 +20,8 @@ Sources of the reference values:
   columns, method = "holm") were computed by hand in R from Dunn's formula
   z_ij = (Rbar_i - Rbar_j) / sqrt((N(N+1)/12 - sum(t^3 - t)/(12(N-1))) (1/n_i + 1/n_j)),
   p = 2 * pnorm(-|z|), then p.adjust(p, "holm")                              -> *_DUNN_*
+* Dunn's test again, against rstatix::dunn_test (rstatix 0.7.2, the published
+  implementation Debian packages), two-sided, Holm                           -> *_RSTATIX_*
 * Pairwise Kruskal-Wallis: kruskal.test on each pair's subset, then
   p.adjust(p, "holm") across the pairs                                       -> *_PKW_*
 * Cohen's d / Hedges' g / d_z: by hand in R from the textbook formulas with
@@ -548,3 +550,43 @@ def test_summary_table_plantgrowth_matches_r():
 def test_r_version_recorded():
     assert R_VERSION.startswith("R version 4.2.2")
     assert math.isclose(HW_KW["H"], 27 / 35, rel_tol=1e-14)  # exact value of the H&W example
+
+# --- Dunn against a published implementation: rstatix::dunn_test ---------------------------------------------
+# rstatix 0.7.2 (Debian r-cran-rstatix; installed by hand only to print these constants; CRAN, and with it
+# FSA and dunn.test, is not reachable here). Script (Rscript), datasets as above:
+#   r <- as.data.frame(rstatix::dunn_test(PlantGrowth, weight ~ group, p.adjust.method = "holm"))
+#   (likewise InsectSprays count ~ spray, airquality Ozone ~ factor(Month) without NA ozone)
+#   sprintf("%.17g", r$statistic), r$p, r$p.adj
+# rstatix reports z as group2 minus group1, the opposite sign of FSA::dunnTest and of analysis.dunn (A - B).
+PG_RSTATIX_A = ['ctrl', 'ctrl', 'trt1']
+PG_RSTATIX_B = ['trt1', 'trt2', 'trt2']
+PG_RSTATIX_Z = [-1.1177254543787873, 1.6892896071861212, 2.8070150615649085]
+PG_RSTATIX_P = [0.26368426789138599, 0.09116394404849984, 0.0050002903702577005]
+PG_RSTATIX_PADJ = [0.26368426789138599, 0.18232788809699968, 0.015000871110773101]
+IS_RSTATIX_A = ['A', 'A', 'A', 'A', 'A', 'B', 'B', 'B', 'B', 'C', 'C', 'C', 'D', 'D', 'E']
+IS_RSTATIX_B = ['B', 'C', 'D', 'E', 'F', 'C', 'D', 'E', 'F', 'D', 'E', 'F', 'E', 'F', 'F']
+IS_RSTATIX_Z = [0.31273384526703646, -4.7740776066545942, -3.1175655200057637, -3.8505354698503789, 0.40557670558068742, -5.0868114519216308, -3.4302993652728002, -4.1632693151174154, 0.092842860313651007, 1.6565120866488305, 0.92354213680421515, 5.1796543122352814, -0.73296994984461539, 3.5231422255864513, 4.2561121754310669]
+IS_RSTATIX_P = [0.75448287960551608, 1.8053276005508887e-06, 0.0018235140917074899, 0.00011785985881994377, 0.68505364756428788, 3.6413351689256215e-07, 0.00060291566510473505, 3.1372296669600999e-05, 0.92602840043271339, 0.097618159426562823, 0.35572475219464628, 2.2229745851851772e-07, 0.46357675763394141, 0.00042646244245968636, 2.0801237074855786e-05]
+IS_RSTATIX_PADJ = [1.0, 2.3469258807161552e-05, 0.012764598641952429, 0.0011785985881994378, 1.0, 5.0978692364958697e-06, 0.0048233253208378804, 0.00034509526336561096, 1.0, 0.58570895655937694, 1.0, 3.3344618777777657e-06, 1.0, 0.0038381619821371772, 0.0002496148448982694]
+AQ_RSTATIX_A = ['5', '5', '5', '5', '6', '6', '6', '7', '7', '8']
+AQ_RSTATIX_B = ['6', '7', '8', '9', '7', '8', '9', '8', '9', '9']
+AQ_RSTATIX_Z = [0.92515861626872664, 4.4194706406115563, 4.1328134222051123, 1.3212022825201664, 2.2442080323946723, 2.0386354872877126, -0.0025385552695226092, -0.28665721840644365, -3.2171991242773572, -2.9228277777795233]
+AQ_RSTATIX_P = [0.35488340642579086, 9.8942961500004651e-06, 3.5834961433141897e-05, 0.1864339254627953, 0.024819019470422133, 0.041486420725049787, 0.99797452811914888, 0.77437479811301979, 0.0012944872164508631, 0.003468683161149384]
+AQ_RSTATIX_PADJ = [1.0, 9.8942961500004644e-05, 0.00032251465289827709, 0.74573570185118121, 0.1489141168225328, 0.20743210362524894, 1.0, 1, 0.010355897731606905, 0.024280782128045686]
+
+
+@pytest.mark.parametrize(
+    "frame, dv, between, prefix",
+    [
+        (plantgrowth, "weight", "group", "PG"),
+        (insectsprays, "count", "spray", "IS"),
+        (airquality, "Ozone", "Month", "AQ"),
+    ],
+)
+def test_dunn_matches_rstatix(frame, dv, between, prefix):
+    ref = {k: globals()[f"{prefix}_RSTATIX_{k}"] for k in ("A", "B", "Z", "P", "PADJ")}
+    out = analysis.dunn(frame(), dv, between)
+    assert [str(a) for a in out.A] == ref["A"] and [str(b) for b in out.B] == ref["B"]
+    close(-out.z, ref["Z"])
+    close(out.p_unc, ref["P"])
+    close(out.p_adj, ref["PADJ"])
