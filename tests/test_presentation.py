@@ -13,8 +13,8 @@ import pytest
 from hypothesis import given, strategies as st
 
 from studyapp.presentation.base import DisplaySettings, Stimulus, TrialDisplay
-from studyapp.presentation.psychopy_window import (Placement, pixels_per_degree, sequence_frame, validate_display,
-                                                   validate_trial)
+from studyapp.presentation.psychopy_window import (AnswerState, Placement, pixels_per_degree, sequence_frame,
+                                                   validate_display, validate_trial)
 
 ROOT = Path(__file__).resolve().parent.parent
 sizes = st.integers(16, 5000)
@@ -155,3 +155,66 @@ def test_presenter_options_are_validated():
         PsychoPyPresenter(eyetracker="tobii")
     with pytest.raises(ValueError, match=r"^fovea_deg=0\.0 is out of range: must be > 0$"):
         PsychoPyPresenter(fovea_deg=0.0)
+
+
+@pytest.mark.parametrize("kw, message", [
+    (dict(answer_keys={"left": "A"}), "trial 3: key 'left' cannot both switch and answer (escape pauses)"),
+    (dict(answer_keys={"escape": "A"}), "trial 3: key 'escape' cannot both switch and answer (escape pauses)"),
+    (dict(family="preference", answer_keys={"f1": "2"}),
+     "trial 3: answer key 'f1' -> '2' must be a stimulus index 0..1 or '' (stop picking)"),
+])
+def test_validate_trial_key_errors(kw, message):
+    with pytest.raises(ValueError) as e:
+        validate_trial(_trial(**kw))
+    assert str(e.value) == message
+
+
+def test_answer_state_2afc_switches_then_answers():
+    s = AnswerState(_trial())
+    assert [s.press(k, t) for k, t in [("right", 0.4), ("right", 0.5), ("q", 0.6), ("left", 0.9), ("b", 1.25),
+                                        ("a", 1.5), ("escape", 2.0)]] == \
+        ["switch", None, None, "switch", "answer", None, "escape"]
+    assert (s.current, s.switches, s.picks, s.rt_s) == (0, 2, ["B"], 1.25)
+
+
+def test_answer_state_yes_no_no_switch_after_playback():
+    s = AnswerState(_trial(family="yes_no", stimuli=(Stimulus("GT", (Path("a"),)),), answer_keys={"y": "yes"},
+                           switch_keys={}))
+    assert s.press("y", 8.3, can_switch=False) == "answer" and (s.picks, s.rt_s) == (["yes"], 8.3)
+    t = _trial()
+    s = AnswerState(t)
+    assert s.press("right", 1.0, can_switch=False) is None and s.current == 0
+
+
+def test_answer_state_preference_picks_and_early_stop():
+    stims = tuple(Stimulus(c, (Path(f"{c}.png"),)) for c in "pqrst")
+    keys = {"f1": "0", "f2": "1", "f3": "2", "f4": "3", "f5": "4", "return": ""}
+    t = _trial(family="preference", stimuli=stims, answer_keys=keys, switch_keys={"1": 0, "2": 1, "3": 2}, n_picks=2)
+    s = AnswerState(t)
+    assert [s.press(k, r) for k, r in [("return", 0.2), ("3", 0.5), ("f3", 1.0), ("f3", 1.1), ("f1", 2.0),
+                                        ("f2", 2.5)]] == [None, "switch", "pick", None, "answer", None]
+    assert (s.picks, s.rt_s, s.switches) == (["2", "0"], 2.0, 1)
+    s = AnswerState(t)
+    assert [s.press(k, r) for k, r in [("f5", 0.7), ("return", 0.9)]] == ["pick", "answer"]
+    assert (s.picks, s.rt_s) == (["4"], 0.9)
+
+
+@given(st.lists(st.tuples(st.sampled_from(["1", "2", "3", "f1", "f2", "f3", "return", "x"]),
+                          st.floats(0.01, 10.0)), max_size=30), st.integers(1, 3))
+def test_answer_state_preference_invariants(presses, n_picks):
+    stims = tuple(Stimulus(c, (Path(f"{c}.png"),)) for c in "pqr")
+    t = _trial(family="preference", stimuli=stims, answer_keys={"f1": "0", "f2": "1", "f3": "2", "return": ""},
+               switch_keys={"1": 0, "2": 1, "3": 2}, n_picks=n_picks)
+    s = AnswerState(t)
+    shown, changes = 0, 0
+    for k, r in presses:
+        before = s.answered
+        s.press(k, r)
+        if not before and k in t.switch_keys and t.switch_keys[k] != shown:
+            shown, changes = t.switch_keys[k], changes + 1
+    assert len(set(s.picks)) == len(s.picks) <= n_picks
+    assert s.switches == changes and s.current == shown
+    if len(s.picks) == n_picks:
+        assert s.answered
+    if s.answered:
+        assert s.picks and s.rt_s in [r for _, r in presses]

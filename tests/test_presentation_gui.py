@@ -96,7 +96,8 @@ def test_gui_trials_keys_screenshots_and_pause(tmp_path):
     t_esc = {"index": 3, "family": "yes_no", "stimuli": [stim("GT", tmp_path / "c.png")], "question": "GT?",
              "answer_keys": {"y": "yes", "n": "no"}, "fixation_px": fix, "black_before_s": 0.1}
     spec = {"display": DISPLAY, "presenter": {"screenshot_dir": str(shots)},
-            "steps": [{"instructions": "Welcome"}, {"trial": t_2afc}, {"preload": t_seq}, {"trial": t_seq},
+            "steps": [{"instructions": "Welcome"}, {"prefetch": t_seq}, {"trial": t_2afc}, {"preload": t_seq},
+                      {"prefetch": t_pref}, {"trial": t_seq},
                       {"trial": t_pref}, {"trial": t_esc}]}
     with Xvfb() as x:
         d = Driver(x, spec, tmp_path)

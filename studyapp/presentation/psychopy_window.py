@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Literal
 
@@ -145,15 +145,78 @@ def validate_trial(trial: TrialDisplay) -> None:
             raise ValueError(f"trial {trial.index}: stimulus {s.condition!r} has no frames")
         if s.is_sequence and not s.fps > 0:
             raise ValueError(f"trial {trial.index}: sequence {s.condition!r} needs fps > 0, got {s.fps!r}")
+    both = sorted(set(trial.switch_keys) & set(trial.answer_keys) | {ESCAPE} & (set(trial.switch_keys) |
+                                                                                set(trial.answer_keys)))
+    if both:
+        raise ValueError(f"trial {trial.index}: key {both[0]!r} cannot both switch and answer (escape pauses)")
     for key, idx in trial.switch_keys.items():
         if not 0 <= idx < n:
             raise ValueError(f"trial {trial.index}: switch key {key!r} -> {idx} is out of range 0..{n - 1}")
     if trial.family == "preference" and not 1 <= trial.n_picks <= n:
         raise ValueError(f"trial {trial.index}: n_picks={trial.n_picks} is out of range 1..{n}")
+    if trial.family == "preference":
+        for key, ans in trial.answer_keys.items():
+            if ans != "" and not (ans.isdigit() and int(ans) < n):
+                raise ValueError(f"trial {trial.index}: answer key {key!r} -> {ans!r} must be a stimulus index "
+                                 f"0..{n - 1} or '' (stop picking)")
     if trial.black_before_s < 0 or (trial.duration_s is not None and not trial.duration_s > 0):
         raise ValueError(f"trial {trial.index}: black_before_s must be >= 0 and duration_s > 0 or None")
     if not trial.answer_keys and trial.duration_s is None:
         raise ValueError(f"trial {trial.index}: a trial without answer keys needs a duration_s")
+
+
+@dataclass
+class AnswerState:
+    """The key bookkeeping of one trial, apart from the window: switching, answering, picking.
+
+    ``press(name, rt_s)`` applies one key press (psychtoolbox key name, time from onset) and returns what it
+    did: ``"escape"``, ``"switch"`` (``current`` changed), ``"pick"`` (a preference pick, more to come),
+    ``"answer"`` (the answer is complete; ``rt_s`` is this key's time) or ``None`` (ignored: an unknown key, a
+    switch to the stimulus already shown, a pick already made, any key after the answer but Escape).
+    """
+
+    trial: TrialDisplay
+    current: int = 0
+    switches: int = 0
+    picks: list = field(default_factory=list)
+    rt_s: float | None = None
+
+    @property
+    def answered(self) -> bool:
+        return self.rt_s is not None
+
+    def press(self, name: str, rt_s: float, can_switch: bool = True) -> str | None:
+        t = self.trial
+        if name == ESCAPE:
+            return "escape"
+        if self.answered:
+            return None
+        if name in t.switch_keys:
+            if not can_switch or t.switch_keys[name] == self.current:
+                return None
+            self.current = t.switch_keys[name]
+            self.switches += 1
+            return "switch"
+        if name not in t.answer_keys:
+            return None
+        ans = t.answer_keys[name]
+        if t.family != "preference":
+            if ans == "":
+                return None
+            self.picks, self.rt_s = [ans], float(rt_s)
+            return "answer"
+        if ans == "":  # "no further pick": ends the picking once at least one pick was made
+            if not self.picks:
+                return None
+            self.rt_s = float(rt_s)
+            return "answer"
+        if ans in self.picks:
+            return None
+        self.picks.append(ans)
+        if len(self.picks) >= t.n_picks:
+            self.rt_s = float(rt_s)
+            return "answer"
+        return "pick"
 
 
 def _stim_labels(trial: TrialDisplay) -> list[str]:
@@ -266,6 +329,8 @@ class PsychoPyPresenter:
         self.facts: dict = {}
         self.trial_info: list[dict] = []  # one dict per presented trial: load time, overrun, onsets, gaze...
         self._loaded: dict[int, _Loaded] = {}
+        self._prefetched: dict[int, list] = {}  # trial index -> futures of decoded frames, in order
+        self._pool = None
         self._black_since: float | None = None
         self._io = None
         self._tracker = None
@@ -331,7 +396,7 @@ class PsychoPyPresenter:
             "fullscreen": bool(display.fullscreen),
             "screen": int(display.screen),
             "pixels_per_degree": pixels_per_degree(display),
-            "gl_renderer": str(getattr(self.win, "glRenderer", "")) or None,
+            "gl_renderer": pyglet.gl.gl_info.get_renderer(),
             "eyetracker": None,
         }
         self._make_stims()
@@ -361,6 +426,13 @@ class PsychoPyPresenter:
     def close(self) -> None:
         """Close the window and the eye tracker (safe to call twice)."""
         self._release_loaded()
+        for futures in self._prefetched.values():
+            for fut in futures:
+                fut.cancel()
+        self._prefetched.clear()
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
         if self._io is not None:
             try:
                 self._tracker.setRecordingState(False)
@@ -500,22 +572,44 @@ class PsychoPyPresenter:
         stim.image = _TextureRef(stim._texID)  # draw this texture as a top-row-first RGB image (no recolouring)
         return stim, placement
 
-    def _load(self, trial: TrialDisplay) -> _Loaded:
-        """Decode every frame (two threads: PIL releases the GIL while decoding) and upload them in order."""
-        from concurrent.futures import ThreadPoolExecutor
+    def _decoder(self):
+        if self._pool is None:
+            from concurrent.futures import ThreadPoolExecutor
 
+            self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="studyapp-decode")
+        return self._pool
+
+    def prefetch(self, trial: TrialDisplay) -> None:
+        """Start decoding ``trial``'s frame files in the background (optional; not part of ``Presenter``).
+
+        Call it while the previous trial is on screen (e.g. just before ``present(previous)``): decoding then
+        overlaps the participant's answer, and :meth:`preload` / :meth:`present` only upload the textures in
+        the black interval. At most two trials are kept prefetched (the oldest is dropped).
+        """
+        validate_trial(trial)
+        if trial.index in self._prefetched or trial.index in self._loaded:
+            return
+        pool = self._decoder()
+        self._prefetched[trial.index] = [pool.submit(decode_image, Path(f)) for s in trial.stimuli
+                                         for f in s.frames]
+        while len(self._prefetched) > 2:
+            for fut in self._prefetched.pop(next(iter(self._prefetched))):
+                fut.cancel()
+
+    def _load(self, trial: TrialDisplay) -> _Loaded:
+        """Decode every frame (two threads: PIL releases the GIL while decoding, or already done by
+        :meth:`prefetch`) and upload them in order on this thread (OpenGL's)."""
         t0 = time.perf_counter()
         frames, placements = [], []
-        paths = [Path(f) for s in trial.stimuli for f in s.frames]
-        with ThreadPoolExecutor(max_workers=2) as pool:
-            decoded = pool.map(decode_image, paths)
-            for s in trial.stimuli:
-                seq, placement = [], None
-                for f in s.frames:
-                    stim, placement = self.image_stim(next(decoded), placement, name=str(f))
-                    seq.append(stim)
-                frames.append(seq)
-                placements.append(placement)
+        decoded = iter(self._prefetched.pop(trial.index, None) or
+                       [self._decoder().submit(decode_image, Path(f)) for s in trial.stimuli for f in s.frames])
+        for s in trial.stimuli:
+            seq, placement = [], None
+            for f in s.frames:
+                stim, placement = self.image_stim(next(decoded).result(), placement, name=str(f))
+                seq.append(stim)
+            frames.append(seq)
+            placements.append(placement)
         return _Loaded(trial, frames, placements, time.perf_counter() - t0)
 
     def _release_loaded(self) -> None:
@@ -567,12 +661,10 @@ class PsychoPyPresenter:
         loop = trial.family != "yes_no"
         keys_wanted = sorted({*trial.answer_keys, *trial.switch_keys, ESCAPE})
         ppd = pixels_per_degree(self.display)
-        picks: list[str] = []
-        current, switches = 0, 0
+        state = AnswerState(trial)
         onset = None  # first stimulus onset (the RT origin)
         stim_onset = None  # onset of the current stimulus (sequence time origin)
         shot_pending = self.screenshot_dir is not None
-        answered_at = None
         playback_over = False
         gaze_left = False if self._tracker is not None and trial.fixation_px is not None else None
         dropped0 = win.nDroppedFrames
@@ -581,6 +673,7 @@ class PsychoPyPresenter:
         next_flip = self._now() + self._frame_period
         try:
             while True:
+                current = state.current
                 seq = loaded.frames[current]
                 placement = loaded.placements[current]
                 stimulus = trial.stimuli[current]
@@ -601,7 +694,8 @@ class PsychoPyPresenter:
                             r.pos = (fx, fy)
                             r.draw()
                     if self.show_labels and len(labels) > 1:
-                        picked = "  picked: " + ", ".join(labels[int(p)] for p in picks if p.isdigit()) if picks else ""
+                        picks = state.picks
+                        picked = ("  picked: " + ", ".join(labels[int(p)] for p in picks)) if picks else ""
                         _set_text(self._corner, labels[current] + picked)
                         self._corner.draw()
                     self._draw_question_in_margin(trial.question, placement)
@@ -621,7 +715,7 @@ class PsychoPyPresenter:
                     info["onsets"].append([current, t_flip])
                     stim_onset_pending = False
                     self._emit("onset", trial=trial.index, stimulus=current, t=t_flip)
-                if playback_over and answered_at is None and info.get("question_shown") is None:
+                if playback_over and not state.answered and info.get("question_shown") is None:
                     info["question_shown"] = t_flip
                     self._emit("question", trial=trial.index)
                 if self._tracker is not None and not playback_over:
@@ -633,43 +727,28 @@ class PsychoPyPresenter:
                             if math.hypot(g[0] - fx, g[1] - fy) > self.fovea_deg * ppd:
                                 gaze_left = True
                 for key in kb.getKeys(keyList=keys_wanted, waitRelease=False, clear=True):
-                    name = key.name
-                    if name == ESCAPE:
+                    event = state.press(key.name, key.rt, can_switch=not playback_over)
+                    if event == "escape":
                         return TrialResult(answers=[], rt_s=float("nan"), onset_s=float(onset),
-                                           dropped_frames=win.nDroppedFrames - dropped0, switches=switches,
+                                           dropped_frames=win.nDroppedFrames - dropped0, switches=state.switches,
                                            gaze_left_fovea=gaze_left, escaped=True)
-                    if answered_at is not None:
-                        continue
-                    if name in trial.switch_keys and trial.switch_keys[name] != current and not playback_over:
-                        current = trial.switch_keys[name]
-                        switches += 1
+                    if event == "switch":
                         stim_onset_pending = True
                         shot_pending = self.screenshot_dir is not None
-                        self._emit("switch", trial=trial.index, stimulus=current)
-                    if name in trial.answer_keys:
-                        ans = trial.answer_keys[name]
-                        if trial.family == "preference":
-                            if ans == "" and picks:
-                                answered_at = float(key.rt)
-                            elif ans != "" and ans not in picks:
-                                picks.append(ans)
-                                self._emit("pick", trial=trial.index, answer=ans)
-                                if len(picks) >= trial.n_picks:
-                                    answered_at = float(key.rt)
-                        elif ans != "":
-                            picks = [ans]
-                            answered_at = float(key.rt)
+                        self._emit("switch", trial=trial.index, stimulus=state.current)
+                    elif event == "pick":
+                        self._emit("pick", trial=trial.index, answer=state.picks[-1])
                 done_playing = trial.duration_s is None or loop or playback_over
-                if answered_at is not None and done_playing:
+                if state.answered and done_playing:
                     break
                 if not trial.answer_keys and playback_over:
                     break
         finally:
             win.recordFrameIntervals = False
             loaded.release()
-        return TrialResult(answers=picks, rt_s=answered_at if answered_at is not None else float("nan"),
+        return TrialResult(answers=list(state.picks), rt_s=state.rt_s if state.answered else float("nan"),
                            onset_s=float(onset), dropped_frames=int(win.nDroppedFrames - dropped0),
-                           switches=switches, gaze_left_fovea=gaze_left)
+                           switches=state.switches, gaze_left_fovea=gaze_left)
 
     # ------------------------------------------------------------------ screens
     def _wait_keys(self, key_list: list[str] | None) -> str:

@@ -2,7 +2,7 @@
 
 Spec: ``{"display": {...DisplaySettings}, "presenter": {...kwargs}, "steps": [...], "result": path}``; a step is
 ``{"instructions": text}``, ``{"trial": {...TrialDisplay}}`` (stimuli as ``{"condition", "frames", "fps"}``),
-``{"preload": {...}}`` or ``{"message": text, "seconds": s}``. A trial that comes back escaped is followed by
+``{"preload": {...}}``, ``{"prefetch": {...}}`` or ``{"message": text, "seconds": s}``. A trial that comes back escaped is followed by
 ``pause()`` and, on "resume", shown again. Every presenter event is printed as ``EVENT {json}`` (flushed), so
 the test knows when to press keys; the results are written as JSON to ``result``.
 """
@@ -54,6 +54,8 @@ def main(spec_path: str) -> int:
                 pres.message(step["message"], step["seconds"])
             elif "preload" in step:
                 pres.preload(make_trial(step["preload"]))
+            elif "prefetch" in step:
+                pres.prefetch(make_trial(step["prefetch"]))
             else:
                 trial = make_trial(step["trial"])
                 while True:
