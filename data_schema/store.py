@@ -50,6 +50,7 @@ from .atomic import atomic_path, write_text
 from .trial_log import ALL_COLUMNS
 
 STORE_FORMAT = "1"
+WAL_AUTOCHECKPOINT_PAGES = 10000
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS study (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -236,6 +237,15 @@ class Store:
     def end_session(self, sid: str, status: str) -> None:
         with self.transaction(f"close session {sid}") as c:
             c.execute("UPDATE sessions SET status = ?, ended_utc = ? WHERE id = ?", (status, utc_now(), sid))
+        self.checkpoint()
+
+    def checkpoint(self) -> None:
+        """Copy the WAL into the database file (between trials: at breaks and at the end of a session)."""
+        try:
+            self.conn.execute("PRAGMA wal_checkpoint(PASSIVE)")
+        except sqlite3.Error as exc:  # a failed checkpoint loses nothing: the WAL still holds the data
+            if _is_full(exc):
+                raise self._error("checkpoint the write-ahead log", exc) from None
 
     def event(self, sid: str, kind: str, detail: str = "") -> None:
         with self.transaction(f"record the event {kind!r}") as c:
@@ -320,6 +330,9 @@ def open_store(path, create: bool = True) -> Store:
         conn = sqlite3.connect(str(path), isolation_level=None, timeout=10.0)
         conn.execute("PRAGMA journal_mode=WAL")
         conn.execute("PRAGMA synchronous=FULL")
+        # Checkpoints (copying the WAL into the database, with its own fsyncs) run when a session ends or
+        # pauses for a break, not inside a trial's commit; the WAL may grow to ~40 MB in between.
+        conn.execute(f"PRAGMA wal_autocheckpoint={WAL_AUTOCHECKPOINT_PAGES}")
         conn.execute("PRAGMA foreign_keys=ON")
         existing = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
         if existing and "study" not in existing:

@@ -26,15 +26,16 @@ import hashlib
 import itertools
 import json
 import re
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 
 from .protocol import Protocol
 
 SCHEDULE_FORMAT = 1
 MAX_SHUFFLE_ATTEMPTS = 2000
+_NOTHING = object()
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class PlannedTrial:
     """One planned trial. ``conditions`` are in display order (A/left first; offered order for preference)."""
 
@@ -46,20 +47,23 @@ class PlannedTrial:
     conditions: tuple[str, ...]
     expected: str = ""  # catch: the known answer ("A", "B", "yes", "no" or "same:<trial index>")
     break_before: bool = False
-    item: str = field(default="", compare=True)  # identity of the item for the repeat-distance constraint
+    item: str = ""  # identity of the item for the repeat-distance constraint
 
 
 class _Stream:
-    """Deterministic uniform numbers: BLAKE2b(key, counter) -> 64-bit integers."""
+    """Deterministic uniform numbers: BLAKE2b(key, counter) -> 64-byte blocks -> eight 64-bit integers."""
 
     def __init__(self, *key) -> None:
         self._key = hashlib.blake2b(json.dumps(key, default=str).encode(), digest_size=32).digest()
         self._counter = 0
+        self._buffer: list[int] = []
 
     def _next64(self) -> int:
-        self._counter += 1
-        h = hashlib.blake2b(self._counter.to_bytes(8, "little"), key=self._key, digest_size=8)
-        return int.from_bytes(h.digest(), "little")
+        if not self._buffer:
+            self._counter += 1
+            block = hashlib.blake2b(self._counter.to_bytes(8, "little"), key=self._key, digest_size=64).digest()
+            self._buffer = [int.from_bytes(block[i:i + 8], "little") for i in range(56, -8, -8)]
+        return self._buffer.pop()
 
     def below(self, n: int) -> int:
         """Uniform integer in ``[0, n)`` (rejection sampling, no modulo bias)."""
@@ -114,8 +118,9 @@ def constrained_shuffle(items: list[dict], stream: _Stream, max_run: int = 0, mi
     """Random order of ``items`` with no ``run_key`` value more than ``max_run`` times in a row and at least
     ``min_distance`` positions between equal ``item_key`` values (0 disables a constraint).
 
-    Randomised greedy construction: each position takes a uniformly chosen remaining item that keeps the
-    constraints; a dead end restarts (at most ``MAX_SHUFFLE_ATTEMPTS`` times).
+    Randomised greedy construction: each position takes a uniformly chosen remaining item among those that
+    keep the constraints (items are bucketed by their ``(run, item)`` values, so a step costs one check per
+    distinct value, not per item); a dead end restarts, at most ``MAX_SHUFFLE_ATTEMPTS`` times.
 
     Raises
     ------
@@ -124,26 +129,39 @@ def constrained_shuffle(items: list[dict], stream: _Stream, max_run: int = 0, mi
     """
     if not max_run and not min_distance:
         return stream.shuffle(items)
+    order: list[tuple] = []
+    for it in items:
+        k = (it[run_key], it[item_key])
+        if k not in order:
+            order.append(k)
     for _ in range(MAX_SHUFFLE_ATTEMPTS):
-        remaining = list(items)
+        buckets = {k: [] for k in order}
+        for it in items:
+            buckets[(it[run_key], it[item_key])].append(it)
         out: list[dict] = []
-        while remaining:
-            ok = [i for i, it in enumerate(remaining) if _fits(out, it, max_run, min_distance, run_key, item_key)]
+        runs: list = []
+        recent: list = []
+        n = len(items)
+        while len(out) < n:
+            # The run value that may not continue, and the items shown too recently.
+            blocked = runs[-1] if max_run and len(runs) >= max_run and runs[-max_run:].count(runs[-1]) == max_run \
+                else _NOTHING
+            near = recent[-(min_distance - 1):] if min_distance > 1 else ()
+            ok = [(k, b) for k, b in buckets.items() if b and k[0] != blocked and k[1] not in near]
             if not ok:
                 break
-            out.append(remaining.pop(ok[stream.below(len(ok))]))
-        if not remaining:
+            r = stream.below(sum(len(b) for _, b in ok))
+            for k, b in ok:
+                if r < len(b):
+                    out.append(b.pop(r))
+                    runs.append(k[0])
+                    recent.append(k[1])
+                    break
+                r -= len(b)
+        if len(out) == len(items):
             return out
     raise ValueError(f"design: no trial order satisfies max_run={max_run} and min_repeat_distance="
                      f"{min_distance} for {len(items)} trials; relax the constraints")
-
-
-def _fits(out, it, max_run, min_distance, run_key, item_key) -> bool:
-    if max_run and len(out) >= max_run and all(o[run_key] == it[run_key] for o in out[-max_run:]):
-        return False
-    if min_distance and any(o[item_key] == it[item_key] for o in out[-(min_distance - 1):] if min_distance > 1):
-        return False
-    return True
 
 
 def scene_order(protocol: Protocol, cb: int, stream: _Stream) -> list[str]:

@@ -230,6 +230,7 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, disp, resume, progress)
         if t.break_before and not first and protocol.breaks:
             br = protocol.breaks
             store.event(sid, "break", f"before trial {t.idx}")
+            store.checkpoint()
             presenter.message(br.get("text", "Take a short break."), float(br.get("seconds", 30.0)))
         first = False
         d = display_of(t)

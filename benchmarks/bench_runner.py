@@ -1,0 +1,144 @@
+"""Benchmark of the study runner: durable response commits and schedule generation.
+
+Run:  .venv/bin/python benchmarks/bench_runner.py [--commits 2000] [--dir DIR] [--write docs/benchmarks.md]
+
+- Commit latency: ``Store.commit_response`` (one fsynced SQLite transaction in WAL mode, ``synchronous=FULL``)
+  for ``--commits`` responses in a scratch study in ``--dir`` (default: a temporary folder on the disk of the
+  working tree). For scale, the same run measures the floor every durable commit pays: one 4 KiB ``pwrite`` +
+  ``fdatasync`` on the same file system.
+- Schedules: ``build_schedule`` for 1,000 participants of each shipped protocol (best of 3 passes), and
+  whether a second pass gives byte-identical schedules.
+- A whole simulated session (seed 003 Task 1, declared qualities) in a fresh database: wall time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(HERE))
+
+
+def percentile(values, q):
+    import numpy as np
+
+    return float(np.percentile(np.asarray(values), q))
+
+
+def fdatasync_floor(folder: Path, n: int) -> list[float]:
+    path = folder / "fsync_probe.bin"
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
+    lat = []
+    try:
+        block = b"x" * 4096
+        for i in range(n):
+            os.pwrite(fd, block, 4096 * i)
+            t0 = time.perf_counter()
+            os.fdatasync(fd)
+            lat.append(time.perf_counter() - t0)
+    finally:
+        os.close(fd)
+        path.unlink()
+    return lat
+
+
+def bench_commits(folder: Path, n: int) -> dict:
+    from data_schema.store import timed_commit_latencies
+
+    lat = timed_commit_latencies(folder / "bench.db", n)
+    floor = fdatasync_floor(folder, min(n, 1000))
+    return {"n": n, "p50": percentile(lat, 50), "p90": percentile(lat, 90), "p99": percentile(lat, 99),
+            "max": max(lat), "floor_p50": percentile(floor, 50), "floor_p99": percentile(floor, 99)}
+
+
+def bench_schedules(n: int = 1000) -> list[dict]:
+    from studyapp.runner.protocol import load_protocol
+    from studyapp.runner.schedule import build_schedule, schedule_bytes
+
+    rows = []
+    for path in sorted((ROOT / "protocols").glob("seed*.yaml")):
+        p = load_protocol(path, check_renderers=False)
+        best, cpu, first = float("inf"), float("inf"), None
+        for _ in range(3):
+            t0, c0 = time.perf_counter(), time.process_time()
+            scheds = [build_schedule(p, f"P{i}", 0) for i in range(n)]
+            best = min(best, time.perf_counter() - t0)
+            cpu = min(cpu, time.process_time() - c0)
+            blob = b"".join(schedule_bytes(s) for s in scheds)
+            first = blob if first is None else first
+        rows.append({"protocol": p.name, "trials": len(scheds[0]), "seconds": best, "cpu": cpu,
+                     "identical": blob == first})
+    return rows
+
+
+def bench_session(folder: Path) -> dict:
+    from studyapp.runner.observer import SimulatedObserver
+    from studyapp.runner.protocol import load_protocol
+    from studyapp.runner.session import ground_truth_stimuli, run_session
+
+    p = load_protocol(ROOT / "protocols" / "seed003_task1.yaml", stimuli_dir=folder / "none", check_renderers=False)
+    t0 = time.perf_counter()
+    s = run_session(p, "P1", folder / "session.db",
+                    lambda st, d: SimulatedObserver(p, "P1", 0, ground_truth_stimuli(p, st), display=d),
+                    allow_declared=True)
+    return {"trials": s.planned, "seconds": time.perf_counter() - t0}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--commits", type=int, default=2000)
+    ap.add_argument("--dir", help="folder for the scratch databases (default: a temporary folder in the repo)")
+    ap.add_argument("--write", metavar="MD", help="replace the runner section of this Markdown file")
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory(dir=args.dir or ROOT, prefix=".bench_runner_") as tmp:
+        folder = Path(tmp)
+        commits = bench_commits(folder, args.commits)
+        schedules = bench_schedules()
+        session = bench_session(folder)
+    from _report import machine_line
+
+    ms = 1000.0
+    lines = [
+        "## Study runner (`benchmarks/bench_runner.py`)",
+        "",
+        machine_line() + f" Load average during the run: {os.getloadavg()[0]:.1f} (other jobs share the 2 cores "
+        "and the disk; wall times include their interference, CPU times do not).",
+        "",
+        "| measurement | value | target |",
+        "|---|---:|---|",
+        f"| commit one response (fsynced, WAL, synchronous=FULL), p50 | {commits['p50'] * ms:.2f} ms | |",
+        f"| commit one response, p90 | {commits['p90'] * ms:.2f} ms | |",
+        f"| commit one response, p99 | {commits['p99'] * ms:.2f} ms | ≤ 5 ms |",
+        f"| commit one response, max of {commits['n']} | {commits['max'] * ms:.2f} ms | |",
+        f"| floor: one 4 KiB pwrite + fdatasync on the same disk, p50 / p99 | {commits['floor_p50'] * ms:.2f} / "
+        f"{commits['floor_p99'] * ms:.2f} ms | |",
+    ]
+    for r in schedules:
+        lines.append(f"| schedules for 1,000 participants, {r['protocol']} ({r['trials']} trials each) | "
+                     f"{r['seconds']:.3f} s wall, {r['cpu']:.3f} s CPU"
+                     f"{'' if r['identical'] else ' (NOT identical on re-run)'} | ≤ 1 s |")
+    lines.append(f"| whole simulated session, seed003_task1 ({session['trials']} trials, fresh DB) | "
+                 f"{session['seconds']:.2f} s | |")
+    ratio = commits["p99"] / commits["floor_p99"] if commits["floor_p99"] else float("nan")
+    lines += ["", f"Commit p99 is {ratio:.2f}× the p99 of a bare fdatasync on the same disk: a durable commit "
+              "cannot be faster than the disk's flush, so on this shared virtual disk the 5 ms target holds only "
+              "when the flush itself does. Re-running gives byte-identical schedules: "
+              f"{'yes' if all(r['identical'] for r in schedules) else 'NO'}.", "",
+              "Reproduce: `.venv/bin/python benchmarks/bench_runner.py --write docs/benchmarks.md`"]
+    print("\n".join(lines))
+    if args.write:
+        from _report import replace_section
+
+        replace_section(args.write, "runner", lines)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
