@@ -98,14 +98,50 @@ def box_dist2(p, bmin, bmax, k):
 
 
 @njit(cache=True)
+def box_terms(p, n, t, b, bmin, bmax, k):
+    """``(geom_bound, dmin^2, dmax^2)`` of node ``k`` in one pass over its box (see ``geom_bound``)."""
+    nlo = 0.0
+    nhi = 0.0
+    tlo = 0.0
+    thi = 0.0
+    blo = 0.0
+    bhi = 0.0
+    dmin = 0.0
+    dmax = 0.0
+    for a in range(3):
+        lo = bmin[k, a] - p[a]
+        hi = bmax[k, a] - p[a]
+        x0 = n[a] * lo
+        x1 = n[a] * hi
+        nlo += min(x0, x1)
+        nhi += max(x0, x1)
+        x0 = t[a] * lo
+        x1 = t[a] * hi
+        tlo += min(x0, x1)
+        thi += max(x0, x1)
+        x0 = b[a] * lo
+        x1 = b[a] * hi
+        blo += min(x0, x1)
+        bhi += max(x0, x1)
+        c = max(lo, 0.0) + min(hi, 0.0)  # lo if lo > 0, hi if hi < 0, else 0
+        dmin += c * c
+        m = max(-lo, hi)
+        dmax += m * m
+    if nhi <= 0.0:
+        return 0.0, dmin, dmax
+    tt = 0.0 if tlo <= 0.0 <= thi else min(abs(tlo), abs(thi))
+    bb = 0.0 if blo <= 0.0 <= bhi else min(abs(blo), abs(bhi))
+    return nhi / math.sqrt(nhi * nhi + tt * tt + bb * bb), dmin, dmax
+
+
+@njit(cache=True)
 def error_bound(p, n, t, b, bmin, bmax, inten, n_leaves, k, clamp2):
     """Cut-refinement error ``I geom / max(dmin^2, clamp^2)``; 0 for leaves and empty nodes."""
     if k >= n_leaves or inten[k] <= 0.0:
         return 0.0
-    g = geom_bound(p, n, t, b, bmin, bmax, k)
+    g, dmin, _ = box_terms(p, n, t, b, bmin, bmax, k)
     if g <= 0.0:
         return 0.0
-    dmin, _ = box_dist2(p, bmin, bmax, k)
     return inten[k] * g / max(dmin, clamp2)
 
 
@@ -125,16 +161,16 @@ def prob_left(p, n, t, b, bmin, bmax, inten, k, clamp2):
         return 0.0
     if i1 <= 0.0:
         return 1.0
-    w0 = i0 * geom_bound(p, n, t, b, bmin, bmax, c0)
-    w1 = i1 * geom_bound(p, n, t, b, bmin, bmax, c1)
+    g0, dmin0, dmax0 = box_terms(p, n, t, b, bmin, bmax, c0)
+    g1, dmin1, dmax1 = box_terms(p, n, t, b, bmin, bmax, c1)
+    w0 = i0 * g0
+    w1 = i1 * g1
     if w0 + w1 <= 0.0:
         return i0 / (i0 + i1)
     if w0 <= 0.0:
         return 0.0
     if w1 <= 0.0:
         return 1.0
-    dmin0, dmax0 = box_dist2(p, bmin, bmax, c0)
-    dmin1, dmax1 = box_dist2(p, bmin, bmax, c1)
     a0 = w0 / max(dmin0, clamp2)
     a1 = w1 / max(dmin1, clamp2)
     f0 = w0 / max(dmax0, clamp2)
