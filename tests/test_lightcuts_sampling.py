@@ -9,7 +9,7 @@ from renderers.lightcuts.tree import build_light_tree
 from renderers.lightcuts.visibility import EmbreeOccluder
 
 
-def _scene(n_lights=40, n_pix=12, seed=1):
+def _scene(n_lights=40, n_pix=12, seed=1, one_sided=False):
     rng = np.random.default_rng(seed)
     lp = rng.uniform([-1, -1, 0.3], [1, 1, 1.5], size=(n_lights, 3))
     li = rng.uniform(0, 1, size=(n_lights, 3)) * rng.choice([0.1, 1, 5], size=(n_lights, 1))
@@ -21,7 +21,8 @@ def _scene(n_lights=40, n_pix=12, seed=1):
     alb = rng.uniform(0.2, 0.9, size=(n_pix, 3))
     # an occluding triangle between part of the floor and part of the lights
     verts = np.array([[-0.8, -0.8, 0.2], [0.5, -0.8, 0.2], [-0.8, 0.5, 0.2]])
-    return build_light_tree(lp, li), pos, nrm, alb, EmbreeOccluder(verts, [[0, 1, 2]])
+    ln = rng.normal(size=(n_lights, 3)) - [0, 0, 1.5] if one_sided else None  # mostly facing down
+    return build_light_tree(lp, li, ln), pos, nrm, alb, EmbreeOccluder(verts, [[0, 1, 2]])
 
 
 def _moments(tree, g, budget, occ):
@@ -42,6 +43,8 @@ def _moments(tree, g, budget, occ):
         d2 = (d * d).sum(axis=1)
         geo = np.where(cosnum > 0, cosnum / np.sqrt(d2) / np.maximum(d2, c2), 0.0)
         vis = ~occ(np.tile(p + ray_offset_for(tree, g) * n, (tree.n_lights, 1)), lights)
+        if tree.light_nrm is not None:
+            geo = geo * np.maximum(-(tree.light_nrm[:tree.n_lights] * d).sum(axis=1) / np.sqrt(d2), 0)
         f = g.albedo[i] / np.pi * tree.light_rgb[:tree.n_lights] * (geo * vis)[:, None]
         for k in cut[i, :size[i]]:
             k = int(k)
@@ -59,9 +62,9 @@ def _moments(tree, g, budget, occ):
     return mean, var
 
 
-@pytest.mark.parametrize("budget", [1, 3, 8])
-def test_mean_converges_to_exact_sum(budget):
-    tree, pos, nrm, alb, occ = _scene()
+@pytest.mark.parametrize("budget, one_sided", [(1, False), (3, False), (8, False), (3, True)])
+def test_mean_converges_to_exact_sum(budget, one_sided):
+    tree, pos, nrm, alb, occ = _scene(one_sided=one_sided)
     g1 = GBuffer.create(pos, nrm, alb)
     exact = exact_direct(tree, g1, occluded=occ)
     assert np.all(exact >= 0) and exact.max() > 0
@@ -78,8 +81,9 @@ def test_mean_converges_to_exact_sum(budget):
     assert np.all(res.samples <= budget) and res.samples.max() >= 1
 
 
-def test_cut_of_all_leaves_is_exact():
-    tree, pos, nrm, alb, occ = _scene(n_lights=23)
+@pytest.mark.parametrize("one_sided", [False, True])
+def test_cut_of_all_leaves_is_exact(one_sided):
+    tree, pos, nrm, alb, occ = _scene(n_lights=23, one_sided=one_sided)
     g = GBuffer.create(pos, nrm, alb)
     res = stochastic_lightcuts(tree, g, tree.n_leaves, seed=3, occluded=occ)
     np.testing.assert_allclose(res.radiance, exact_direct(tree, g, occluded=occ), rtol=1e-10, atol=1e-14)

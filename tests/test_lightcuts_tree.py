@@ -56,6 +56,16 @@ def test_morton_code_interleaves_bits():
     assert codes[3] == sum(1 << (3 * b) for b in range(10))
 
 
+def test_one_sided_light_normals_follow_the_leaf_order():
+    pos, rgb = _lights(50, 4)
+    nrm = np.random.default_rng(4).normal(size=(50, 3))
+    t = build_light_tree(pos, rgb, nrm * 3.0)
+    np.testing.assert_allclose(t.light_nrm[:50], (nrm / np.linalg.norm(nrm, axis=1)[:, None])[t.order])
+    assert build_light_tree(pos, rgb).light_nrm is None
+    with pytest.raises(ValueError, match="light normals must be finite and non-zero"):
+        build_light_tree(pos, rgb, np.zeros((50, 3)))
+
+
 def test_grey_intensity_and_single_light():
     t = build_light_tree([[1.0, 2.0, 3.0]], [2.0])
     assert t.n_leaves == 1 and t.levels == 1

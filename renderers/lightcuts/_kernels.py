@@ -301,8 +301,10 @@ def sample_cuts(pos, nrm, pix_id, cut, size, bmin, bmax, inten, n_leaves, clamp2
 
 
 @njit(cache=True, parallel=True)
-def shade_samples(pos, nrm, alb, leaf, pdf, light_pos, light_rgb, n_leaves, clamp2, contrib):
-    """Unshadowed Lambertian estimate of each sample: ``albedo/pi * I_rgb * cos / max(d^2, clamp2) / pdf``.
+def shade_samples(pos, nrm, alb, leaf, pdf, light_pos, light_rgb, light_nrm, one_sided, n_leaves, clamp2,
+                  contrib):
+    """Unshadowed Lambertian estimate of each sample: ``albedo/pi * I_rgb * cos / max(d^2, clamp2) / pdf``,
+    times the emitter cosine ``max(0, n_l . (p - x_l) / d)`` when ``one_sided``.
 
     Returns a boolean (P, S) mask of the samples that need a shadow ray (non-zero contribution).
     """
@@ -328,6 +330,13 @@ def shade_samples(pos, nrm, alb, leaf, pdf, light_pos, light_rgb, n_leaves, clam
             if cosnum <= 0.0:
                 continue
             g = cosnum / math.sqrt(d2) / max(d2, clamp2) / (math.pi * pdf[i, s])
+            if one_sided:
+                em = 0.0
+                for a in range(3):
+                    em -= light_nrm[j, a] * (light_pos[j, a] - p[a])
+                if em <= 0.0:
+                    continue
+                g *= em / math.sqrt(d2)
             tot = 0.0
             for c in range(3):
                 v = alb[i, c] * light_rgb[j, c] * g

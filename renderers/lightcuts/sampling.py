@@ -2,10 +2,11 @@
 
 For a shading point ``p`` (normal ``N``, diffuse albedo ``a``) the exact direct lighting is
 
-    L(p) = sum_l a / pi * I_l * max(0, cos theta_l) / max(d_l^2, c^2) * V(p, x_l),
+    L(p) = sum_l a / pi * I_l * max(0, cos theta_l) / max(d_l^2, c^2) * V(p, x_l) [* max(0, cos theta'_l)],
 
 with ``c = 0.001 * scene light radius`` (the clamp of Lin & Yuksel's error bound, applied to the
-contribution too so that ``L`` is finite). The cut ``C`` partitions the lights, so
+contribution too so that ``L`` is finite); the bracketed emitter cosine ``theta'`` applies to one-sided
+(mesh) lights. The cut ``C`` partitions the lights, so
 ``L(p) = sum_{k in C} sum_{l under k} f(l)``; each node ``k`` draws one light ``l_k`` with probability
 ``pdf_k(l_k)`` (``_kernels.descend``) and ``sum_k f(l_k) / pdf_k(l_k)`` is an unbiased estimate of ``L(p)``.
 Visibility ``V`` comes from an ``occluded(origins, targets) -> bool`` callback (e.g.
@@ -116,8 +117,10 @@ def cut_and_sample(tree: LightTree, pos, nrm, budget, pix_id, seed: int, max_bud
 def shade_tile(tree: LightTree, pos, nrm, alb, leaf, pdf, occluded: Occluder | None, ray_offset: float):
     """Shade the chosen samples of a tile and apply visibility; returns ``(radiance (n, 3), rays)``."""
     contrib = np.empty(leaf.shape + (3,))
-    need = K.shade_samples(pos, nrm, alb, leaf, pdf, tree.light_pos, tree.light_rgb, tree.n_leaves,
-                           clamp2(tree), contrib)
+    one_sided = tree.light_nrm is not None
+    lnrm = tree.light_nrm if one_sided else np.zeros((1, 3))
+    need = K.shade_samples(pos, nrm, alb, leaf, pdf, tree.light_pos, tree.light_rgb, lnrm, one_sided,
+                           tree.n_leaves, clamp2(tree), contrib)
     rays = int(need.sum())
     if occluded is not None and rays:
         pi, si = np.nonzero(need)
@@ -187,6 +190,9 @@ def exact_direct(tree: LightTree, gbuf: GBuffer, *, occluded: Occluder | None = 
         cosnum = d @ n
         d2 = (d * d).sum(axis=1)
         g = np.where(cosnum > 0, cosnum / np.sqrt(np.maximum(d2, 1e-300)) / np.maximum(d2, clamp2(tree)), 0.0)
+        if tree.light_nrm is not None:
+            em = -(tree.light_nrm[:tree.n_lights] * d).sum(axis=1) / np.sqrt(np.maximum(d2, 1e-300))
+            g = g * np.maximum(em, 0.0)
         if occluded is not None:
             vis = ~np.asarray(occluded(np.repeat((p + offset * n)[None], len(lp), 0), lp), dtype=bool)
             g = g * vis

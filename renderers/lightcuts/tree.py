@@ -56,6 +56,10 @@ class LightTree:
         Node scalar intensity ``sum(r + g + b)`` over the leaves below.
     scene_radius : float
         Half the diagonal of the lights' bounding box (at least 1e-9); sets the distance clamp.
+    light_nrm : (N, 3) float64 or None
+        Unit emitter normals of one-sided lights (points sampled on emissive triangles), in leaf order; their
+        intensity towards direction ``w`` is ``I max(0, n_l . w)``. ``None``: isotropic point lights. The node
+        bounds ignore the orientation (it only lowers a contribution), so they stay conservative.
     """
 
     n_lights: int
@@ -68,6 +72,7 @@ class LightTree:
     bmax: np.ndarray
     intensity: np.ndarray
     scene_radius: float
+    light_nrm: np.ndarray | None = None
 
     def leaf_node(self, light_index):
         """Heap node of input light ``light_index`` (vectorised)."""
@@ -122,7 +127,7 @@ def validate_lights(positions, intensities) -> tuple[np.ndarray, np.ndarray]:
     return pos, rgb
 
 
-def build_light_tree(positions, intensities) -> LightTree:
+def build_light_tree(positions, intensities, normals=None) -> LightTree:
     """Build the perfect binary light tree of point lights (vectorised, one pass per level).
 
     Parameters
@@ -130,7 +135,9 @@ def build_light_tree(positions, intensities) -> LightTree:
     positions : (n, 3) array_like
         Light positions.
     intensities : (n,) or (n, 3) array_like
-        Radiant intensities, >= 0 (grey or RGB).
+        Radiant intensities, >= 0 (grey or RGB); for one-sided lights the intensity along the normal.
+    normals : (n, 3) array_like, optional
+        Emitter normals of one-sided (mesh) lights; normalised here. Zero-length normals are rejected.
 
     Returns
     -------
@@ -164,4 +171,14 @@ def build_light_tree(positions, intensities) -> LightTree:
         np.add(inten[left], inten[right], out=inten[par])
         width = half
     radius = max(0.5 * float(np.linalg.norm(bmax[1] - bmin[1])), 1e-9)
-    return LightTree(n, n_leaves, levels, order, light_pos, light_rgb, bmin, bmax, inten, radius)
+    light_nrm = None
+    if normals is not None:
+        nrm = np.asarray(normals, dtype=np.float64)
+        if nrm.shape != pos.shape:
+            raise ValueError(f"light normals has shape {nrm.shape}: must be ({n}, 3)")
+        length = np.linalg.norm(nrm, axis=1)
+        if not np.all(np.isfinite(length)) or np.any(length <= 0):
+            raise ValueError("light normals must be finite and non-zero")
+        light_nrm = np.zeros((n_leaves, 3))
+        light_nrm[:n] = (nrm / length[:, None])[order]
+    return LightTree(n, n_leaves, levels, order, light_pos, light_rgb, bmin, bmax, inten, radius, light_nrm)
