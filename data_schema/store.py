@@ -294,22 +294,25 @@ class Store:
              "r.chosen_2, r.response, r.rt_s, t.kind FROM responses r JOIN planned_trials t ON "
              "t.participant = r.participant AND t.idx = r.idx JOIN participants p ON p.id = t.participant "
              "WHERE t.kind != 'reference' ORDER BY p.enrol_order, t.idx")
-        out = []
-        for pid, sid, block, scene, idx, fam, conds, chosen, chosen_2, resp, rt, kind in self.conn.execute(q):
-            conds = json.loads(conds)
-            row = dict.fromkeys(ALL_COLUMNS, "")
-            row.update(participant=pid, session=sid, block=block, scene=scene, trial=idx, family=fam,
-                       chosen=chosen, chosen_2=chosen_2, response=resp, rt_s=rt,
-                       practice=int(kind == "practice"), catch=int(kind == "catch"))
-            if fam == "yes_no":
-                row["condition"] = conds[0]
-                row["chosen"] = ""
-            elif fam == "2afc":
-                row["condition_a"], row["condition_b"] = conds[0], conds[1]
-            else:
-                row["conditions"] = "|".join(conds)
-            out.append(row)
-        return out
+        return [tidy_row(pid, sid, block, scene, idx, fam, json.loads(conds), chosen, chosen_2, resp, rt, kind)
+                for pid, sid, block, scene, idx, fam, conds, chosen, chosen_2, resp, rt, kind in self.conn.execute(q)]
+
+
+def tidy_row(participant: str, session: str, block: str, scene: str, trial: int, family: str,
+             conditions: Sequence[str], chosen: str, chosen_2: str, response, rt_s, kind: str) -> dict:
+    """One row of the tidy log (:data:`ALL_COLUMNS`; ``""`` where a column does not apply to the family)."""
+    row = dict.fromkeys(ALL_COLUMNS, "")
+    row.update(participant=participant, session=session, block=block, scene=scene, trial=trial, family=family,
+               chosen=chosen, chosen_2=chosen_2, response=response, rt_s=rt_s,
+               practice=int(kind == "practice"), catch=int(kind == "catch"))
+    if family == "yes_no":
+        row["condition"] = conditions[0]
+        row["chosen"] = ""
+    elif family == "2afc":
+        row["condition_a"], row["condition_b"] = conditions[0], conditions[1]
+    else:
+        row["conditions"] = "|".join(conditions)
+    return row
 
 
 def open_store(path, create: bool = True) -> Store:
@@ -358,13 +361,18 @@ def read_trials(db_path):
     ``practice`` and ``catch`` are int64, ``response`` is float64 (1.0/0.0 for ``yes_no``, NaN for the other
     families) and ``rt_s`` float64 (NaN when not measured).
     """
-    import pandas as pd
-
     with open_store(db_path, create=False) as st:
         if not st.meta():
             raise StoreError(f"{db_path}: the study database is empty")
         rows = st.tidy_rows()
-    df = pd.DataFrame(rows, columns=list(ALL_COLUMNS))
+    return tidy_frame(rows)
+
+
+def tidy_frame(rows: Sequence[dict]):
+    """Tidy rows (:func:`tidy_row`) as a DataFrame with the dtypes documented in :func:`read_trials`."""
+    import pandas as pd
+
+    df = pd.DataFrame(list(rows), columns=list(ALL_COLUMNS))
     for c in ("trial", "practice", "catch"):
         df[c] = df[c].astype("int64")
     for c in ("response", "rt_s"):

@@ -226,7 +226,7 @@ def test_sessions_command_lists_progress_and_catch(tmp_path, capsys):
     capsys.readouterr()
     assert main(["sessions", "--db", str(db)]) == 0
     out = capsys.readouterr().out
-    assert "P1-s1" in out and "completed" in out and "/4" in out
+    assert "P1-s1" in out and "completed" in out and "/4 passed" in out
 
 
 def test_demo_step_writes_databases_and_tidy_csvs(tmp_path):
@@ -240,3 +240,19 @@ def test_demo_step_writes_databases_and_tidy_csvs(tmp_path):
     means = df[(df.practice == 0) & (df["catch"] == 0)].groupby("condition").response.mean()
     assert means["CC1"] > means["CC2"]  # the synthetic GT looks like GT more often than the worst condition
     assert msgs
+
+
+def test_in_memory_simulation_matches_a_recorded_simulated_session(tmp_path):
+    from studyapp.runner.simulate import simulate_log
+
+    p = load_protocol(PROTOCOLS / "seed003_task1.yaml", stimuli_dir=tmp_path / "none", check_renderers=False)
+    db = tmp_path / "s.db"
+    for pid in ("P01", "P02"):
+        run_session(p, pid, db, _sim(p, pid, seed=3), seed=3, allow_declared=True)
+    recorded = S.read_trials(db).drop(columns="session")
+    mem = simulate_log(p, 2, seed=3).drop(columns="session")
+    import pandas as pd
+    pd.testing.assert_frame_equal(mem, recorded)
+    many = simulate_log(p, 12, seed=1)
+    means = many[(many.practice == 0) & (many["catch"] == 0)].groupby("condition").response.mean()
+    assert means["CC1"] > means["EC"] > means["CC2"]

@@ -159,15 +159,20 @@ def cmd_sessions(args) -> int:
         meta = st.meta()
         sessions = st.sessions()
         prog = st.progress()
+        frac = ((st.protocol_json() or {}).get("catch") or {}).get("pass_fraction", 0.75)
     print(f"{db}: protocol {meta.get('protocol_name')} {meta.get('protocol_version')} "
           f"(sha256 {meta.get('protocol_hash', '')[:12]})")
     print(f"{'session':<16} {'participant':<12} {'status':<12} {'answers':>7}  {'started (UTC)':<27} resumed from")
     for s in sessions:
         print(f"{s['id']:<16} {s['participant']:<12} {s['status']:<12} {s['responses']:>7}  {s['started_utc']:<27} "
               f"{s['resumed_from'] or ''}")
-    print(f"{'participant':<12} {'answered':>8} {'planned':>8}  catch")
+    print(f"{'participant':<12} {'answered':>8} {'planned':>8}  catch trials (pass: >= {frac:.0%} correct)")
     for r in prog:
-        catch = f"{r['catch_correct']}/{r['catch_planned']}" if r["catch_planned"] else "-"
+        catch = "-"
+        if r["catch_planned"]:
+            verdict = "pending" if r["answered"] < r["planned"] else (
+                "passed" if r["catch_correct"] >= frac * r["catch_planned"] else "FAILED")
+            catch = f"{r['catch_correct']}/{r['catch_planned']} {verdict}"
         print(f"{r['participant']:<12} {r['answered']:>8} {r['planned']:>8}  {catch}")
     return 0
 

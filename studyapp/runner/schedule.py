@@ -49,6 +49,11 @@ class PlannedTrial:
     break_before: bool = False
     item: str = ""  # identity of the item for the repeat-distance constraint
 
+    @property
+    def idx(self) -> int:
+        """Same as ``index`` (the name the session store uses)."""
+        return self.index
+
 
 class _Stream:
     """Deterministic uniform numbers: BLAKE2b(key, counter) -> 64-byte blocks -> eight 64-bit integers."""

@@ -85,7 +85,7 @@ def trial_display(protocol: Protocol, t: PlannedTrial | PlannedRow, stimuli: Sti
     kind = t.kind
     ref = kind == "reference"
     return TrialDisplay(
-        index=t.index if isinstance(t, PlannedTrial) else t.idx, family=t.family,
+        index=t.idx, family=t.family,
         stimuli=tuple(stimuli.stimulus(c, t.scene) for c in t.conditions),
         question="" if ref else protocol.question,
         answer_keys=({} if protocol.stimulus_kind == "sequence" else {"space": "seen"}) if ref
