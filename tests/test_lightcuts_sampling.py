@@ -21,7 +21,10 @@ def _scene(n_lights=40, n_pix=12, seed=1, one_sided=False):
     alb = rng.uniform(0.2, 0.9, size=(n_pix, 3))
     # an occluding triangle between part of the floor and part of the lights
     verts = np.array([[-0.8, -0.8, 0.2], [0.5, -0.8, 0.2], [-0.8, 0.5, 0.2]])
-    ln = rng.normal(size=(n_lights, 3)) - [0, 0, 1.5] if one_sided else None  # mostly facing down
+    ln = None
+    if one_sided:  # mostly facing down; every fifth light isotropic (zero normal)
+        ln = rng.normal(size=(n_lights, 3)) - [0, 0, 1.5]
+        ln[::5] = 0.0
     return build_light_tree(lp, li, ln), pos, nrm, alb, EmbreeOccluder(verts, [[0, 1, 2]])
 
 
@@ -44,7 +47,9 @@ def _moments(tree, g, budget, occ):
         geo = np.where(cosnum > 0, cosnum / np.sqrt(d2) / np.maximum(d2, c2), 0.0)
         vis = ~occ(np.tile(p + ray_offset_for(tree, g) * n, (tree.n_lights, 1)), lights)
         if tree.light_nrm is not None:
-            geo = geo * np.maximum(-(tree.light_nrm[:tree.n_lights] * d).sum(axis=1) / np.sqrt(d2), 0)
+            ln = tree.light_nrm[:tree.n_lights]
+            em = np.maximum(-(ln * d).sum(axis=1) / np.sqrt(d2), 0)
+            geo = geo * np.where(np.any(ln != 0, axis=1), em, 1.0)
         f = g.albedo[i] / np.pi * tree.light_rgb[:tree.n_lights] * (geo * vis)[:, None]
         for k in cut[i, :size[i]]:
             k = int(k)

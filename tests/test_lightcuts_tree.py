@@ -62,8 +62,9 @@ def test_one_sided_light_normals_follow_the_leaf_order():
     t = build_light_tree(pos, rgb, nrm * 3.0)
     np.testing.assert_allclose(t.light_nrm[:50], (nrm / np.linalg.norm(nrm, axis=1)[:, None])[t.order])
     assert build_light_tree(pos, rgb).light_nrm is None
-    with pytest.raises(ValueError, match="light normals must be finite and non-zero"):
-        build_light_tree(pos, rgb, np.zeros((50, 3)))
+    assert np.all(build_light_tree(pos, rgb, np.zeros((50, 3))).light_nrm == 0)  # zero rows: isotropic
+    with pytest.raises(ValueError, match="light normals must be finite"):
+        build_light_tree(pos, rgb, np.full((50, 3), np.nan))
 
 
 def test_grey_intensity_and_single_light():

@@ -330,7 +330,7 @@ def shade_samples(pos, nrm, alb, leaf, pdf, light_pos, light_rgb, light_nrm, one
             if cosnum <= 0.0:
                 continue
             g = cosnum / math.sqrt(d2) / max(d2, clamp2) / (math.pi * pdf[i, s])
-            if one_sided:
+            if one_sided and (light_nrm[j, 0] != 0.0 or light_nrm[j, 1] != 0.0 or light_nrm[j, 2] != 0.0):
                 em = 0.0
                 for a in range(3):
                     em -= light_nrm[j, a] * (light_pos[j, a] - p[a])

@@ -191,8 +191,9 @@ def exact_direct(tree: LightTree, gbuf: GBuffer, *, occluded: Occluder | None = 
         d2 = (d * d).sum(axis=1)
         g = np.where(cosnum > 0, cosnum / np.sqrt(np.maximum(d2, 1e-300)) / np.maximum(d2, clamp2(tree)), 0.0)
         if tree.light_nrm is not None:
-            em = -(tree.light_nrm[:tree.n_lights] * d).sum(axis=1) / np.sqrt(np.maximum(d2, 1e-300))
-            g = g * np.maximum(em, 0.0)
+            ln = tree.light_nrm[:tree.n_lights]
+            em = -(ln * d).sum(axis=1) / np.sqrt(np.maximum(d2, 1e-300))
+            g = g * np.where(np.any(ln != 0, axis=1), np.maximum(em, 0.0), 1.0)
         if occluded is not None:
             vis = ~np.asarray(occluded(np.repeat((p + offset * n)[None], len(lp), 0), lp), dtype=bool)
             g = g * vis

@@ -58,7 +58,7 @@ class LightTree:
         Half the diagonal of the lights' bounding box (at least 1e-9); sets the distance clamp.
     light_nrm : (N, 3) float64 or None
         Unit emitter normals of one-sided lights (points sampled on emissive triangles), in leaf order; their
-        intensity towards direction ``w`` is ``I max(0, n_l . w)``. ``None``: isotropic point lights. The node
+        intensity towards direction ``w`` is ``I max(0, n_l . w)``; zero rows and ``None``: isotropic lights. The node
         bounds ignore the orientation (it only lowers a contribution), so they stay conservative.
     """
 
@@ -137,7 +137,8 @@ def build_light_tree(positions, intensities, normals=None) -> LightTree:
     intensities : (n,) or (n, 3) array_like
         Radiant intensities, >= 0 (grey or RGB); for one-sided lights the intensity along the normal.
     normals : (n, 3) array_like, optional
-        Emitter normals of one-sided (mesh) lights; normalised here. Zero-length normals are rejected.
+        Emitter normals of one-sided (mesh) lights, normalised here; a zero row marks an isotropic point light
+        (scenes mixing point lights and emissive triangles).
 
     Returns
     -------
@@ -177,8 +178,8 @@ def build_light_tree(positions, intensities, normals=None) -> LightTree:
         if nrm.shape != pos.shape:
             raise ValueError(f"light normals has shape {nrm.shape}: must be ({n}, 3)")
         length = np.linalg.norm(nrm, axis=1)
-        if not np.all(np.isfinite(length)) or np.any(length <= 0):
-            raise ValueError("light normals must be finite and non-zero")
+        if not np.all(np.isfinite(length)):
+            raise ValueError("light normals must be finite (found NaN or inf)")
         light_nrm = np.zeros((n_leaves, 3))
-        light_nrm[:n] = (nrm / length[:, None])[order]
+        light_nrm[:n] = (nrm / np.where(length > 0, length, 1.0)[:, None])[order]
     return LightTree(n, n_leaves, levels, order, light_pos, light_rgb, bmin, bmax, inten, radius, light_nrm)
