@@ -109,3 +109,48 @@ def test_progress_bar_reports_counts_and_time_left():
     assert lines[-1] == "[##########] 20/20 frames, 0s left"
     assert "[#####.....] 10/20 frames, 30s left" in lines
     assert len(lines) == 11  # not a terminal: one line per 10 %
+
+
+TINY = """
+schema_version: 1
+name: tiny
+version: "1"
+family: 2afc
+question: "Which one?"
+display: {width_px: 64, height_px: 36, width_cm: 53.0, distance_cm: 45.0, fov_y_deg: 40}
+scenes: [cornell]
+conditions:
+  GT: {renderer: gt}
+  LaFR: {renderer: lafr, params: {delta: 4.0}}
+stimulus:
+  kind: sequence
+  duration_s: 1.0
+  fps: 2
+  camera_path: [{t: 0, yaw_deg: -2}, {t: 1, yaw_deg: 2}]
+design: {repetitions: 2}
+simulation: {ground_truth: GT}
+analysis: {dv: chosen, unit: participant, test: thurstone}
+"""
+
+
+def test_real_renderers_prepare_and_a_simulated_run_from_their_images(tmp_path):
+    pytest.importorskip("renderers.stimuli")
+    from studyapp.commands.study import main
+    from studyapp.runner.protocol import renderer_names
+
+    if not {"gt", "lafr"} <= (renderer_names() or set()):
+        pytest.skip("gt/lafr renderers not registered here")
+    f = tmp_path / "tiny.yaml"
+    f.write_text(TINY)
+    assert main(["prepare", str(f), "--cache", str(tmp_path / "cache")]) == 0
+    p = load_protocol(f)
+    frames = frame_paths(p, "LaFR", "cornell")
+    assert len(frames) == 2 and all(x.is_file() for x in frames)
+    a, b = load_gray(frames[0]), load_gray(frames[1])
+    assert a.shape == (36, 64) and not np.array_equal(a, b)  # the camera turned between the frames
+    db = tmp_path / "s.db"
+    assert main(["run", str(f), "--participant", "P1", "--simulate", "--db", str(db), "--quiet"]) == 0
+    from data_schema.store import read_trials
+
+    df = read_trials(db)
+    assert len(df) == 2 and set(df.chosen) <= {"GT", "LaFR"}

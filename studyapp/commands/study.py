@@ -236,12 +236,12 @@ def register(subparsers, parser_class) -> None:
 
 
 # -- demo ----------------------------------------------------------------------------------------------------
-DEMO_PARTICIPANTS = 5
+DEMO_PROTOCOLS = (("seed003_task1", 5), ("seed001_2afc", 3))  # (shipped protocol, simulated participants)
 DEMO_SCALE = 0.25
 
 
 def demo_step(out_dir: Path, progress) -> list[Path]:
-    """Run two shipped protocols (seed 003 Task 1, seed 001 2AFC) with simulated participants.
+    """Run two shipped protocols with simulated participants (seed 003 Task 1: 5, seed 001 2AFC: 3).
 
     Stimuli: a synthetic set (procedural 'ground truth' degraded by each condition's declared quality with
     eccentricity-dependent blur and noise) at ``--scale 0.25``, so the observer answers from images. Writes a
@@ -255,7 +255,7 @@ def demo_step(out_dir: Path, progress) -> list[Path]:
     out = Path(out_dir) / "study"
     out.mkdir(parents=True, exist_ok=True)
     written = []
-    for name in ("seed003_task1", "seed001_2afc"):
+    for name, n_participants in DEMO_PROTOCOLS:
         p = _protocol(str(SHIPPED / f"{name}.yaml"), stimuli=str(out / "stimuli" / name), check_renderers=False)
         if progress:
             progress(f"{name}: synthetic stimuli")
@@ -263,7 +263,7 @@ def demo_step(out_dir: Path, progress) -> list[Path]:
         db = out / f"{name}.db"
         for suffix in ("", "-wal", "-shm"):
             Path(str(db) + suffix).unlink(missing_ok=True)
-        for i in range(1, DEMO_PARTICIPANTS + 1):
+        for i in range(1, n_participants + 1):
             pid = f"P{i:02d}"
             if progress:
                 progress(f"{name}: simulated participant {pid}")
