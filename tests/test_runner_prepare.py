@@ -47,9 +47,11 @@ def test_prepare_builds_every_missing_frame_once(tmp_path, monkeypatch):
     assert missing_stimuli(p, 0.05) == []
     w, h = round(960 * 0.05), round(540 * 0.05)
     assert {c[3:6] for c in fake.calls} == {(w, h, (w / 2, h / 2))}
-    # The camera moves linearly from x=0 to x=4 over the 16 frames.
+    # The camera moves linearly from x=0 to x=4 over the sequence's frames.
+    n = p.n_frames
+    assert n == round(p.duration_s * p.fps) > 2
     xs = sorted({dict(c[6])["position"][0] for c in fake.calls})
-    assert xs == pytest.approx([4 * i / 15 for i in range(16)])
+    assert xs == pytest.approx([4 * i / (n - 1) for i in range(n)])
     assert seen[-1][0] == seen[-1][1] == res["frames"]
     assert all(a[0] <= b[0] for a, b in zip(seen, seen[1:]))
     assert seen[-1][2] == 0.0
