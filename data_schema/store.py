@@ -381,7 +381,11 @@ def tidy_frame(rows: Sequence[dict]):
 
 
 def read_analysis_plan(db_path) -> dict | None:
-    """The ``analysis`` block of the protocol a study database was written with (None if it has none)."""
+    """The ``analysis`` block of the protocol a study database was written with (None if it has none).
+
+    Added unless the block sets them: ``family`` and ``protocol`` (name, for information) and ``conditions``
+    (the design's conditions in protocol order: the order of the tables).
+    """
     with open_store(db_path, create=False) as st:
         proto = st.protocol_json()
     if not proto:
@@ -392,6 +396,11 @@ def read_analysis_plan(db_path) -> dict | None:
     out = dict(plan)
     out.setdefault("family", proto.get("family"))
     out.setdefault("protocol", proto.get("name"))
+    conds = proto.get("conditions") or {}
+    design = (proto.get("design") or {}).get("conditions") or [
+        n for n, c in conds.items() if (c or {}).get("role", "main") == "main"]
+    if len(design) >= 2:
+        out.setdefault("conditions", list(design))  # the table order of the protocol
     return out
 
 

@@ -256,3 +256,15 @@ def test_in_memory_simulation_matches_a_recorded_simulated_session(tmp_path):
     many = simulate_log(p, 12, seed=1)
     means = many[(many.practice == 0) & (many["catch"] == 0)].groupby("condition").response.mean()
     assert means["CC1"] > means["EC"] > means["CC2"]
+
+
+def test_analysis_plan_of_a_study_follows_the_protocol(tmp_path):
+    from analysis.plan import plan_from_mapping
+
+    db = tmp_path / "s.db"
+    assert main(["run", "seed003_task1", "--participant", "P1", "--simulate", "--db", str(db), "--quiet",
+                 "--stimuli", str(tmp_path / "n")]) == 0
+    plan = S.read_analysis_plan(db)
+    assert plan["conditions"] == ["EC", "CC1", "CC2", "CC3", "CC4"] and plan["reference"] == "EC"
+    ap = plan_from_mapping(plan)
+    assert (ap.unit, ap.reference, ap.conditions) == ("trial", "EC", ("EC", "CC1", "CC2", "CC3", "CC4"))

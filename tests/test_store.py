@@ -174,6 +174,7 @@ def test_analysis_plan_and_sessions(tmp_path):
     db = _filled(tmp_path)
     plan = S.read_analysis_plan(db)
     assert plan["dv"] == "chosen" and plan["test"] == "thurstone" and plan["family"] == "2afc"
+    assert "conditions" not in plan  # the test protocol has no conditions block
     with open_store(db) as st:
         [s] = st.sessions()
         assert (s["id"], s["status"], s["responses"]) == ("P1-s1", "completed", 6)
