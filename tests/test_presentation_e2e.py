@@ -121,3 +121,92 @@ def test_studyapp_run_with_a_window_records_the_pressed_keys(tmp_path):
     con.close()
     assert sess == [("ptb", "PsychoPyPresenter", "completed")]
     assert switches == [len(s) for s, _ in plan]
+
+
+SEQ_PROTOCOL = """\
+schema_version: 1
+name: gui_e2e_seq
+version: "1.0"
+family: yes_no
+instructions: "Press any key to start."
+question: "Is this sequence the ground truth? Y = yes, N = no"
+display: {{width_px: 320, height_px: 240, width_cm: 30.0, distance_cm: 60.0, refresh_hz: 60}}
+fixation: {{x: 0.25, y: 0.5}}
+scenes: [room]
+conditions:
+  GT: {{folder: {root}/GT}}
+  LOW: {{folder: {root}/LOW}}
+stimulus: {{kind: sequence, duration_s: 0.6, fps: 5}}
+timing: {{black_s: 0.2}}
+design: {{conditions: [GT, LOW], repetitions: 1, scene_order: fixed, trial_order: blocked,
+          reference: {{condition: GT, label: "This is the ground truth"}}}}
+analysis: {{dv: response, unit: trial, test: summary_table}}
+"""
+
+
+def test_studyapp_run_sequences_reference_and_escape_resume(tmp_path):
+    """Seed 003 Task 1 in small: the labelled GT reference plays by itself, then yes/no sequences; Escape during
+    the second one pauses, R resumes it; the export holds the pressed answers, the events the pause and resume."""
+    rng = np.random.default_rng(1)
+    for cond in ("GT", "LOW"):
+        (tmp_path / cond / "room").mkdir(parents=True)
+        for i in range(3):
+            Image.fromarray(rng.integers(0, 255, (240, 320, 3), dtype=np.uint8)).save(
+                tmp_path / cond / "room" / f"f{i}.png")
+    proto = tmp_path / "gui_e2e_seq.yaml"
+    proto.write_text(SEQ_PROTOCOL.format(root=tmp_path))
+    db = tmp_path / "study.db"
+    log = tmp_path / "run.log"
+    n_resp = "SELECT count(*) FROM responses"
+    with Xvfb() as x, open(log, "w") as out:
+        proc = subprocess.Popen([sys.executable, "-m", "studyapp", "run", str(proto), "--participant", "p1",
+                                 "--db", str(db)], env=x.env, cwd=str(ROOT), stdout=out, stderr=subprocess.STDOUT)
+        try:
+            assert _wait(lambda: _count(db, "SELECT count(*) FROM sessions") == 1, 60, proc), log.read_text()[-3000:]
+            time.sleep(1.0)
+            x.key("space")
+            assert _wait(lambda: _count(db, n_resp) == 1, 10, proc), "the reference did not end by itself"
+            answers = []
+            for i in range(2):
+                if i == 1:  # Escape while the sequence plays -> pause screen -> R
+                    for attempt in range(3):
+                        time.sleep(0.45)
+                        x.key("Escape")
+                        if _wait(lambda: _count(db, "SELECT count(*) FROM events WHERE kind = 'pause'") == 1, 2,
+                                 proc):
+                            break
+                    else:
+                        raise AssertionError(f"Escape did not pause:\n{log.read_text()[-3000:]}")
+                    for attempt in range(3):  # the pause screen clears the key queue when it comes up
+                        time.sleep(0.3)
+                        x.key("r")
+                        if _wait(lambda: _count(db, "SELECT count(*) FROM events WHERE kind = 'resume'") == 1, 2,
+                                 proc):
+                            break
+                    else:
+                        raise AssertionError(f"R did not resume:\n{log.read_text()[-3000:]}")
+                for attempt in range(3):
+                    time.sleep(1.0)
+                    key = "yn"[i]
+                    x.key(key)
+                    if _wait(lambda: _count(db, n_resp) == 2 + i, 4, proc):
+                        answers.append(key)
+                        break
+                else:
+                    raise AssertionError(f"trial {i} got no answer:\n{log.read_text()[-3000:]}")
+            proc.wait(timeout=30)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    assert proc.returncode == 0, log.read_text()[-3000:]
+    con = sqlite3.connect(db)
+    rows = con.execute("SELECT r.idx, p.kind, p.conditions, r.response, r.rt_s FROM responses r JOIN planned_trials"
+                       " p ON p.participant = r.participant AND p.idx = r.idx ORDER BY r.idx").fetchall()
+    kinds = [r[0] for r in con.execute("SELECT kind FROM events ORDER BY id")]
+    con.close()
+    assert [r[1] for r in rows] == ["reference", "trial", "trial"]
+    assert "GT" in rows[0][2]
+    assert [r[3] for r in rows[1:]] == [1, 0]  # y, then n
+    assert all(r[4] > 0 for r in rows[1:])
+    assert kinds.count("pause") == 1 and kinds.count("resume") == 1 and "end" not in kinds

@@ -34,6 +34,7 @@ whether the gaze left the foveal disc of radius ``fovea_deg`` around the fixatio
 
 from __future__ import annotations
 
+import collections
 import math
 import time
 from dataclasses import dataclass, field
@@ -329,6 +330,7 @@ class PsychoPyPresenter:
         self.facts: dict = {}
         self.trial_info: list[dict] = []  # one dict per presented trial: load time, overrun, onsets, gaze...
         self._loaded: dict[int, _Loaded] = {}
+        self._handled = collections.deque(maxlen=256)  # key presses already acted on (see _poll_keys)
         self._prefetched: dict[int, list] = {}  # trial index -> futures of decoded frames, in order
         self._pool = None
         self._black_since: float | None = None
@@ -726,7 +728,7 @@ class PsychoPyPresenter:
                             fx, fy = placement.image_to_window(*trial.fixation_px)
                             if math.hypot(g[0] - fx, g[1] - fy) > self.fovea_deg * ppd:
                                 gaze_left = True
-                for key in kb.getKeys(keyList=keys_wanted, waitRelease=False, clear=True):
+                for key in self._poll_keys(keys_wanted):
                     event = state.press(key.name, key.rt, can_switch=not playback_over)
                     if event == "escape":
                         return TrialResult(answers=[], rt_s=float("nan"), onset_s=float(onset),
@@ -751,10 +753,28 @@ class PsychoPyPresenter:
                            switches=state.switches, gaze_left_fovea=gaze_left)
 
     # ------------------------------------------------------------------ screens
+    def _poll_keys(self, key_list: list[str] | None) -> list:
+        """Key presses since the last poll, each once, in the order they went down.
+
+        ``Keyboard.getKeys(waitRelease=False)`` skips a press that was already released when polled (a tap
+        shorter than the time between two polls is lost), and ``waitRelease=True`` reports a press only once it
+        is released; so both are polled, and a press seen before (still down last time, released now) is
+        dropped by identity.
+        """
+        kb = self.kb
+        got = (kb.getKeys(keyList=key_list, waitRelease=False, clear=True)
+               + kb.getKeys(keyList=key_list, waitRelease=True, clear=True))
+        fresh = []
+        for k in got:
+            if not any(k is h for h in self._handled) and not any(k is f for f in fresh):
+                fresh.append(k)
+        self._handled.extend(fresh)
+        return sorted(fresh, key=lambda k: k.tDown)
+
     def _wait_keys(self, key_list: list[str] | None) -> str:
         self.kb.clearEvents()
         while True:
-            keys = self.kb.getKeys(keyList=key_list, waitRelease=False, clear=True)
+            keys = self._poll_keys(key_list)
             if keys:
                 return keys[0].name
             self._core.wait(0.005, hogCPUperiod=0)

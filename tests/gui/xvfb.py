@@ -121,7 +121,8 @@ class Driver:
                 raise AssertionError(f"GUI driver timed out; events so far: {self.events}") from None
             if line is None:
                 err = self.stderr_path.read_text()
-                raise AssertionError(f"GUI driver exited ({self.proc.wait()}) early:\n{err[-3000:]}")
+                raise AssertionError(f"GUI driver exited ({self.proc.wait()}) early; events so far: {self.events}\n"
+                                     f"{err[-3000:]}")
             if line.startswith("EVENT "):
                 ev = json.loads(line[6:])
                 self.events.append(ev)
