@@ -157,9 +157,14 @@ class Store:
         return dict(self.conn.execute("SELECT key, value FROM study").fetchall())
 
     # -- study / protocol ---------------------------------------------------------------------------------
-    def bind_protocol(self, name: str, version: str, content_hash: str, protocol: dict) -> None:
-        """Record the protocol of a new study, or refuse a protocol that differs from the recorded one."""
+    def bind_protocol(self, name: str, version: str, content_hash: str, protocol: dict,
+                      record: bool = True) -> None:
+        """Record the protocol of a new study, or refuse a protocol that differs from the recorded one.
+
+        With ``record=False`` only the check is made (an empty study stays empty)."""
         meta = self.meta()
+        if not meta and not record:
+            return
         if not meta:
             rows = {"store_format": STORE_FORMAT, "protocol_name": name, "protocol_version": version,
                     "protocol_hash": content_hash, "created_utc": utc_now(),

@@ -63,7 +63,7 @@ class StimulusSet:
         self.declared: set[tuple[str, str]] = set()
         for need, path in missing:
             cond = protocol.conditions[need.condition]
-            if allow_declared and cond.quality is not None:
+            if allow_declared and cond.quality is not None and cond.folder is None:  # a lab's folder must be complete
                 self.declared.add((need.condition, need.scene))
                 continue
             hint = ("declare a quality for --simulate, or " if allow_declared else "") + \
@@ -143,17 +143,23 @@ def run_session(protocol: Protocol, participant: str, db_path, presenter_factory
     if not participant or any(ch.isspace() for ch in participant) or len(participant) > 64:
         raise ValueError(f"--participant={participant!r} is invalid: a pseudonymous id of 1-64 characters "
                          "without spaces")
+    db_path = Path(db_path)
+    created = not db_path.exists()
     store = open_store(db_path)
     try:
         return _run(store, protocol, participant, presenter_factory, seed, resume, scale, stimuli_root,
                     allow_declared, on_started, progress)
     finally:
+        empty = created and not store.meta()
         store.close()
+        if empty:  # a refused first run leaves no database behind
+            for suffix in ("", "-wal", "-shm"):
+                Path(str(db_path) + suffix).unlink(missing_ok=True)
 
 
 def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_root, allow_declared, on_started,
          progress) -> SessionSummary:
-    store.bind_protocol(protocol.name, protocol.version, protocol.content_hash, protocol.data)
+    store.bind_protocol(protocol.name, protocol.version, protocol.content_hash, protocol.data, record=False)
     existing = store.participant(pid)
     if existing and not resume:
         done = len(store.answered(pid))
@@ -183,6 +189,7 @@ def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_r
     measured = presenter.open(settings)
     try:
         if not existing:
+            store.bind_protocol(protocol.name, protocol.version, protocol.content_hash, protocol.data)
             rows = [PlannedRow(t.index, t.kind, t.family, t.scene, t.block, t.conditions, t.expected,
                                t.break_before) for t in schedule]
             store.enrol(pid, counterbalance_index(pid), seed, s_hash, rows)
