@@ -190,3 +190,17 @@ def test_foveated_bad_parameters(kw, match):
     args = {"alpha": 0.1, "max_lspp": 48, **kw}
     with pytest.raises(ValueError, match=match):
         foveated_lightcuts(tree, full, low, ecc, np.zeros(full.shape + (2,)), args["alpha"], args["max_lspp"])
+
+
+def test_n_light_breaks_ties_in_proportion_to_the_reuse_weight():
+    leaves = np.array([32, 33, 34, 35], dtype=np.int64)  # cut nodes = the leaves themselves: all tied for node 8
+    inten = np.zeros(64)
+    inten[32:36] = [1.0, 3.0, 0.0, 4.0]
+    pdfs = np.ones(4)
+    lo, hi = MR.leaf_range(8, 6)
+    assert (lo, hi) == (32, 35)
+    us = (np.arange(4000) + 0.5) / 4000
+    picks = np.array([MR.n_light(8, leaves, leaves, 4, 0, hi, pdfs, inten, u) for u in us])
+    freq = np.bincount(picks, minlength=4) / len(us)
+    np.testing.assert_allclose(freq, inten[32:36] / inten[32:36].sum(), atol=2e-3)
+    assert MR.n_light(8, leaves, leaves, 4, 0, hi) == 0  # without weights: the first tied sample

@@ -27,7 +27,10 @@ probability ``pdf'(l | node')``. For ``node`` (an ancestor or descendant of ``no
 probability is approximated by ``pdf'(l | node') * I(node') / I(node)``: the branch probabilities between
 ``node'`` and ``node`` are replaced by intensity shares. This saves the traversal (the point of Algorithm 2) but
 makes reused samples biased; the bias vanishes where ``map[p] = 1`` (no reuse) and the seed accepts it in the
-periphery. Hierarchical sampling (the ``else`` branch) stays unbiased.
+periphery. Hierarchical sampling (the ``else`` branch) stays unbiased. Ties in ``nLight`` are broken at random
+in proportion to that weight: taking always the first tied sample (lowest offset) reuses the same light for a
+whole region — on a 32-triangle lamp it biased the image mean by +7 %; with weighted ties the expected value
+is ``sum_C f / sum_C p̂`` over the tied candidates ``C``, exact when they cover the node's subtree.
 """
 
 from __future__ import annotations
@@ -100,8 +103,13 @@ def lrls(leaves, count, lid_min, lid_max):
 
 
 @njit(cache=True)
-def n_light(node, leaves, nodes, count, first, lid_max):
-    """nLight: among the samples from ``first`` with offset <= ``lid_max``, the one whose cut node is nearest."""
+def n_light(node, leaves, nodes, count, first, lid_max, pdfs=None, inten=None, u=0.0):
+    """nLight: among the samples from ``first`` with offset <= ``lid_max``, one whose cut node is nearest.
+
+    Ties (common: e.g. every low-res cut node a leaf at the same depth) are broken at random with probability
+    proportional to the reuse weight ``pdf' I(node') / I(node)`` when ``pdfs`` and ``inten`` are given (one
+    uniform ``u``, rescaled per candidate), else the first tied sample is taken.
+    """
     best = first
     best_d = tree_distance(node, nodes[first])
     j = first + 1
@@ -111,7 +119,25 @@ def n_light(node, leaves, nodes, count, first, lid_max):
             best_d = d
             best = j
         j += 1
-    return best
+    if pdfs is None:
+        return best
+    total = 0.0
+    pick = best
+    for q in range(best, j):
+        if tree_distance(node, nodes[q]) != best_d:
+            continue
+        wq = pdfs[q] * inten[nodes[q]]
+        if wq <= 0.0:
+            continue
+        total += wq
+        r = wq / total
+        if u < r:
+            pick = q
+            u = u / r
+        else:
+            u = (u - r) / (1.0 - r)
+        u = min(u, K.ONE_MINUS)
+    return pick
 
 
 def sort_low_res_samples(cut, size, leaf, pdf):
@@ -156,7 +182,8 @@ def select_lights(pos, nrm, pix_id, pix_x, pix_y, fmap, cut, size, bmin, bmax, i
                 lo, hi = leaf_range(k, levels)
                 first = lrls(lr_leaves[q], lr_counts[q], lo, hi)
                 if first >= 0:
-                    j = n_light(k, lr_leaves[q], lr_nodes[q], lr_counts[q], first, hi)
+                    j = n_light(k, lr_leaves[q], lr_nodes[q], lr_counts[q], first, hi, lr_pdfs[q], inten,
+                                rad / (1.0 - fmap[i]) if fmap[i] < 1.0 else 0.0)
                     leaf[i, s] = lr_leaves[q, j]
                     pdf[i, s] = lr_pdfs[q, j] * inten[lr_nodes[q, j]] / inten[k]
                     reused[i] += 1

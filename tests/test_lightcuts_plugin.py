@@ -1,0 +1,69 @@
+"""Renderer plug-ins fsl / sl_* on the scene model: values, glossy pass skipped for diffuse scenes, errors."""
+
+import numpy as np
+import pytest
+
+from renderers import registry
+from renderers.lightcuts.plugin import register_all, scene_light_tree
+from renderers.procedural import MeshBuilder
+from renderers.scene import Camera, Material
+
+register_all()
+
+
+def _diffuse_scene(glossy=False):
+    b = MeshBuilder()
+    b.material(Material("floor", albedo=(0.6, 0.6, 0.6)))
+    b.material(Material("box", albedo=(0.5, 0.3, 0.2), kind="glossy" if glossy else "diffuse", roughness=0.3,
+                        specular=0.2))
+    b.material(Material("lamp", emission=(5.0, 5.0, 4.0)))
+    b.quad((-2, 0, -2), (2, 0, -2), (2, 0, 2), (-2, 0, 2), "floor", (0, 1, 0))
+    b.box((-0.4, 0, -0.4), (0.4, 0.8, 0.4), "box")
+    b.grid_quad((-0.5, 2.0, -0.5), (1, 0, 0), (0, 0, 1), 4, "lamp", normal=(0, -1, 0))
+    cam = Camera((0.0, 1.5, -3.5), (0.0, 0.4, 0.0), (0.0, 1.0, 0.0), 50.0)
+    return b.scene("tiny" + ("_glossy" if glossy else ""), camera=cam)
+
+
+def test_light_tree_from_emitters():
+    sc = _diffuse_scene()
+    tree = scene_light_tree(sc)
+    pos, nrm, rgb = sc.emitters()
+    assert tree.n_lights == len(pos) == 32
+    np.testing.assert_allclose(tree.intensity[1], rgb.sum())
+    np.testing.assert_allclose(tree.light_nrm[:tree.n_lights], nrm[tree.order])
+
+
+def test_all_diffuse_scene_casts_no_glossy_ray():
+    img, st = registry.render(_diffuse_scene(), "fsl", {}, 48, 32)
+    assert st["glossy_rays"] == 0 and st["glossy_pass"] is False
+    assert np.all(np.isfinite(img)) and img.mean() > 0
+    img, st = registry.render(_diffuse_scene(glossy=True), "fsl", {}, 48, 32)
+    assert st["glossy_pass"] is True and st["glossy_rays"] > 0
+
+
+@pytest.mark.parametrize("name, params", [("fsl", {}), ("fsl", {"multires": False}), ("sl_e", {"lspp": 4}),
+                                          ("sl_as", {}), ("sl_f", {"lspp": 16})])
+def test_plugins_agree_with_ground_truth_on_average(name, params):
+    sc = _diffuse_scene(glossy=True)
+    gt, _ = registry.render(sc, "sl_gt", {"lspp": 192, "rspp": 64}, 48, 32)
+    img, st = registry.render(sc, name, params, 48, 32)
+    assert img.shape == (32, 48, 3) and np.all(np.isfinite(img)) and img.min() >= 0
+    # same scene, same light model: image means agree within a few percent
+    assert abs(img.mean() - gt.mean()) < 0.05 * gt.mean()
+    assert st["rays_shadow"] > 0
+
+
+def test_fsl_reports_its_map_and_steps():
+    img, st = registry.render(_diffuse_scene(), "fsl", {"alpha": 0.2}, 48, 32)
+    assert st["fpsm"].shape == (32, 48) and 0 <= st["fpsm"].min() and st["fpsm"].max() <= 1
+    assert set(st["steps"]) == {"low_res", "fpsm", "cuts", "select", "shade"}
+    assert np.all(st["spp"] <= 48)
+
+
+@pytest.mark.parametrize("name, params, match", [("fsl", {"alpha": 0}, "fsl.alpha"),
+                                                 ("fsl", {"alpha": 1.5}, "fsl.alpha"),
+                                                 ("fsl", {"max_lspp": 0}, "fsl.max_lspp"),
+                                                 ("sl_e", {"lspp": -1}, "sl_e.lspp")])
+def test_bad_parameters_name_the_parameter(name, params, match):
+    with pytest.raises(ValueError, match=match):
+        registry.render(_diffuse_scene(), name, params, 16, 16)
