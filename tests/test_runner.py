@@ -273,3 +273,25 @@ def test_analysis_plan_of_a_study_follows_the_protocol(tmp_path):
     assert plan["conditions"] == ["EC", "CC1", "CC2", "CC3", "CC4"] and plan["reference"] == "EC"
     ap = plan_from_mapping(plan)
     assert (ap.unit, ap.reference, ap.conditions) == ("trial", "EC", ("EC", "CC1", "CC2", "CC3", "CC4"))
+
+
+def test_window_errors_are_one_line(tmp_path, monkeypatch, capsys):
+    from studyapp.commands import study
+
+    class PresentationError(RuntimeError):
+        pass
+
+    class NoKeyboard:
+        def open(self, display):
+            raise PresentationError("keyboard backend is 'iohub', not psychtoolbox ('ptb'): refusing to run")
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(study, "_presenter_factory", lambda args, p: (lambda st, d: NoKeyboard()))
+    db = tmp_path / "s.db"
+    assert main(["run", "seed003_task2", "--participant", "P1", "--simulate", "--db", str(db),
+                 "--stimuli", str(tmp_path / "n")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "not psychtoolbox" in err
+    assert not db.exists()

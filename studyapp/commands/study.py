@@ -140,9 +140,14 @@ def cmd_run(args) -> int:
         print(f"session {sid} started ({db})", flush=True)
 
     bar = ProgressBar("trials") if not args.quiet else None
-    summary = run_session(p, args.participant, db, _presenter_factory(args, p), seed=args.seed, resume=args.resume,
-                          scale=args.scale, stimuli_root=None, allow_declared=args.simulate, on_started=started,
-                          progress=(lambda d, t: bar(d, t)) if bar else None)
+    try:
+        summary = run_session(p, args.participant, db, _presenter_factory(args, p), seed=args.seed,
+                              resume=args.resume, scale=args.scale, stimuli_root=None, allow_declared=args.simulate,
+                              on_started=started, progress=(lambda d, t: bar(d, t)) if bar else None)
+    except RuntimeError as exc:  # the window's PresentationError (no display, keyboard backend not ptb, ...)
+        if type(exc).__name__ != "PresentationError":
+            raise
+        raise CLIError(f"{exc} (answers given so far are saved: continue with --resume)") from None
     catch = ""
     if summary.catch_total:
         verdict = {True: "passed", False: "FAILED", None: "pending"}[summary.catch_passed]
