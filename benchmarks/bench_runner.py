@@ -117,8 +117,8 @@ def main() -> int:
         f"| commit one response, p90 | {commits['p90'] * ms:.2f} ms | |",
         f"| commit one response, p99 | {commits['p99'] * ms:.2f} ms | ≤ 5 ms |",
         f"| commit one response, max of {commits['n']} | {commits['max'] * ms:.2f} ms | |",
-        f"| floor: one 4 KiB pwrite + fdatasync on the same disk, p50 / p99 | {commits['floor_p50'] * ms:.2f} / "
-        f"{commits['floor_p99'] * ms:.2f} ms | |",
+        (f"| floor: one 4 KiB pwrite + fdatasync on the same disk, p50 / p99 | {commits['floor_p50'] * ms:.2f} / "
+         f"{commits['floor_p99'] * ms:.2f} ms | |"),
     ]
     for r in schedules:
         lines.append(f"| schedules for 1,000 participants, {r['protocol']} ({r['trials']} trials each) | "
@@ -127,10 +127,10 @@ def main() -> int:
     lines.append(f"| whole simulated session, seed003_task1 ({session['trials']} trials, fresh DB) | "
                  f"{session['seconds']:.2f} s | |")
     ratio = commits["p99"] / commits["floor_p99"] if commits["floor_p99"] else float("nan")
-    lines += ["", f"Commit p99 is {ratio:.2f}× the p99 of a bare fdatasync on the same disk: a durable commit "
-              "cannot be faster than the disk's flush, so on this shared virtual disk the 5 ms target holds only "
-              "when the flush itself does. Re-running gives byte-identical schedules: "
-              f"{'yes' if all(r['identical'] for r in schedules) else 'NO'}.", "",
+    lines += ["", (f"Commit p99 is {ratio:.2f}× the p99 of a bare fdatasync on the same disk: a durable commit "
+                   "cannot be faster than the disk's flush, so on this shared virtual disk the 5 ms target holds "
+                   "only when the flush itself does. Re-running gives byte-identical schedules: "
+                   f"{'yes' if all(r['identical'] for r in schedules) else 'NO'}."), "",
               "Reproduce: `.venv/bin/python benchmarks/bench_runner.py --write docs/benchmarks.md`"]
     print("\n".join(lines))
     if args.write:

@@ -41,10 +41,10 @@ import json
 import math
 import sqlite3
 import time
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
-from typing import Iterable, Sequence
 
 from .atomic import atomic_path, write_text
 from .trial_log import ALL_COLUMNS
@@ -84,7 +84,7 @@ class StoreError(ValueError):
 
 
 def utc_now() -> str:
-    return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+    return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
 
 
 @dataclass(frozen=True)
@@ -117,7 +117,7 @@ class Store:
         self.conn = conn
 
     # -- plumbing ------------------------------------------------------------------------------------------
-    def __enter__(self) -> "Store":
+    def __enter__(self) -> Store:  # noqa: PYI034 - a final class
         return self
 
     def __exit__(self, *exc) -> None:

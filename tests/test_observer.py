@@ -10,7 +10,11 @@ from hypothesis import strategies as st
 
 from studyapp.presentation.base import Stimulus, TrialDisplay
 from studyapp.runner.observer import (
-    E2_DEG, SimulatedObserver, foveated_difference, participant_params, phi,
+    E2_DEG,
+    SimulatedObserver,
+    foveated_difference,
+    participant_params,
+    phi,
 )
 from studyapp.runner.protocol import Display, load_protocol
 from studyapp.runner.stimuli import eccentricity_map, save_png, synthetic_scene

@@ -92,11 +92,13 @@ def test_sigkill_at_random_points_then_resume(tmp_path):
         seen = now
     # Finish the last participant without interruption.
     enrolled, _ = _state(db, participants[-1])
-    res = subprocess.run(_cmd(db, participants[-1], enrolled), cwd=tmp_path, env=env, capture_output=True, text=True)
+    res = subprocess.run(_cmd(db, participants[-1], enrolled), cwd=tmp_path, env=env, capture_output=True,
+                         text=True, check=False)
     assert res.returncode == 0, res.stderr
     full = tmp_path / "full.db"
     for pid in participants:
-        res = subprocess.run(_cmd(full, pid, False), cwd=tmp_path, env=env, capture_output=True, text=True)
+        res = subprocess.run(_cmd(full, pid, False), cwd=tmp_path, env=env, capture_output=True, text=True,
+                             check=False)
         assert res.returncode == 0, res.stderr
     assert kills == KILLS and hit_during_trials >= KILLS // 2
     got, want = _tidy(db), _tidy(full)

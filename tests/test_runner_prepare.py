@@ -1,6 +1,7 @@
 """prepare: every needed frame built once (renderer calls, derived copies), camera paths, progress and ETA."""
 
 import io
+import itertools
 import math
 from pathlib import Path
 
@@ -10,7 +11,14 @@ import pytest
 from studyapp.commands.study import ProgressBar
 from studyapp.runner.protocol import load_protocol
 from studyapp.runner.stimuli import (
-    absolute_camera, camera_at, frame_paths, load_gray, missing_stimuli, needed_stimuli, prepare, save_png,
+    absolute_camera,
+    camera_at,
+    frame_paths,
+    load_gray,
+    missing_stimuli,
+    needed_stimuli,
+    prepare,
+    save_png,
 )
 
 PROTOCOLS = Path(__file__).resolve().parents[1] / "protocols"
@@ -53,7 +61,7 @@ def test_prepare_builds_every_missing_frame_once(tmp_path, monkeypatch):
     xs = sorted({dict(c[6])["position"][0] for c in fake.calls})
     assert xs == pytest.approx([4 * i / (n - 1) for i in range(n)])
     assert seen[-1][0] == seen[-1][1] == res["frames"]
-    assert all(a[0] <= b[0] for a, b in zip(seen, seen[1:]))
+    assert all(a[0] <= b[0] for a, b in itertools.pairwise(seen))
     assert seen[-1][2] == 0.0
     assert all(math.isfinite(x[2]) and x[2] >= 0 for x in seen)
     # Derived (catch) frames are a blurred, noisy copy of GT's: they differ from it but keep its mean level.
@@ -94,7 +102,7 @@ def test_yaw_offsets_turn_the_scene_camera():
     except Exception as exc:  # noqa: BLE001 - scenes need the render extra
         pytest.skip(f"scenes not usable here: {exc}")
     out = absolute_camera("cornell", {"yaw_deg": 90.0})
-    f, r, _ = cam.basis()
+    _, r, _ = cam.basis()
     d = np.subtract(out["look_at"], out["position"])
     assert np.dot(d / np.linalg.norm(d), r) == pytest.approx(1.0, abs=1e-9)
     assert np.linalg.norm(d) == pytest.approx(np.linalg.norm(np.subtract(cam.look_at, cam.position)))

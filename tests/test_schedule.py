@@ -10,7 +10,12 @@ from hypothesis import strategies as st
 
 from studyapp.runner.protocol import load_protocol
 from studyapp.runner.schedule import (
-    _Stream, balanced_latin_square_row, build_schedule, constrained_shuffle, counterbalance_index, schedule_bytes,
+    _Stream,
+    balanced_latin_square_row,
+    build_schedule,
+    constrained_shuffle,
+    counterbalance_index,
+    schedule_bytes,
     schedule_hash,
 )
 
@@ -103,7 +108,7 @@ def test_2afc_no_pair_twice_in_a_row_and_catch_trials(afc):
     sched = build_schedule(afc, "P5", 11)
     main = [t for t in sched if t.kind in ("trial", "catch")]
     trials = [t for t in sched if t.kind == "trial"]
-    for x, y in zip(trials, trials[1:]):
+    for x, y in itertools.pairwise(trials):
         if x.scene == y.scene:
             assert frozenset(x.conditions) != frozenset(y.conditions)
     catch = [t for t in sched if t.kind == "catch"]
@@ -126,7 +131,7 @@ def test_task1_reference_first_per_scene_in_seed_order(task1):
         assert block[0] is ref and ref.conditions == ("CC1",)
         trials = [t for t in block if t.kind == "trial"]
         assert Counter(t.conditions[0] for t in trials) == {c: 2 for c in task1.design_conditions}
-        for x, y in zip(trials, trials[1:]):
+        for x, y in itertools.pairwise(trials):
             assert x.conditions != y.conditions  # max_run 1
     catch = [t for t in sched if t.kind == "catch"]
     assert sorted((t.conditions[0], t.expected) for t in catch) == [("CC1", "yes")] * 2 + [("DEGRADED", "no")] * 2

@@ -28,7 +28,7 @@ def _protocol(path: str, stimuli: str | None = None, check_renderers: bool = Tru
 def _fmt_seconds(s: float) -> str:
     if not math.isfinite(s):
         return "?"
-    s = int(round(s))
+    s = round(s)
     return f"{s // 3600}h{s % 3600 // 60:02d}m" if s >= 3600 else (f"{s // 60}m{s % 60:02d}s" if s >= 60 else f"{s}s")
 
 
@@ -272,7 +272,7 @@ def demo_step(out_dir: Path, progress) -> list[Path]:
             pid = f"P{i:02d}"
             if progress:
                 progress(f"{name}: simulated participant {pid}")
-            run_session(p, pid, db, lambda st, d, pid=pid: SimulatedObserver(
+            run_session(p, pid, db, lambda st, d, pid=pid, p=p: SimulatedObserver(
                 p, pid, 0, ground_truth_stimuli(p, st), display=d), seed=0, scale=DEMO_SCALE)
         written += [db, store.export_csv(db, out / f"{name}_trials.csv")]
         if p.family == "2afc":

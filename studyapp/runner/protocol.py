@@ -20,9 +20,8 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
-from data_schema.protocol_schema import LoadedYAML, ProtocolError, load_yaml, validate_document
+from data_schema.protocol_schema import LoadedYAML, load_yaml, validate_document
 
 DEFAULT_KEYS = {
     "2afc": {"answer": {"1": "A", "2": "B"}, "switch": {"left": 0, "right": 1}},
@@ -74,7 +73,7 @@ class Display:
         """Pixels per degree at the screen centre: ``(width_px / width_cm) * distance_cm * tan(1 deg)``."""
         return self.width_px / self.width_cm * self.distance_cm * math.tan(math.radians(1.0))
 
-    def scaled(self, scale: float) -> "Display":
+    def scaled(self, scale: float) -> Display:
         """The same physical display shown with ``scale`` times the pixels (dry runs, the demo)."""
         return Display(max(16, round(self.width_px * scale)), max(16, round(self.height_px * scale)),
                        self.width_cm, self.distance_cm, self.refresh_hz, self.fov_y_deg, self.fullscreen,
@@ -156,7 +155,7 @@ def content_hash(data: dict) -> str:
 
 def _registry():
     try:
-        from renderers import registry  # noqa: PLC0415 - optional (the renderers extra)
+        from renderers import registry
         registry.available()
     except Exception:  # noqa: BLE001 - any failure means "not available here"
         return None
@@ -283,7 +282,7 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Proto
             raise doc.error(("keys", "switch", k), f"stimulus index {v} is out of range")
     overlap = set(answer_keys) & set(switch_keys)
     if overlap:
-        raise doc.error(("keys",), f"key {sorted(overlap)[0]!r} both answers and switches")
+        raise doc.error(("keys",), f"key {min(overlap)!r} both answers and switches")
     if "escape" in answer_keys or "escape" in switch_keys:
         raise doc.error(("keys",), "escape is reserved for pausing the session")
 

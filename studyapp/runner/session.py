@@ -18,9 +18,9 @@ from __future__ import annotations
 import platform
 import sqlite3
 import sys
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Callable
 
 from data_schema.store import PlannedRow, Store, StoreError, open_store
 from studyapp.presentation.base import DisplaySettings, Stimulus, TrialDisplay, TrialResult

@@ -14,12 +14,13 @@ another condition's frames by a Gaussian blur and seeded noise, here.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import math
 import shutil
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -111,7 +112,7 @@ def camera_at(protocol: Protocol, frame: int) -> dict | None:
     keys = [k for k in path[0] if k != "t"]
     if t <= path[0]["t"]:
         return {k: path[0][k] for k in keys}
-    for a, b in zip(path, path[1:]):
+    for a, b in itertools.pairwise(path):
         if a["t"] <= t <= b["t"]:
             w = 0.0 if b["t"] == a["t"] else (t - a["t"]) / (b["t"] - a["t"])
             out = {}
@@ -133,7 +134,7 @@ def absolute_camera(scene: str, camera: dict | None) -> dict | None:
     """
     if not camera or not ({"yaw_deg", "pitch_deg"} & set(camera)):
         return camera
-    from renderers.scene import resolve  # noqa: PLC0415 - only when rendering
+    from renderers.scene import resolve
 
     cam = resolve(scene).camera
     f, r, u = cam.basis()
@@ -221,7 +222,7 @@ def make_derived(protocol: Protocol, need: Needed, scale: float = 1.0, root: Pat
 def render_function():
     """``renderers.stimuli.render_stimulus`` or a ValueError saying why it is not usable here."""
     try:
-        from renderers.stimuli import render_stimulus  # noqa: PLC0415 - built by the renderers issue
+        from renderers.stimuli import render_stimulus
     except Exception as exc:  # noqa: BLE001 - any import failure: the renderers are not usable
         raise ValueError(f"the renderers are not usable here ({type(exc).__name__}: {exc}): render the stimuli "
                          "elsewhere and use folder conditions, or use run --simulate (declared qualities)") from None
