@@ -1,0 +1,31 @@
+"""Many-light scenes: light counts, one-sided emitters, vectorised grids."""
+
+import numpy as np
+
+from renderers.lightcuts.scenes import SCENES, cornell_many, grid_triangles
+
+
+def test_grid_triangles_cover_the_parallelogram_facing_the_normal():
+    v, f = grid_triangles((1, 2, 3), (2, 0, 0), (0, 0, 3), 4, 5, (0, -1, 0))
+    assert len(f) == 2 * 4 * 5 and len(v) == 5 * 6
+    tri = v[f]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    np.testing.assert_allclose(0.5 * np.linalg.norm(cross, axis=1).sum(), 2 * 3)
+    assert np.all(cross[:, 1] < 0) and np.allclose(cross[:, [0, 2]], 0)
+
+
+def test_cornell_many_has_about_110k_one_sided_lights():
+    sc = cornell_many()
+    pos, nrm, rgb = sc.emitters()
+    assert len(pos) == 2 * 173 * 173 + 2 * 2 * 1000 * 13 == 111_858
+    assert sc.light_count() == len(pos)
+    np.testing.assert_allclose(np.linalg.norm(nrm, axis=1), 1.0)
+    # the lamp faces down, the strips face into the room
+    assert np.sum(nrm[:, 1] < -0.99) == 2 * 173 * 173
+    assert np.all(pos[:, 0] > 0) and np.all(pos[:, 0] < 556) and np.all(pos[:, 1] < 548.8)
+    # the lamp keeps the radiance of the original: power = L_e * area
+    lamp = nrm[:, 1] < -0.99
+    np.testing.assert_allclose(rgb[lamp].sum(axis=0), np.array([34.0, 24.0, 8.0]) * 130 * 105, rtol=1e-6)
+    kinds = {m.kind for m in sc.materials}
+    assert kinds == {"diffuse", "glossy"}
+    assert "cornell_many" in SCENES
