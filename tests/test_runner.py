@@ -174,6 +174,8 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys):
           "--scale", "2"], "--scale=2 is out of range"),
         (["run", "seed001_2afc", "--participant", "P 1", "--simulate", "--db", str(tmp_path / "a.db")],
          "--participant='P 1' is invalid"),
+        (["run", "seed001_2afc", "--participant", "ann@example.org", "--simulate", "--db", str(tmp_path / "a.db")],
+         "no names or e-mail addresses"),
         (["sessions", "--db", str(tmp_path / "none.db")], "no such study database"),
         (["export", "--db", str(tmp_path / "none.db"), "--format", "csv", "--out", str(tmp_path / "x.csv")],
          "no such study database"),

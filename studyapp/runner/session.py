@@ -16,6 +16,7 @@ Order of events (what survives a crash at any point):
 from __future__ import annotations
 
 import platform
+import re
 import sqlite3
 import sys
 from collections.abc import Callable
@@ -140,9 +141,9 @@ def run_session(protocol: Protocol, participant: str, db_path, presenter_factory
     ``presenter_factory(stimuli, display)`` returns the Presenter (a window or the simulated observer); it is
     called after every check has passed, so a refused run opens no window.
     """
-    if not participant or any(ch.isspace() for ch in participant) or len(participant) > 64:
-        raise ValueError(f"--participant={participant!r} is invalid: a pseudonymous id of 1-64 characters "
-                         "without spaces")
+    if not re.fullmatch(r"[A-Za-z0-9_.-]{1,64}", participant or ""):
+        raise ValueError(f"--participant={participant!r} is invalid: a pseudonymous id of 1-64 letters, digits, "
+                         "'_', '.' or '-' (no names or e-mail addresses)")
     db_path = Path(db_path)
     created = not db_path.exists()
     store = open_store(db_path)
