@@ -1,18 +1,21 @@
-"""Benchmark of the PsychoPy presentation layer (issue 5 item 9: a 2468×2740 stimulus ready to draw in less than
-the 0.5 s black interval).
+"""Benchmark of the PsychoPy presentation layer (issue 5 item 9: a 2468×2740 stimulus ready to draw in less
+than the 0.5 s black interval).
 
 Run:  .venv/bin/python benchmarks/bench_presentation.py [--repeats 15] [--write docs/benchmarks.md]
 
 Without a DISPLAY the script re-runs itself under ``xvfb-run`` with a 2560×2880 screen, so that a 2468×2740
 window shows the stimulus at its own size (software OpenGL, llvmpipe: a lab machine's GPU uploads faster).
 
-Measured, each as the median (and maximum) over ``--repeats`` fresh loads of PNG files already in the page cache:
+Measured, each as the median (and maximum) over ``--repeats`` fresh loads of PNG files already in the page
+cache:
 
 * ``ready``: :meth:`PsychoPyPresenter.load_image_stim` (PNG decode + 8-bit texture upload into an ImageStim)
   and ``glFinish`` -- the stimulus is then ready to draw; ``draw``: one draw of it into the back buffer and
-  ``glFinish`` (reported apart: under Xvfb the software rasteriser paints 6.8 Mpixels, a GPU does it in a frame);
-* ``in black interval``: the whole path of a trial, :meth:`PsychoPyPresenter.present` loading its stimulus inside
-  its 0.5 s black interval (``core.StaticPeriod``); reported as load time and how often the interval overran;
+  ``glFinish`` (reported apart: under Xvfb the software rasteriser paints 6.8 Mpixels, a GPU does it in a
+  frame);
+* ``in black interval``: the whole path of a trial, :meth:`PsychoPyPresenter.present` loading its stimulus
+  inside its 0.5 s black interval (``core.StaticPeriod``); reported as load time and how often the interval
+  overran;
 * ``prefetched``: the same trials when :meth:`PsychoPyPresenter.prefetch` decoded the file while the previous
   trial was on screen, so that only the texture upload falls in the black interval;
 * ``sequence frame``: per-frame load time of a 1280×720 frame sequence (how many frames fit in 0.5 s).
@@ -39,8 +42,8 @@ TARGET_S = 0.5
 
 
 def make_stimulus(path: Path, width: int, height: int, seed: int) -> None:
-    """A render-like test image: smooth colour gradients and ripples plus ±6 levels of pixel noise (so that PNG
-    cannot compress it to nothing; decoding costs what a rendered frame costs)."""
+    """A render-like test image: smooth colour gradients and ripples plus ±6 levels of pixel noise (so that
+    PNG cannot compress it to nothing; decoding costs what a rendered frame costs)."""
     import numpy as np
     from PIL import Image
 
@@ -88,9 +91,18 @@ def measure(repeats: int, workdir: Path) -> dict:
             del stim
         scale = placement.scale
 
-        def gt_trial(i, stimulus):  # a reference trial: no answer, shown for 50 ms after a 0.5 s black interval
-            return TrialDisplay(index=i, family="yes_no", stimuli=(stimulus,), question="", answer_keys={},
-                                duration_s=0.05, black_before_s=TARGET_S)
+        def gt_trial(
+            i, stimulus
+        ):  # a reference trial: no answer, shown for 50 ms after a 0.5 s black interval
+            return TrialDisplay(
+                index=i,
+                family="yes_no",
+                stimuli=(stimulus,),
+                question="",
+                answer_keys={},
+                duration_s=0.05,
+                black_before_s=TARGET_S,
+            )
 
         pres.trial_info.clear()
         for r in range(repeats):
@@ -112,8 +124,19 @@ def measure(repeats: int, workdir: Path) -> dict:
         per_frame = [t["load_s"] / len(frames) for t in pres.trial_info]
     finally:
         pres.close()
-    return {"facts": facts, "scale": scale, "load_avg": os.getloadavg()[0], "ready": _stats(ready), "draw": _stats(draw), "in_black": _stats(in_black),
-            "overran": overran, "prefetched": _stats(prefetched), "overran_pf": overran_pf, "per_frame": _stats(per_frame), "repeats": repeats}
+    return {
+        "facts": facts,
+        "scale": scale,
+        "load_avg": os.getloadavg()[0],
+        "ready": _stats(ready),
+        "draw": _stats(draw),
+        "in_black": _stats(in_black),
+        "overran": overran,
+        "prefetched": _stats(prefetched),
+        "overran_pf": overran_pf,
+        "per_frame": _stats(per_frame),
+        "repeats": repeats,
+    }
 
 
 def write_markdown(path: str, res: dict) -> None:
@@ -123,21 +146,26 @@ def write_markdown(path: str, res: dict) -> None:
     rd, dr, ib, pf = res["ready"], res["draw"], res["in_black"], res["per_frame"]
     ok = "yes" if rd["median_s"] < TARGET_S and res["overran"] == 0 else "NO"
     lines = [
-        "## Presentation (`benchmarks/bench_presentation.py`)", "",
+        "## Presentation (`benchmarks/bench_presentation.py`)",
+        "",
         f"{machine_line()} PsychoPy {f['psychopy_version']}, pyglet {f['pyglet_version']}, OpenGL renderer "
         f"`{f['gl_renderer']}` (Xvfb, software rendering; no vsync, so no frame-timing figures here). "
-        f"Window {f['window_size_px'][0]}×{f['window_size_px'][1]}, stimulus drawn at scale {res['scale']:g}; "
+        f"Window {f['window_size_px'][0]}×{f['window_size_px'][1]}, "
+        f"stimulus drawn at scale {res['scale']:g}; "
         f"PNG files in the page cache; median and maximum over the repeats; load average during the run "
-        f"{res['load_avg']:.1f} on {os.cpu_count()} cores (other jobs shared the machine).", "",
+        f"{res['load_avg']:.1f} on {os.cpu_count()} cores (other jobs shared the machine).",
+        "",
         "| measurement | stimulus | repeats | median (s) | max (s) | target |",
         "|---|---|---:|---:|---:|---|",
-        f"| ready to draw: decode + texture upload (`load_image_stim`, then glFinish) | {W}×{H} PNG | {rd['n']} | "
+        f"| ready to draw: decode + texture upload (`load_image_stim`, then glFinish) | {W}×{H} PNG | "
+        f"{rd['n']} | "
         f"{rd['median_s']:.3f} | {rd['max_s']:.3f} | < {TARGET_S} s |",
         f"| then one draw of it into the back buffer (glFinish; software rasteriser) | {W}×{H} | {dr['n']} | "
         f"{dr['median_s']:.3f} | {dr['max_s']:.3f} | (one frame on a GPU) |",
         f"| loaded inside the trial's black interval (`present`, StaticPeriod) | {W}×{H} PNG | {ib['n']} | "
         f"{ib['median_s']:.3f} | {ib['max_s']:.3f} | black interval overran {res['overran']} of {ib['n']} |",
-        f"| the same with `prefetch` (decoded while the previous trial was up; upload only in the black interval) | "
+        "| the same with `prefetch` (decoded while the previous trial was up; upload only in the black "
+        "interval) | "
         f"{W}×{H} PNG | {res['prefetched']['n']} | {res['prefetched']['median_s']:.3f} | "
         f"{res['prefetched']['max_s']:.3f} | black interval overran {res['overran_pf']} of "
         f"{res['prefetched']['n']} |",
@@ -149,7 +177,8 @@ def write_markdown(path: str, res: dict) -> None:
         f"average {res['load_avg']:.1f}. A trial whose loading overruns its black interval (long sequences) "
         "is still shown correctly, after a longer black screen; the overrun is logged in "
         "`trial_info[i]['black_overran']`.",
-        "", "Reproduce: `.venv/bin/python benchmarks/bench_presentation.py --write docs/benchmarks.md`",
+        "",
+        "Reproduce: `.venv/bin/python benchmarks/bench_presentation.py --write docs/benchmarks.md`",
     ]
     replace_section(path, "presentation", lines)
 
@@ -164,15 +193,28 @@ def main() -> int:
     if sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
         if shutil.which("xvfb-run") is None:
             ap.error("no DISPLAY and no xvfb-run (Debian package xvfb): cannot open a window")
-        cmd = ["xvfb-run", "-a", "-s", "-screen 0 2560x2880x24", sys.executable, os.path.abspath(__file__), *sys.argv[1:]]
+        cmd = [
+            "xvfb-run",
+            "-a",
+            "-s",
+            "-screen 0 2560x2880x24",
+            sys.executable,
+            os.path.abspath(__file__),
+            *sys.argv[1:],
+        ]
         return subprocess.run(cmd).returncode
     with tempfile.TemporaryDirectory(prefix="bench_presentation_") as tmp:
         res = measure(a.repeats, Path(tmp))
     for name in ("ready", "draw", "in_black", "prefetched", "per_frame"):
-        print(f"{name:<10} median {res[name]['median_s']:.4f} s, max {res[name]['max_s']:.4f} s "
-              f"over {res[name]['n']}", flush=True)
-    print(f"black interval overran {res['overran']} of {res['in_black']['n']} times ({res['overran_pf']} with "
-          f"prefetch); scale {res['scale']:g}; load average {res['load_avg']:.1f}")
+        print(
+            f"{name:<10} median {res[name]['median_s']:.4f} s, max {res[name]['max_s']:.4f} s "
+            f"over {res[name]['n']}",
+            flush=True,
+        )
+    print(
+        f"black interval overran {res['overran']} of {res['in_black']['n']} times ({res['overran_pf']} with "
+        f"prefetch); scale {res['scale']:g}; load average {res['load_avg']:.1f}"
+    )
     if a.write:
         write_markdown(a.write, res)
     return 0

@@ -10,11 +10,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
 from studyapp.presentation.base import DisplaySettings, Stimulus, TrialDisplay
-from studyapp.presentation.psychopy_window import (AnswerState, Placement, pixels_per_degree, sequence_frame,
-                                                   validate_display, validate_trial)
+from studyapp.presentation.psychopy_window import (
+    AnswerState,
+    Placement,
+    pixels_per_degree,
+    sequence_frame,
+    validate_display,
+    validate_trial,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 sizes = st.integers(16, 5000)
@@ -58,8 +65,14 @@ def test_sequence_frame_is_floor_of_elapsed_frames(t, fps, n, loop):
 
 def test_sequence_frame_values():
     # 30 fps sequence of 240 frames (8 s): frame boundaries every 1/30 s, held on the last frame after 8 s
-    assert [sequence_frame(t, 30.0, 240, False) for t in (0.0, 0.0333, 1 / 30, 7.99, 8.0, 12.0)] == \
-        [0, 0, 1, 239, 239, 239]
+    assert [sequence_frame(t, 30.0, 240, False) for t in (0.0, 0.0333, 1 / 30, 7.99, 8.0, 12.0)] == [
+        0,
+        0,
+        1,
+        239,
+        239,
+        239,
+    ]
     assert [sequence_frame(t, 30.0, 240, True) for t in (8.0, 8.0 + 1 / 30, 16.0)] == [0, 1, 0]
     assert sequence_frame(3.0, 0.0, 1, True) == 0
 
@@ -73,28 +86,46 @@ def test_pixels_per_degree_matches_psychopy_flat_screen():
 
     mon = monitors.Monitor("t", width=59.8, distance=57.0)
     mon.setSizePix([2560, 1440])
-    assert math.isclose(pixels_per_degree(d), mu.deg2pix(np.array([[1.0, 0.0]]), mon, correctFlat=True)[0, 0],
-                        rel_tol=1e-9)
+    assert math.isclose(
+        pixels_per_degree(d), mu.deg2pix(np.array([[1.0, 0.0]]), mon, correctFlat=True)[0, 0], rel_tol=1e-9
+    )
 
 
 def _trial(**kw) -> TrialDisplay:
     img = (Path("a.png"),)
-    base = dict(index=3, family="2afc", stimuli=(Stimulus("A", img), Stimulus("B", img)), question="?",
-                answer_keys={"a": "A", "b": "B"}, switch_keys={"left": 0, "right": 1})
+    base = dict(
+        index=3,
+        family="2afc",
+        stimuli=(Stimulus("A", img), Stimulus("B", img)),
+        question="?",
+        answer_keys={"a": "A", "b": "B"},
+        switch_keys={"left": 0, "right": 1},
+    )
     return TrialDisplay(**{**base, **kw})
 
 
-@pytest.mark.parametrize("kw, message", [
-    (dict(stimuli=(Stimulus("A", (Path("a.png"),)),)), "trial 3: family '2afc' needs 2..2 stimuli, got 1"),
-    (dict(family="yes_no"), "trial 3: family 'yes_no' needs 1..1 stimuli, got 2"),
-    (dict(switch_keys={"x": 2}), "trial 3: switch key 'x' -> 2 is out of range 0..1"),
-    (dict(family="preference", n_picks=3), "trial 3: n_picks=3 is out of range 1..2"),
-    (dict(stimuli=(Stimulus("A", ()), Stimulus("B", (Path("b.png"),)))), "trial 3: stimulus 'A' has no frames"),
-    (dict(stimuli=(Stimulus("A", (Path("a"), Path("b"))), Stimulus("B", (Path("b"),)))),
-     "trial 3: sequence 'A' needs fps > 0, got 0.0"),
-    (dict(duration_s=0.0), "trial 3: black_before_s must be >= 0 and duration_s > 0 or None"),
-    (dict(answer_keys={}), "trial 3: a trial without answer keys needs a duration_s"),
-])
+@pytest.mark.parametrize(
+    "kw, message",
+    [
+        (
+            dict(stimuli=(Stimulus("A", (Path("a.png"),)),)),
+            "trial 3: family '2afc' needs 2..2 stimuli, got 1",
+        ),
+        (dict(family="yes_no"), "trial 3: family 'yes_no' needs 1..1 stimuli, got 2"),
+        (dict(switch_keys={"x": 2}), "trial 3: switch key 'x' -> 2 is out of range 0..1"),
+        (dict(family="preference", n_picks=3), "trial 3: n_picks=3 is out of range 1..2"),
+        (
+            dict(stimuli=(Stimulus("A", ()), Stimulus("B", (Path("b.png"),)))),
+            "trial 3: stimulus 'A' has no frames",
+        ),
+        (
+            dict(stimuli=(Stimulus("A", (Path("a"), Path("b"))), Stimulus("B", (Path("b"),)))),
+            "trial 3: sequence 'A' needs fps > 0, got 0.0",
+        ),
+        (dict(duration_s=0.0), "trial 3: black_before_s must be >= 0 and duration_s > 0 or None"),
+        (dict(answer_keys={}), "trial 3: a trial without answer keys needs a duration_s"),
+    ],
+)
 def test_validate_trial_one_line_errors(kw, message):
     with pytest.raises(ValueError) as e:
         validate_trial(_trial(**kw))
@@ -104,16 +135,30 @@ def test_validate_trial_one_line_errors(kw, message):
 def test_validate_trial_accepts_the_families():
     validate_trial(_trial())
     validate_trial(_trial(family="preference", n_picks=2, answer_keys={"1": "0", "2": "1", "space": ""}))
-    validate_trial(_trial(family="yes_no", stimuli=(Stimulus("GT", (Path("a"), Path("b")), 30.0),),
-                          answer_keys={}, switch_keys={}, duration_s=8.0, label="this is the ground truth"))
+    validate_trial(
+        _trial(
+            family="yes_no",
+            stimuli=(Stimulus("GT", (Path("a"), Path("b")), 30.0),),
+            answer_keys={},
+            switch_keys={},
+            duration_s=8.0,
+            label="this is the ground truth",
+        )
+    )
 
 
-@pytest.mark.parametrize("kw, message", [
-    (dict(width_px=8), "display.width_px=8 is out of range: must be a whole number of pixels >= 16"),
-    (dict(distance_cm=float("nan")), "display.distance_cm=nan is out of range: must be a finite number > 0"),
-    (dict(refresh_hz=0), "display.refresh_hz=0 is out of range: must be a finite number > 0"),
-    (dict(screen=-1), "display.screen=-1 is out of range: must be an integer >= 0"),
-])
+@pytest.mark.parametrize(
+    "kw, message",
+    [
+        (dict(width_px=8), "display.width_px=8 is out of range: must be a whole number of pixels >= 16"),
+        (
+            dict(distance_cm=float("nan")),
+            "display.distance_cm=nan is out of range: must be a finite number > 0",
+        ),
+        (dict(refresh_hz=0), "display.refresh_hz=0 is out of range: must be a finite number > 0"),
+        (dict(screen=-1), "display.screen=-1 is out of range: must be an integer >= 0"),
+    ],
+)
 def test_validate_display_one_line_errors(kw, message):
     d = DisplaySettings(**{**dict(width_px=640, height_px=480, width_cm=30.0, distance_cm=60.0), **kw})
     with pytest.raises(ValueError) as e:
@@ -122,13 +167,16 @@ def test_validate_display_one_line_errors(kw, message):
 
 
 def _run(code: str, env: dict) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120,
-                          cwd=str(ROOT))
+    return subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120, cwd=str(ROOT)
+    )
 
 
 def test_importing_the_window_module_does_not_import_psychopy():
-    code = ("import sys; import studyapp.presentation.psychopy_window as m; "
-            "print(sorted(k for k in sys.modules if k.split('.')[0] in ('psychopy', 'pyglet')))")
+    code = (
+        "import sys; import studyapp.presentation.psychopy_window as m; "
+        "print(sorted(k for k in sys.modules if k.split('.')[0] in ('psychopy', 'pyglet')))"
+    )
     out = _run(code, dict(os.environ, PYTHONPATH=str(ROOT)))
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[]"
@@ -138,10 +186,12 @@ def test_open_without_a_display_is_a_one_line_error():
     pytest.importorskip("psychopy")
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     env["PYTHONPATH"] = str(ROOT)
-    code = ("from studyapp.presentation.psychopy_window import PsychoPyPresenter, PresentationError\n"
-            "from studyapp.presentation.base import DisplaySettings\n"
-            "try:\n    PsychoPyPresenter().open(DisplaySettings(640, 480, 30.0, 60.0))\n"
-            "except PresentationError as e:\n    print('ERR', e)\n")
+    code = (
+        "from studyapp.presentation.psychopy_window import PsychoPyPresenter, PresentationError\n"
+        "from studyapp.presentation.base import DisplaySettings\n"
+        "try:\n    PsychoPyPresenter().open(DisplaySettings(640, 480, 30.0, 60.0))\n"
+        "except PresentationError as e:\n    print('ERR', e)\n"
+    )
     out = _run(code, env)
     line = [ln for ln in out.stdout.splitlines() if ln.startswith("ERR")]
     assert len(line) == 1 and line[0].startswith("ERR cannot import PsychoPy's window modules: ")
@@ -157,12 +207,23 @@ def test_presenter_options_are_validated():
         PsychoPyPresenter(fovea_deg=0.0)
 
 
-@pytest.mark.parametrize("kw, message", [
-    (dict(answer_keys={"left": "A"}), "trial 3: key 'left' cannot both switch and answer (escape pauses)"),
-    (dict(answer_keys={"escape": "A"}), "trial 3: key 'escape' cannot both switch and answer (escape pauses)"),
-    (dict(family="preference", answer_keys={"f1": "2"}),
-     "trial 3: answer key 'f1' -> '2' must be a stimulus index 0..1 or '' (stop picking)"),
-])
+@pytest.mark.parametrize(
+    "kw, message",
+    [
+        (
+            dict(answer_keys={"left": "A"}),
+            "trial 3: key 'left' cannot both switch and answer (escape pauses)",
+        ),
+        (
+            dict(answer_keys={"escape": "A"}),
+            "trial 3: key 'escape' cannot both switch and answer (escape pauses)",
+        ),
+        (
+            dict(family="preference", answer_keys={"f1": "2"}),
+            "trial 3: answer key 'f1' -> '2' must be a stimulus index 0..1 or '' (stop picking)",
+        ),
+    ],
+)
 def test_validate_trial_key_errors(kw, message):
     with pytest.raises(ValueError) as e:
         validate_trial(_trial(**kw))
@@ -171,15 +232,27 @@ def test_validate_trial_key_errors(kw, message):
 
 def test_answer_state_2afc_switches_then_answers():
     s = AnswerState(_trial())
-    assert [s.press(k, t) for k, t in [("right", 0.4), ("right", 0.5), ("q", 0.6), ("left", 0.9), ("b", 1.25),
-                                        ("a", 1.5), ("escape", 2.0)]] == \
-        ["switch", None, None, "switch", "answer", None, "escape"]
+    assert [
+        s.press(k, t)
+        for k, t in [
+            ("right", 0.4),
+            ("right", 0.5),
+            ("q", 0.6),
+            ("left", 0.9),
+            ("b", 1.25),
+            ("a", 1.5),
+            ("escape", 2.0),
+        ]
+    ] == ["switch", None, None, "switch", "answer", None, "escape"]
     assert (s.current, s.switches, s.picks, s.rt_s) == (0, 2, ["B"], 1.25)
 
 
 def test_answer_state_yes_no_no_switch_after_playback():
-    s = AnswerState(_trial(family="yes_no", stimuli=(Stimulus("GT", (Path("a"),)),), answer_keys={"y": "yes"},
-                           switch_keys={}))
+    s = AnswerState(
+        _trial(
+            family="yes_no", stimuli=(Stimulus("GT", (Path("a"),)),), answer_keys={"y": "yes"}, switch_keys={}
+        )
+    )
     assert s.press("y", 8.3, can_switch=False) == "answer" and (s.picks, s.rt_s) == (["yes"], 8.3)
     t = _trial()
     s = AnswerState(t)
@@ -189,22 +262,36 @@ def test_answer_state_yes_no_no_switch_after_playback():
 def test_answer_state_preference_picks_and_early_stop():
     stims = tuple(Stimulus(c, (Path(f"{c}.png"),)) for c in "pqrst")
     keys = {"f1": "0", "f2": "1", "f3": "2", "f4": "3", "f5": "4", "return": ""}
-    t = _trial(family="preference", stimuli=stims, answer_keys=keys, switch_keys={"1": 0, "2": 1, "3": 2}, n_picks=2)
+    t = _trial(
+        family="preference", stimuli=stims, answer_keys=keys, switch_keys={"1": 0, "2": 1, "3": 2}, n_picks=2
+    )
     s = AnswerState(t)
-    assert [s.press(k, r) for k, r in [("return", 0.2), ("3", 0.5), ("f3", 1.0), ("f3", 1.1), ("f1", 2.0),
-                                        ("f2", 2.5)]] == [None, "switch", "pick", None, "answer", None]
+    assert [
+        s.press(k, r)
+        for k, r in [("return", 0.2), ("3", 0.5), ("f3", 1.0), ("f3", 1.1), ("f1", 2.0), ("f2", 2.5)]
+    ] == [None, "switch", "pick", None, "answer", None]
     assert (s.picks, s.rt_s, s.switches) == (["2", "0"], 2.0, 1)
     s = AnswerState(t)
     assert [s.press(k, r) for k, r in [("f5", 0.7), ("return", 0.9)]] == ["pick", "answer"]
     assert (s.picks, s.rt_s) == (["4"], 0.9)
 
 
-@given(st.lists(st.tuples(st.sampled_from(["1", "2", "3", "f1", "f2", "f3", "return", "x"]),
-                          st.floats(0.01, 10.0)), max_size=30), st.integers(1, 3))
+@given(
+    st.lists(
+        st.tuples(st.sampled_from(["1", "2", "3", "f1", "f2", "f3", "return", "x"]), st.floats(0.01, 10.0)),
+        max_size=30,
+    ),
+    st.integers(1, 3),
+)
 def test_answer_state_preference_invariants(presses, n_picks):
     stims = tuple(Stimulus(c, (Path(f"{c}.png"),)) for c in "pqr")
-    t = _trial(family="preference", stimuli=stims, answer_keys={"f1": "0", "f2": "1", "f3": "2", "return": ""},
-               switch_keys={"1": 0, "2": 1, "3": 2}, n_picks=n_picks)
+    t = _trial(
+        family="preference",
+        stimuli=stims,
+        answer_keys={"f1": "0", "f2": "1", "f3": "2", "return": ""},
+        switch_keys={"1": 0, "2": 1, "3": 2},
+        n_picks=n_picks,
+    )
     s = AnswerState(t)
     shown, changes = 0, 0
     for k, r in presses:

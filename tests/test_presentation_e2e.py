@@ -1,4 +1,5 @@
-"""End to end under Xvfb: `studyapp run PROTOCOL --participant p1 --db FILE` with a real PsychoPy window, answers
+"""End to end under Xvfb: `studyapp run PROTOCOL --participant p1 --db FILE` with a real PsychoPy window,
+answers
 given as real key presses (xdotool), then `studyapp export` must hold exactly those answers.
 
 The CLI has no event hook, so the test watches the study database (WAL, readable while the runner writes): the
@@ -22,8 +23,9 @@ from PIL import Image
 sys.path.insert(0, str(Path(__file__).resolve().parent / "gui"))
 from xvfb import ROOT, Xvfb, missing_tools  # noqa: E402
 
-pytestmark = pytest.mark.skipif(bool(missing_tools()), reason=f"GUI tests need {missing_tools()} (Debian: xvfb, "
-                                "xdotool)")
+pytestmark = pytest.mark.skipif(
+    bool(missing_tools()), reason=f"GUI tests need {missing_tools()} (Debian: xvfb, xdotool)"
+)
 pytest.importorskip("psychopy")
 
 PROTOCOL = """\
@@ -71,41 +73,110 @@ def _wait(pred, timeout_s: float, proc) -> bool:
     return False
 
 
+class StudyRun:
+    """``studyapp run PROTOCOL --participant p1 --db DB`` under a private Xvfb, watched through its database.
+
+    Entering waits for the session row (the window is open) and leaves the instructions with a space."""
+
+    def __init__(self, proto: Path, db: Path, log: Path):
+        self.proto, self.db, self.log = proto, db, log
+
+    def __enter__(self) -> "StudyRun":
+        self.x = Xvfb().__enter__()
+        self.out = open(self.log, "w")
+        self.proc = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "studyapp",
+                "run",
+                str(self.proto),
+                "--participant",
+                "p1",
+                "--db",
+                str(self.db),
+            ],
+            env=self.x.env,
+            cwd=str(ROOT),
+            stdout=self.out,
+            stderr=subprocess.STDOUT,
+        )
+        try:
+            assert self.reaches("SELECT count(*) FROM sessions", 1, 60), self.tail()
+            time.sleep(1.0)
+            self.x.key("space")  # leaves the instructions
+        except BaseException:
+            self.__exit__(None, None, None)
+            raise
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+        self.out.close()
+        self.x.__exit__(None, None, None)
+
+    def tail(self) -> str:
+        return self.log.read_text()[-3000:]
+
+    def reaches(self, sql: str, n: int, timeout_s: float) -> bool:
+        return _wait(lambda: _count(self.db, sql) >= n, timeout_s, self.proc)
+
+    def press_until(self, keys: list[str], sql: str, n: int, delay_s: float, what: str) -> None:
+        """Press ``keys`` after ``delay_s`` until ``sql`` counts ``n`` (a key pressed in a black interval or
+        before a screen is up is discarded, so pressing again is safe); at most 3 attempts."""
+        for _ in range(3):
+            time.sleep(delay_s)
+            self.x.key(*keys)
+            if self.reaches(sql, n, 4):
+                return
+        raise AssertionError(f"{what}:\n{self.tail()}")
+
+    def finish(self) -> None:
+        self.proc.wait(timeout=30)
+        assert self.proc.returncode == 0, self.tail()
+
+
+RESPONSES = "SELECT count(*) FROM responses"
+
+
 def test_studyapp_run_with_a_window_records_the_pressed_keys(tmp_path):
     rng = np.random.default_rng(0)
     for cond in ("GT", "LOW", "MID"):
         (tmp_path / cond).mkdir()
-        Image.fromarray(rng.integers(0, 255, (240, 320, 3), dtype=np.uint8)).save(tmp_path / cond / "room.png")
+        Image.fromarray(rng.integers(0, 255, (240, 320, 3), dtype=np.uint8)).save(
+            tmp_path / cond / "room.png"
+        )
     proto = tmp_path / "gui_e2e.yaml"
     proto.write_text(PROTOCOL.format(root=tmp_path))
     db = tmp_path / "study.db"
     log = tmp_path / "run.log"
     # per trial: keys pressed before the answer (switches) and the answer key ("1" = A, "2" = B)
     plan = [(["Right"], "2"), ([], "1"), (["Right", "Left"], "1")]
-    with Xvfb() as x, open(log, "w") as out:
-        proc = subprocess.Popen([sys.executable, "-m", "studyapp", "run", str(proto), "--participant", "p1",
-                                 "--db", str(db)], env=x.env, cwd=str(ROOT), stdout=out, stderr=subprocess.STDOUT)
-        try:
-            assert _wait(lambda: _count(db, "SELECT count(*) FROM sessions") == 1, 60, proc), log.read_text()[-3000:]
-            time.sleep(1.0)
-            x.key("space")  # leaves the instructions
-            for i, (switches, answer) in enumerate(plan):
-                for attempt in range(3):
-                    time.sleep(0.8)  # past the 0.2 s black interval: keys in it are discarded at onset
-                    x.key(*switches, answer)
-                    if _wait(lambda: _count(db, "SELECT count(*) FROM responses") > i, 4, proc):
-                        break
-                else:
-                    raise AssertionError(f"trial {i} got no answer:\n{log.read_text()[-3000:]}")
-            proc.wait(timeout=30)
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
-    assert proc.returncode == 0, log.read_text()[-3000:]
+    with StudyRun(proto, db, log) as run:
+        for i, (switches, answer) in enumerate(plan):  # 0.8 s: past the 0.2 s black interval
+            run.press_until([*switches, answer], RESPONSES, i + 1, 0.8, f"trial {i} got no answer")
+        run.finish()
     out_csv = tmp_path / "log.csv"
-    exp = subprocess.run([sys.executable, "-m", "studyapp", "export", "--db", str(db), "--format", "csv", "--out",
-                          str(out_csv)], cwd=str(ROOT), capture_output=True, text=True, timeout=120)
+    exp = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "studyapp",
+            "export",
+            "--db",
+            str(db),
+            "--format",
+            "csv",
+            "--out",
+            str(out_csv),
+        ],
+        cwd=str(ROOT),
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert exp.returncode == 0, exp.stderr
     rows = sorted(csv.DictReader(out_csv.open()), key=lambda r: int(r["trial"]))
     assert len(rows) == 3
@@ -113,8 +184,9 @@ def test_studyapp_run_with_a_window_records_the_pressed_keys(tmp_path):
         assert row["participant"] == "p1" and row["family"] == "2afc" and row["scene"] == "room"
         assert row["chosen"] == (row["condition_a"] if answer == "1" else row["condition_b"])
         assert float(row["rt_s"]) > 0
-    assert {frozenset((r["condition_a"], r["condition_b"])) for r in rows} == \
-        {frozenset(p) for p in (("GT", "LOW"), ("GT", "MID"), ("LOW", "MID"))}
+    assert {frozenset((r["condition_a"], r["condition_b"])) for r in rows} == {
+        frozenset(p) for p in (("GT", "LOW"), ("GT", "MID"), ("LOW", "MID"))
+    }
     con = sqlite3.connect(db)
     sess = con.execute("SELECT keyboard_backend, presenter, status FROM sessions").fetchall()
     switches = [r[0] for r in con.execute("SELECT switches FROM responses ORDER BY idx")]
@@ -145,64 +217,34 @@ analysis: {{dv: response, unit: trial, test: summary_table}}
 
 
 def test_studyapp_run_sequences_reference_and_escape_resume(tmp_path):
-    """Seed 003 Task 1 in small: the labelled GT reference plays by itself, then yes/no sequences; Escape during
-    the second one pauses, R resumes it; the export holds the pressed answers, the events the pause and resume."""
+    """Seed 003 Task 1 in small: the labelled GT reference plays by itself, then yes/no sequences; Escape
+    during
+    the second one pauses, R resumes it; the export holds the pressed answers, the events the pause and
+    resume."""
     rng = np.random.default_rng(1)
     for cond in ("GT", "LOW"):
         (tmp_path / cond / "room").mkdir(parents=True)
         for i in range(3):
             Image.fromarray(rng.integers(0, 255, (240, 320, 3), dtype=np.uint8)).save(
-                tmp_path / cond / "room" / f"f{i}.png")
+                tmp_path / cond / "room" / f"f{i}.png"
+            )
     proto = tmp_path / "gui_e2e_seq.yaml"
     proto.write_text(SEQ_PROTOCOL.format(root=tmp_path))
     db = tmp_path / "study.db"
     log = tmp_path / "run.log"
-    n_resp = "SELECT count(*) FROM responses"
-    with Xvfb() as x, open(log, "w") as out:
-        proc = subprocess.Popen([sys.executable, "-m", "studyapp", "run", str(proto), "--participant", "p1",
-                                 "--db", str(db)], env=x.env, cwd=str(ROOT), stdout=out, stderr=subprocess.STDOUT)
-        try:
-            assert _wait(lambda: _count(db, "SELECT count(*) FROM sessions") == 1, 60, proc), log.read_text()[-3000:]
-            time.sleep(1.0)
-            x.key("space")
-            assert _wait(lambda: _count(db, n_resp) == 1, 10, proc), "the reference did not end by itself"
-            answers = []
-            for i in range(2):
-                if i == 1:  # Escape while the sequence plays -> pause screen -> R
-                    for attempt in range(3):
-                        time.sleep(0.45)
-                        x.key("Escape")
-                        if _wait(lambda: _count(db, "SELECT count(*) FROM events WHERE kind = 'pause'") == 1, 2,
-                                 proc):
-                            break
-                    else:
-                        raise AssertionError(f"Escape did not pause:\n{log.read_text()[-3000:]}")
-                    for attempt in range(3):  # the pause screen clears the key queue when it comes up
-                        time.sleep(0.3)
-                        x.key("r")
-                        if _wait(lambda: _count(db, "SELECT count(*) FROM events WHERE kind = 'resume'") == 1, 2,
-                                 proc):
-                            break
-                    else:
-                        raise AssertionError(f"R did not resume:\n{log.read_text()[-3000:]}")
-                for attempt in range(3):
-                    time.sleep(1.0)
-                    key = "yn"[i]
-                    x.key(key)
-                    if _wait(lambda: _count(db, n_resp) == 2 + i, 4, proc):
-                        answers.append(key)
-                        break
-                else:
-                    raise AssertionError(f"trial {i} got no answer:\n{log.read_text()[-3000:]}")
-            proc.wait(timeout=30)
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
-    assert proc.returncode == 0, log.read_text()[-3000:]
+    with StudyRun(proto, db, log) as run:
+        assert run.reaches(RESPONSES, 1, 10), "the reference did not end by itself"
+        run.press_until(["y"], RESPONSES, 2, 1.0, "trial 1 got no answer")
+        # Escape while the next sequence plays -> pause screen -> R (the pause screen clears the key queue)
+        run.press_until(["Escape"], "SELECT count(*) FROM events WHERE kind = 'pause'", 1, 0.45, "no pause")
+        run.press_until(["r"], "SELECT count(*) FROM events WHERE kind = 'resume'", 1, 0.3, "no resume")
+        run.press_until(["n"], RESPONSES, 3, 1.0, "trial 2 got no answer")
+        run.finish()
     con = sqlite3.connect(db)
-    rows = con.execute("SELECT r.idx, p.kind, p.conditions, r.response, r.rt_s FROM responses r JOIN planned_trials"
-                       " p ON p.participant = r.participant AND p.idx = r.idx ORDER BY r.idx").fetchall()
+    rows = con.execute(
+        "SELECT r.idx, p.kind, p.conditions, r.response, r.rt_s FROM responses r JOIN planned_trials"
+        " p ON p.participant = r.participant AND p.idx = r.idx ORDER BY r.idx"
+    ).fetchall()
     kinds = [r[0] for r in con.execute("SELECT kind FROM events ORDER BY id")]
     con.close()
     assert [r[1] for r in rows] == ["reference", "trial", "trial"]

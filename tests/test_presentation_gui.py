@@ -1,9 +1,9 @@
 """GUI tests of the PsychoPy presenter: a real window under a private Xvfb, real key presses from xdotool.
 
 Each test starts its own Xvfb (``tests/gui/xvfb.py``), runs ``tests/gui/drive_presenter.py`` in a subprocess
-with DISPLAY set, waits for the presenter's events and injects keys. It checks the recorded answers against the
-keys pressed, that reaction times are positive, and that the back-buffer screenshots show the stimulus pixels
-and the fixation mark at the gaze point. No timing assertions: Xvfb has no vsync.
+with DISPLAY set, waits for the presenter's events and injects keys. It checks the recorded answers against
+the keys pressed, that reaction times are positive, and that the back-buffer screenshots show the stimulus
+pixels and the fixation mark at the gaze point. No timing assertions: Xvfb has no vsync.
 """
 
 from __future__ import annotations
@@ -21,8 +21,9 @@ from PIL import Image
 sys.path.insert(0, str(Path(__file__).resolve().parent / "gui"))
 from xvfb import Driver, Xvfb, missing_tools  # noqa: E402
 
-pytestmark = pytest.mark.skipif(bool(missing_tools()), reason=f"GUI tests need {missing_tools()} (Debian: xvfb, "
-                                "xdotool)")
+pytestmark = pytest.mark.skipif(
+    bool(missing_tools()), reason=f"GUI tests need {missing_tools()} (Debian: xvfb, xdotool)"
+)
 pytest.importorskip("psychopy")
 
 WIN_W, WIN_H = 640, 480
@@ -43,13 +44,16 @@ def blocks_image(path: Path, seed: int, size=(IMG_W, IMG_H)) -> np.ndarray:
 
 def shot_of(shots: Path, trial: int, stim: int) -> np.ndarray:
     files = sorted(shots.glob(f"trial{trial:04d}_stim{stim}_*.png"))
-    assert files, f"no screenshot for trial {trial} stimulus {stim}: {sorted(p.name for p in shots.iterdir())}"
+    assert files, (
+        f"no screenshot for trial {trial} stimulus {stim}: {sorted(p.name for p in shots.iterdir())}"
+    )
     return np.asarray(Image.open(files[0]).convert("RGB"))
 
 
 def assert_shows(shot: np.ndarray, img: np.ndarray, fixation: tuple[int, int], rng_seed: int = 0) -> None:
-    """Pixels of ``shot`` at 200 random image positions away from the fixation cross and the corner label equal
-    the stimulus; the pixels at the fixation point are the fixation colour; outside the image is black."""
+    """Pixels of ``shot`` at 200 random image positions away from the fixation cross and the corner label
+    equal the stimulus; the pixels at the fixation point are the fixation colour; outside the image is
+    black."""
     left, top = (WIN_W - IMG_W) // 2, (WIN_H - IMG_H) // 2
     assert shot.shape == (WIN_H, WIN_W, 3)
     rng = np.random.default_rng(rng_seed)
@@ -64,13 +68,26 @@ def assert_shows(shot: np.ndarray, img: np.ndarray, fixation: tuple[int, int], r
             break
     assert checked == 200
     for dx, dy in ((-1, -1), (0, 0), (-6, 0), (5, -1), (0, 5), (-1, -7)):
-        np.testing.assert_array_equal(shot[top + fy + dy, left + fx + dx], RED,
-                                      err_msg=f"fixation pixel offset ({dx}, {dy})")
-    assert (shot[40: top - 1] == 0).all() and (shot[top + IMG_H + 1: top + IMG_H + 20] == 0).all()
+        np.testing.assert_array_equal(
+            shot[top + fy + dy, left + fx + dx], RED, err_msg=f"fixation pixel offset ({dx}, {dy})"
+        )
+    assert (shot[40 : top - 1] == 0).all() and (shot[top + IMG_H + 1 : top + IMG_H + 20] == 0).all()
 
 
 def stim(cond: str, *frames: Path, fps: float = 0.0) -> dict:
     return {"condition": cond, "frames": [str(f) for f in frames], "fps": fps}
+
+
+def yes_no_still(index: int, image: Path, fix: tuple[int, int], black_s: float) -> dict:
+    return {
+        "index": index,
+        "family": "yes_no",
+        "stimuli": [stim("GT", image)],
+        "question": "GT?",
+        "answer_keys": {"y": "yes", "n": "no"},
+        "fixation_px": fix,
+        "black_before_s": black_s,
+    }
 
 
 def test_gui_trials_keys_screenshots_and_pause(tmp_path):
@@ -80,40 +97,74 @@ def test_gui_trials_keys_screenshots_and_pause(tmp_path):
     seq = [blocks_image(tmp_path / f"s{i}.png", 10 + i) for i in range(3)]
     fix = (100, 80)
     shots = tmp_path / "shots"
-    t_2afc = {"index": 0, "family": "2afc", "stimuli": [stim("GT", tmp_path / "a.png"), stim("VaFR", tmp_path / "b.png")],
-              "question": "Which looks better?", "answer_keys": {"a": "A", "b": "B"},
-              "switch_keys": {"left": 0, "right": 1}, "fixation_px": fix, "black_before_s": 0.2,
-              "progress": [1, 4]}
-    t_seq = {"index": 1, "family": "yes_no",
-             "stimuli": [stim("EC", *(tmp_path / f"s{i}.png" for i in range(3)), fps=10.0)],
-             "question": "Is this sequence the ground truth?", "answer_keys": {"y": "yes", "n": "no"},
-             "fixation_px": fix, "duration_s": 0.3, "black_before_s": 0.2, "progress": [2, 4]}
-    t_pref = {"index": 2, "family": "preference",
-              "stimuli": [stim("m1", tmp_path / "a.png"), stim("m2", tmp_path / "b.png"),
-                          stim("m3", tmp_path / "c.png")],
-              "question": "Pick your top two", "answer_keys": {"1": "0", "2": "1", "3": "2", "space": ""},
-              "switch_keys": {"z": 0, "x": 1, "c": 2}, "fixation_px": fix, "n_picks": 2, "black_before_s": 0.2}
-    t_esc = {"index": 3, "family": "yes_no", "stimuli": [stim("GT", tmp_path / "c.png")], "question": "GT?",
-             "answer_keys": {"y": "yes", "n": "no"}, "fixation_px": fix, "black_before_s": 0.1}
-    spec = {"display": DISPLAY, "presenter": {"screenshot_dir": str(shots)},
-            "steps": [{"instructions": "Welcome"}, {"prefetch": t_seq}, {"trial": t_2afc}, {"preload": t_seq},
-                      {"prefetch": t_pref}, {"trial": t_seq},
-                      {"trial": t_pref}, {"trial": t_esc}]}
+    t_2afc = {
+        "index": 0,
+        "family": "2afc",
+        "stimuli": [stim("GT", tmp_path / "a.png"), stim("VaFR", tmp_path / "b.png")],
+        "question": "Which looks better?",
+        "answer_keys": {"a": "A", "b": "B"},
+        "switch_keys": {"left": 0, "right": 1},
+        "fixation_px": fix,
+        "black_before_s": 0.2,
+        "progress": [1, 4],
+    }
+    t_seq = {
+        "index": 1,
+        "family": "yes_no",
+        "stimuli": [stim("EC", *(tmp_path / f"s{i}.png" for i in range(3)), fps=10.0)],
+        "question": "Is this sequence the ground truth?",
+        "answer_keys": {"y": "yes", "n": "no"},
+        "fixation_px": fix,
+        "duration_s": 0.3,
+        "black_before_s": 0.2,
+        "progress": [2, 4],
+    }
+    t_pref = {
+        "index": 2,
+        "family": "preference",
+        "stimuli": [
+            stim("m1", tmp_path / "a.png"),
+            stim("m2", tmp_path / "b.png"),
+            stim("m3", tmp_path / "c.png"),
+        ],
+        "question": "Pick your top two",
+        "answer_keys": {"1": "0", "2": "1", "3": "2", "space": ""},
+        "switch_keys": {"z": 0, "x": 1, "c": 2},
+        "fixation_px": fix,
+        "n_picks": 2,
+        "black_before_s": 0.2,
+    }
+    t_esc = yes_no_still(3, tmp_path / "c.png", fix, 0.1)
+    spec = {
+        "display": DISPLAY,
+        "presenter": {"screenshot_dir": str(shots)},
+        "steps": [
+            {"instructions": "Welcome"},
+            {"prefetch": t_seq},
+            {"trial": t_2afc},
+            {"preload": t_seq},
+            {"prefetch": t_pref},
+            {"trial": t_seq},
+            {"trial": t_pref},
+            {"trial": t_esc},
+        ],
+    }
     with Xvfb() as x:
         d = Driver(x, spec, tmp_path)
         try:
             for event, match, keys in [
-                    ("instructions", {}, ["space"]),
-                    ("onset", {"trial": 0, "stimulus": 0}, ["Right"]),
-                    ("onset", {"trial": 0, "stimulus": 1}, ["Left"]),
-                    ("onset", {"trial": 0, "stimulus": 0}, ["b"]),
-                    ("question", {"trial": 1}, ["n"]),
-                    ("onset", {"trial": 2, "stimulus": 0}, ["c"]),
-                    ("onset", {"trial": 2, "stimulus": 2}, ["3"]),
-                    ("pick", {"trial": 2}, ["x", "3", "1"]),  # "3" again is ignored; "1" is the second pick
-                    ("onset", {"trial": 3}, ["Escape"]),
-                    ("pause", {}, ["r"]),
-                    ("onset", {"trial": 3}, ["y"])]:
+                ("instructions", {}, ["space"]),
+                ("onset", {"trial": 0, "stimulus": 0}, ["Right"]),
+                ("onset", {"trial": 0, "stimulus": 1}, ["Left"]),
+                ("onset", {"trial": 0, "stimulus": 0}, ["b"]),
+                ("question", {"trial": 1}, ["n"]),
+                ("onset", {"trial": 2, "stimulus": 0}, ["c"]),
+                ("onset", {"trial": 2, "stimulus": 2}, ["3"]),
+                ("pick", {"trial": 2}, ["x", "3", "1"]),  # "3" again is ignored; "1" is the second pick
+                ("onset", {"trial": 3}, ["Escape"]),
+                ("pause", {}, ["r"]),
+                ("onset", {"trial": 3}, ["y"]),
+            ]:
                 d.wait_for(event, **match)
                 x.key(*keys)
             result = d.finish()
@@ -142,15 +193,17 @@ def test_gui_trials_keys_screenshots_and_pause(tmp_path):
 
 
 def test_gui_mousegaze_flags_gaze_outside_fovea_and_pause_end(tmp_path):
-    """iohub's MouseGaze follows the pointer moved by xdotool: a gaze kept on the fixation point leaves the trial
-    unflagged, a gaze moved 9 degrees away flags it; Escape then "E" ends the session (saved as "end")."""
+    """iohub's MouseGaze follows the pointer moved by xdotool: a gaze kept on the fixation point leaves the
+    trial unflagged, a gaze moved 9 degrees away flags it; Escape then "E" ends the session (saved as
+    "end")."""
     blocks_image(tmp_path / "a.png", 1)
     fix = (100, 80)
-    trials = [{"index": i, "family": "yes_no", "stimuli": [stim("GT", tmp_path / "a.png")], "question": "GT?",
-               "answer_keys": {"y": "yes", "n": "no"}, "fixation_px": fix, "black_before_s": 0.5}
-              for i in range(3)]
-    spec = {"display": DISPLAY, "presenter": {"eyetracker": "mousegaze", "fovea_deg": 2.5},
-            "steps": [{"trial": t} for t in trials]}
+    trials = [yes_no_still(i, tmp_path / "a.png", fix, 0.5) for i in range(3)]
+    spec = {
+        "display": DISPLAY,
+        "presenter": {"eyetracker": "mousegaze", "fovea_deg": 2.5},
+        "steps": [{"trial": t} for t in trials],
+    }
     left, top = (WIN_W - IMG_W) // 2, (WIN_H - IMG_H) // 2
     with Xvfb() as x:
         d = Driver(x, spec, tmp_path)
@@ -189,17 +242,24 @@ def test_gui_mousegaze_flags_gaze_outside_fovea_and_pause_end(tmp_path):
 
 
 def test_gui_refuses_a_keyboard_without_psychtoolbox(tmp_path):
-    """If psychtoolbox cannot be imported, PsychoPy silently falls back to its 'event' keyboard; open() refuses."""
+    """If psychtoolbox cannot be imported, PsychoPy silently falls back to its 'event' keyboard; open()
+    refuses."""
     fake = tmp_path / "fake" / "psychtoolbox"
     fake.mkdir(parents=True)
     (fake / "__init__.py").write_text('raise ImportError("simulated: libjack missing")\n')
-    code = ("from studyapp.presentation.psychopy_window import PsychoPyPresenter, PresentationError\n"
-            "from studyapp.presentation.base import DisplaySettings\n"
-            "try:\n    PsychoPyPresenter().open(DisplaySettings(640, 480, 30.0, 60.0))\n"
-            "except PresentationError as e:\n    print('REFUSED', e)\n")
+    code = (
+        "from studyapp.presentation.psychopy_window import PsychoPyPresenter, PresentationError\n"
+        "from studyapp.presentation.base import DisplaySettings\n"
+        "try:\n    PsychoPyPresenter().open(DisplaySettings(640, 480, 30.0, 60.0))\n"
+        "except PresentationError as e:\n    print('REFUSED', e)\n"
+    )
     with Xvfb() as x:
         env = dict(x.env, PYTHONPATH=f"{fake.parent}{os.pathsep}{x.env['PYTHONPATH']}")
-        out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60)
+        out = subprocess.run(
+            [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60
+        )
     lines = [ln for ln in out.stdout.splitlines() if ln.startswith("REFUSED")]
-    assert lines == ["REFUSED keyboard backend is 'event', not 'ptb': psychtoolbox did not load (on Debian "
-                     "install libjack-jackd2-0); refusing to run with imprecise reaction times"], out.stderr[-2000:]
+    assert lines == [
+        "REFUSED keyboard backend is 'event', not 'ptb': psychtoolbox did not load (on Debian "
+        "install libjack-jackd2-0); refusing to run with imprecise reaction times"
+    ], out.stderr[-2000:]

@@ -1,16 +1,16 @@
 """A real PsychoPy window implementing :class:`studyapp.presentation.base.Presenter`.
 
-This is the only module of studyapp that imports PsychoPy, and it does so lazily (inside :meth:`open`), so that
-importing it on a machine without a display or without PsychoPy costs nothing and fails only when a window is
-really asked for.
+This is the only module of studyapp that imports PsychoPy, and it does so lazily (inside :meth:`open`), so
+that importing it on a machine without a display or without PsychoPy costs nothing and fails only when a
+window is really asked for.
 
 What a trial looks like (:meth:`PsychoPyPresenter.present`)
 ----------------------------------------------------------
 1. **Black interval** of ``trial.black_before_s`` seconds (with the trial label, e.g. "this is the ground
    truth", and the progress indicator in dim text). The trial's stimuli are decoded and uploaded to the GPU
-   *inside* this interval (:class:`psychopy.core.StaticPeriod`); if loading overran the interval the overrun is
-   recorded in :attr:`PsychoPyPresenter.trial_info`. Calling :meth:`preload` earlier starts the black interval
-   and the loading at once; :meth:`present` then only waits for what is left of the interval.
+   *inside* this interval (:class:`psychopy.core.StaticPeriod`); if loading overran the interval the overrun
+   is recorded in :attr:`PsychoPyPresenter.trial_info`. Calling :meth:`preload` earlier starts the black
+   interval and the loading at once; :meth:`present` then only waits for what is left of the interval.
 2. **Stimulus**: still images are drawn until answered; sequences (``Stimulus.frames`` pre-decoded into one
    texture each) are drawn one frame per flip, frame ``k = floor((t_flip - t_onset) * fps)`` of the sequence,
    so a dropped flip skips a frame instead of stretching the sequence. ``yes_no`` sequences play once for
@@ -19,10 +19,11 @@ What a trial looks like (:meth:`PsychoPyPresenter.present`)
    among the stimuli with ``trial.switch_keys`` (a switch restarts the sequence) before committing.
 3. **Fixation mark** at ``trial.fixation_px`` (stimulus pixel coordinates: x right, y down, origin at the
    image's top-left corner, as the foveation mappings use), drawn over every stimulus frame.
-4. **Answers**: ``trial.answer_keys`` maps key names (psychtoolbox names: ``left``, ``a``, ``1``, ``space``...)
-   to the recorded answer. ``preference`` trials collect ``trial.n_picks`` distinct picks; a key whose answer is
-   ``""`` ends the picking early ("only one"). ``rt_s`` runs from the onset flip of the first stimulus frame
-   (the keyboard clock is reset with ``win.callOnFlip``) to the key press that completed the answer.
+4. **Answers**: ``trial.answer_keys`` maps key names (psychtoolbox names: ``left``, ``a``, ``1``,
+   ``space``...) to the recorded answer. ``preference`` trials collect ``trial.n_picks`` distinct picks; a key
+   whose answer is ``""`` ends the picking early ("only one"). ``rt_s`` runs from the onset flip of the first
+   stimulus frame (the keyboard clock is reset with ``win.callOnFlip``) to the key press that completed the
+   answer.
 5. **Escape** ends the trial at once with ``escaped=True`` and no answer; the runner then calls :meth:`pause`
    ("R" resume / "E" end) and re-presents the trial on resume.
 
@@ -76,8 +77,15 @@ class Placement:
         scale = min(1.0, win_w / img_w, win_h / img_h)
         w, h = img_w * scale, img_h * scale
         # 1e-9 absorbs the round-off of w = img_w * (win_w / img_w) when the image is shrunk to fit
-        return cls(win_w, win_h, img_w, img_h, scale, int(math.floor((win_w - w) / 2 + 1e-9)),
-                   int(math.floor((win_h - h) / 2 + 1e-9)))
+        return cls(
+            win_w,
+            win_h,
+            img_w,
+            img_h,
+            scale,
+            int(math.floor((win_w - w) / 2 + 1e-9)),
+            int(math.floor((win_h - h) / 2 + 1e-9)),
+        )
 
     @property
     def size(self) -> tuple[float, float]:
@@ -103,8 +111,8 @@ class Placement:
 def pixels_per_degree(display: DisplaySettings) -> float:
     """Pixels per degree of visual angle at the screen centre.
 
-    ``ppd = width_px / width_cm * distance_cm * tan(1°)``: the size in pixels of 1° seen from ``distance_cm`` on a
-    flat screen, as PsychoPy's ``deg2pix(1, monitor, correctFlat=True)``.
+    ``ppd = width_px / width_cm * distance_cm * tan(1°)``: the size in pixels of 1° seen from ``distance_cm``
+    on a flat screen, as PsychoPy's ``deg2pix(1, monitor, correctFlat=True)``.
     """
     return display.width_px / display.width_cm * display.distance_cm * math.tan(math.radians(1.0))
 
@@ -112,8 +120,8 @@ def pixels_per_degree(display: DisplaySettings) -> float:
 def sequence_frame(elapsed_s: float, fps: float, n_frames: int, loop: bool) -> int:
     """Index of the frame of an ``n_frames``-frame sequence at ``fps`` to show ``elapsed_s`` after onset.
 
-    ``k = floor(elapsed_s * fps)`` (with a 1e-6 s guard against a flip time stamp landing a hair before a frame
-    boundary), wrapped modulo ``n_frames`` when looping, else held on the last frame.
+    ``k = floor(elapsed_s * fps)`` (with a 1e-6 s guard against a flip time stamp landing a hair before a
+    frame boundary), wrapped modulo ``n_frames`` when looping, else held on the last frame.
     """
     if n_frames <= 1 or fps <= 0:
         return 0
@@ -140,16 +148,22 @@ def validate_trial(trial: TrialDisplay) -> None:
     n = len(trial.stimuli)
     need = {"yes_no": (1, 1), "2afc": (2, 2), "preference": (2, 64)}[trial.family]
     if not need[0] <= n <= need[1]:
-        raise ValueError(f"trial {trial.index}: family {trial.family!r} needs {need[0]}..{need[1]} stimuli, got {n}")
+        raise ValueError(
+            f"trial {trial.index}: family {trial.family!r} needs {need[0]}..{need[1]} stimuli, got {n}"
+        )
     for s in trial.stimuli:
         if not s.frames:
             raise ValueError(f"trial {trial.index}: stimulus {s.condition!r} has no frames")
         if s.is_sequence and not s.fps > 0:
             raise ValueError(f"trial {trial.index}: sequence {s.condition!r} needs fps > 0, got {s.fps!r}")
-    both = sorted(set(trial.switch_keys) & set(trial.answer_keys) | {ESCAPE} & (set(trial.switch_keys) |
-                                                                                set(trial.answer_keys)))
+    both = sorted(
+        set(trial.switch_keys) & set(trial.answer_keys)
+        | {ESCAPE} & (set(trial.switch_keys) | set(trial.answer_keys))
+    )
     if both:
-        raise ValueError(f"trial {trial.index}: key {both[0]!r} cannot both switch and answer (escape pauses)")
+        raise ValueError(
+            f"trial {trial.index}: key {both[0]!r} cannot both switch and answer (escape pauses)"
+        )
     for key, idx in trial.switch_keys.items():
         if not 0 <= idx < n:
             raise ValueError(f"trial {trial.index}: switch key {key!r} -> {idx} is out of range 0..{n - 1}")
@@ -158,8 +172,10 @@ def validate_trial(trial: TrialDisplay) -> None:
     if trial.family == "preference":
         for key, ans in trial.answer_keys.items():
             if ans != "" and not (ans.isdigit() and int(ans) < n):
-                raise ValueError(f"trial {trial.index}: answer key {key!r} -> {ans!r} must be a stimulus index "
-                                 f"0..{n - 1} or '' (stop picking)")
+                raise ValueError(
+                    f"trial {trial.index}: answer key {key!r} -> {ans!r} must be a stimulus index "
+                    f"0..{n - 1} or '' (stop picking)"
+                )
     if trial.black_before_s < 0 or (trial.duration_s is not None and not trial.duration_s > 0):
         raise ValueError(f"trial {trial.index}: black_before_s must be >= 0 and duration_s > 0 or None")
     if not trial.answer_keys and trial.duration_s is None:
@@ -229,7 +245,8 @@ def _stim_labels(trial: TrialDisplay) -> list[str]:
 
 
 class _TextureRef:
-    """Hands an already uploaded GL texture to ``ImageStim.image`` (PsychoPy's path for movie/camera frames)."""
+    """Hands an already uploaded GL texture to ``ImageStim.image`` (PsychoPy's path for movie/camera
+    frames)."""
 
     isLumImage = False
 
@@ -253,11 +270,14 @@ def _has_display() -> bool:
     import os
     import sys
 
-    return not sys.platform.startswith("linux") or bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    return not sys.platform.startswith("linux") or bool(
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    )
 
 
 def _set_text(stim, text: str) -> None:
-    """Set a TextStim's text only when it changes (a change re-lays out the text, too slow for every frame)."""
+    """Set a TextStim's text only when it changes (a change re-lays out the text, too slow for every
+    frame)."""
     if stim.text != text:
         stim.text = text
 
@@ -308,10 +328,19 @@ class PsychoPyPresenter:
         ``pick``, ``question``, ``pause`` and ``message`` (after the flip that shows it), e.g. to drive tests.
     """
 
-    def __init__(self, *, fixation_rgb: tuple[int, int, int] | None = (255, 0, 0), fixation_size_px: int = 16,
-                 fixation_line_px: int = 2, show_labels: bool = True, eyetracker: str | None = None,
-                 fovea_deg: float = 2.5, screenshot_dir: str | Path | None = None,
-                 on_event: EventHook | None = None, text_height_px: int = 24):
+    def __init__(
+        self,
+        *,
+        fixation_rgb: tuple[int, int, int] | None = (255, 0, 0),
+        fixation_size_px: int = 16,
+        fixation_line_px: int = 2,
+        show_labels: bool = True,
+        eyetracker: str | None = None,
+        fovea_deg: float = 2.5,
+        screenshot_dir: str | Path | None = None,
+        on_event: EventHook | None = None,
+        text_height_px: int = 24,
+    ):
         if eyetracker not in (None, "mousegaze"):
             raise ValueError(f"eyetracker={eyetracker!r} is not supported: use None or 'mousegaze'")
         if not (math.isfinite(fovea_deg) and fovea_deg > 0):
@@ -351,18 +380,29 @@ class PsychoPyPresenter:
             from psychopy import core, logging, monitors, visual
             from psychopy.hardware import keyboard
         except Exception as exc:  # no display, missing package...
-            hint = " (no DISPLAY: run under a display or Xvfb, e.g. xvfb-run -a)" if not _has_display() else ""
-            raise PresentationError(f"cannot import PsychoPy's window modules: {type(exc).__name__}: "
-                                    f"{exc}{hint}") from None
+            hint = (
+                " (no DISPLAY: run under a display or Xvfb, e.g. xvfb-run -a)" if not _has_display() else ""
+            )
+            raise PresentationError(
+                f"cannot import PsychoPy's window modules: {type(exc).__name__}: {exc}{hint}"
+            ) from None
         self._core, self._visual = core, visual
         self._now = logging.defaultClock.getTime  # the clock of win.flip()'s time stamps
         mon = monitors.Monitor("studyapp", width=display.width_cm, distance=display.distance_cm)
         mon.setSizePix([display.width_px, display.height_px])
         try:
-            self.win = visual.Window(size=(display.width_px, display.height_px), fullscr=display.fullscreen,
-                                     screen=display.screen, monitor=mon, units="pix", color=(-1, -1, -1),
-                                     colorSpace="rgb", allowGUI=not display.fullscreen, checkTiming=False,
-                                     waitBlanking=True)
+            self.win = visual.Window(
+                size=(display.width_px, display.height_px),
+                fullscr=display.fullscreen,
+                screen=display.screen,
+                monitor=mon,
+                units="pix",
+                color=(-1, -1, -1),
+                colorSpace="rgb",
+                allowGUI=not display.fullscreen,
+                checkTiming=False,
+                waitBlanking=True,
+            )
         except Exception as exc:
             raise PresentationError(f"cannot open a PsychoPy window: {type(exc).__name__}: {exc}") from None
         self.kb = keyboard.Keyboard()
@@ -371,7 +411,8 @@ class PsychoPyPresenter:
             self.close()
             raise PresentationError(
                 f"keyboard backend is {backend!r}, not 'ptb': psychtoolbox did not load (on Debian install "
-                "libjack-jackd2-0); refusing to run with imprecise reaction times")
+                "libjack-jackd2-0); refusing to run with imprecise reaction times"
+            )
         self.display = display
         measured = self.win.getActualFrameRate(nIdentical=10, nMaxFrames=120, nWarmUpFrames=10, threshold=1)
         period = 1.0 / (measured or display.refresh_hz)
@@ -387,7 +428,11 @@ class PsychoPyPresenter:
             ptb_version = None
         self.facts = {
             "presenter": "PsychoPyPresenter",
-            "software": {"psychopy": psychopy.__version__, "pyglet": pyglet.version, "psychtoolbox": ptb_version},
+            "software": {
+                "psychopy": psychopy.__version__,
+                "pyglet": pyglet.version,
+                "psychtoolbox": ptb_version,
+            },
             "refresh_hz": float(measured) if measured else None,
             "refresh_hz_nominal": float(display.refresh_hz),
             "keyboard_backend": backend,
@@ -409,21 +454,47 @@ class PsychoPyPresenter:
     def _make_stims(self) -> None:
         visual, win = self._visual, self.win
         h = self.text_height_px
-        self._text = visual.TextStim(win, text="", height=h, color=(0.8, 0.8, 0.8), wrapWidth=win.size[0] * 0.8,
-                                     units="pix")
-        self._dim = visual.TextStim(win, text="", height=h * 0.75, color=(-0.3, -0.3, -0.3), units="pix",
-                                    pos=(0, -win.size[1] / 2 + h))
-        self._question = visual.TextStim(win, text="", height=h, color=(0.8, 0.8, 0.8), units="pix",
-                                         wrapWidth=win.size[0] * 0.9)
-        self._corner = visual.TextStim(win, text="", height=h, color=(1, 1, 1), units="pix", anchorHoriz="left",
-                                       alignText="left", anchorVert="top",
-                                       pos=(-win.size[0] / 2 + 8, win.size[1] / 2 - 8))
+        self._text = visual.TextStim(
+            win, text="", height=h, color=(0.8, 0.8, 0.8), wrapWidth=win.size[0] * 0.8, units="pix"
+        )
+        self._dim = visual.TextStim(
+            win,
+            text="",
+            height=h * 0.75,
+            color=(-0.3, -0.3, -0.3),
+            units="pix",
+            pos=(0, -win.size[1] / 2 + h),
+        )
+        self._question = visual.TextStim(
+            win, text="", height=h, color=(0.8, 0.8, 0.8), units="pix", wrapWidth=win.size[0] * 0.9
+        )
+        self._corner = visual.TextStim(
+            win,
+            text="",
+            height=h,
+            color=(1, 1, 1),
+            units="pix",
+            anchorHoriz="left",
+            alignText="left",
+            anchorVert="top",
+            pos=(-win.size[0] / 2 + 8, win.size[1] / 2 - 8),
+        )
         self._fix = []
         if self.fixation_rgb is not None:
             arm, line = self.fixation_size_px, self.fixation_line_px
             for w, hh in ((arm, line), (line, arm)):
-                self._fix.append(visual.Rect(win, width=w, height=hh, units="pix", fillColor=self.fixation_rgb,
-                                             lineColor=None, colorSpace="rgb255", lineWidth=0))
+                self._fix.append(
+                    visual.Rect(
+                        win,
+                        width=w,
+                        height=hh,
+                        units="pix",
+                        fillColor=self.fixation_rgb,
+                        lineColor=None,
+                        colorSpace="rgb255",
+                        lineWidth=0,
+                    )
+                )
 
     def close(self) -> None:
         """Close the window and the eye tracker (safe to call twice)."""
@@ -460,8 +531,12 @@ class PsychoPyPresenter:
         try:
             from psychopy.iohub import launchHubServer
 
-            cfg = {"eyetracker.hw.mouse.EyeTracker": {
-                "name": "tracker", "controls": {"move": [], "blink": ["LEFT_BUTTON"], "saccade_threshold": 0.5}}}
+            cfg = {
+                "eyetracker.hw.mouse.EyeTracker": {
+                    "name": "tracker",
+                    "controls": {"move": [], "blink": ["LEFT_BUTTON"], "saccade_threshold": 0.5},
+                }
+            }
             self._io = launchHubServer(window=self.win, **cfg)
             self._tracker = self._io.getDevice("tracker")
             self._tracker.setRecordingState(True)
@@ -483,7 +558,7 @@ class PsychoPyPresenter:
         g = self._tracker.getLastGazePosition()
         if g is None or len(g) < 2:
             return None
-        # iohub reports display coordinates (origin at the screen centre, y up); convert via the window position
+        # iohub reports display coordinates (origin at the screen centre, y up): use the window position
         screen = self.win.winHandle.screen
         wx, wy = self._window_location()
         sw, sh = screen.width, screen.height
@@ -532,19 +607,21 @@ class PsychoPyPresenter:
 
     # ------------------------------------------------------------------ loading
     def load_image_stim(self, path: Path, placement: Placement | None = None):
-        """Decode ``path`` and upload it into an ImageStim placed by ``placement`` (fit to the window if None).
+        """Decode ``path`` and upload it into an ImageStim placed by ``placement`` (fit to the window if
+        None).
 
         Returns ``(stim, placement)``. See :meth:`image_stim` for the upload.
         """
         return self.image_stim(decode_image(path), placement, name=str(path))
 
     def image_stim(self, im, placement: Placement | None = None, name: str = "image"):
-        """Upload a decoded PIL image (``RGB`` or ``RGBA``) into a new ImageStim; return ``(stim, placement)``.
+        """Upload a decoded PIL image (``RGB`` or ``RGBA``) into a new ImageStim; return ``(stim,
+        placement)``.
 
         The rows are uploaded as they are (top row first, 8 bits per channel, ``flipVert`` drawing) with no
-        mipmaps and nearest-texel sampling at ``scale = 1``, so the window shows the file's pixel values unchanged.
-        This skips the flip, RGBA conversion and mipmap generation that ``ImageStim(image=...)`` does, which is
-        most of its cost for a large stimulus (see docs/benchmarks.md, section presentation).
+        mipmaps and nearest-texel sampling at ``scale = 1``, so the window shows the file's pixel values
+        unchanged. This skips the flip, RGBA conversion and mipmap generation that ``ImageStim(image=...)``
+        does, which is most of its cost for a large stimulus (see docs/benchmarks.md, section presentation).
         """
         import ctypes
 
@@ -555,23 +632,41 @@ class PsychoPyPresenter:
             ww, wh = (int(v) for v in self.win.size)
             placement = Placement.fit(ww, wh, w, h)
         elif (w, h) != (placement.img_w, placement.img_h):
-            raise PresentationError(f"{name}: frame size {w}x{h} differs from the sequence's first frame "
-                                    f"{placement.img_w}x{placement.img_h}")
+            raise PresentationError(
+                f"{name}: frame size {w}x{h} differs from the sequence's first frame "
+                f"{placement.img_w}x{placement.img_h}"
+            )
         data = np.asarray(im)
         fmt = gl.GL_RGBA if im.mode == "RGBA" else gl.GL_RGB
-        stim = self._visual.ImageStim(self.win, image=None, units="pix", size=placement.size,
-                                      pos=placement.centre_pix)
+        stim = self._visual.ImageStim(
+            self.win, image=None, units="pix", size=placement.size, pos=placement.centre_pix
+        )
         filt = gl.GL_NEAREST if placement.scale == 1.0 else gl.GL_LINEAR
         gl.glBindTexture(gl.GL_TEXTURE_2D, stim._texID)
-        for param, value in ((gl.GL_TEXTURE_MIN_FILTER, filt), (gl.GL_TEXTURE_MAG_FILTER, filt),
-                             (gl.GL_TEXTURE_WRAP_S, gl.GL_CLAMP_TO_EDGE), (gl.GL_TEXTURE_WRAP_T, gl.GL_CLAMP_TO_EDGE),
-                             (gl.GL_TEXTURE_MAX_LEVEL, 0)):
+        for param, value in (
+            (gl.GL_TEXTURE_MIN_FILTER, filt),
+            (gl.GL_TEXTURE_MAG_FILTER, filt),
+            (gl.GL_TEXTURE_WRAP_S, gl.GL_CLAMP_TO_EDGE),
+            (gl.GL_TEXTURE_WRAP_T, gl.GL_CLAMP_TO_EDGE),
+            (gl.GL_TEXTURE_MAX_LEVEL, 0),
+        ):
             gl.glTexParameteri(gl.GL_TEXTURE_2D, param, value)
         gl.glPixelStorei(gl.GL_UNPACK_ALIGNMENT, 1)
-        gl.glTexImage2D(gl.GL_TEXTURE_2D, 0, fmt, w, h, 0, fmt, gl.GL_UNSIGNED_BYTE,
-                        data.ctypes.data_as(ctypes.POINTER(ctypes.c_ubyte)))
+        gl.glTexImage2D(
+            gl.GL_TEXTURE_2D,
+            0,
+            fmt,
+            w,
+            h,
+            0,
+            fmt,
+            gl.GL_UNSIGNED_BYTE,
+            data.ctypes.data_as(ctypes.POINTER(ctypes.c_ubyte)),
+        )
         gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
-        stim.image = _TextureRef(stim._texID)  # draw this texture as a top-row-first RGB image (no recolouring)
+        stim.image = _TextureRef(
+            stim._texID
+        )  # draw this texture as a top-row-first RGB image (no recolouring)
         return stim, placement
 
     def _decoder(self):
@@ -592,8 +687,9 @@ class PsychoPyPresenter:
         if trial.index in self._prefetched or trial.index in self._loaded:
             return
         pool = self._decoder()
-        self._prefetched[trial.index] = [pool.submit(decode_image, Path(f)) for s in trial.stimuli
-                                         for f in s.frames]
+        self._prefetched[trial.index] = [
+            pool.submit(decode_image, Path(f)) for s in trial.stimuli for f in s.frames
+        ]
         while len(self._prefetched) > 2:
             for fut in self._prefetched.pop(next(iter(self._prefetched))):
                 fut.cancel()
@@ -603,8 +699,10 @@ class PsychoPyPresenter:
         :meth:`prefetch`) and upload them in order on this thread (OpenGL's)."""
         t0 = time.perf_counter()
         frames, placements = [], []
-        decoded = iter(self._prefetched.pop(trial.index, None) or
-                       [self._decoder().submit(decode_image, Path(f)) for s in trial.stimuli for f in s.frames])
+        decoded = iter(
+            self._prefetched.pop(trial.index, None)
+            or [self._decoder().submit(decode_image, Path(f)) for s in trial.stimuli for f in s.frames]
+        )
         for s in trial.stimuli:
             seq, placement = [], None
             for f in s.frames:
@@ -637,7 +735,8 @@ class PsychoPyPresenter:
 
     # ------------------------------------------------------------------ trials
     def present(self, trial: TrialDisplay) -> TrialResult:
-        """Black interval (stimuli loaded in it), then the stimulus until answered; see the module docstring."""
+        """Black interval (stimuli loaded in it), then the stimulus until answered; see the module
+        docstring."""
         self._require_open()
         validate_trial(trial)
         core, win, kb = self._core, self.win, self.kb
@@ -655,8 +754,13 @@ class PsychoPyPresenter:
             overran = period.complete() != 1
         self._release_loaded()
         self._black_since = None
-        info = {"trial": trial.index, "load_s": loaded.load_s, "black_overran": bool(overran), "onsets": [],
-                "gaze": []}
+        info = {
+            "trial": trial.index,
+            "load_s": loaded.load_s,
+            "black_overran": bool(overran),
+            "onsets": [],
+            "gaze": [],
+        }
         self.trial_info.append(info)
 
         labels = _stim_labels(trial)
@@ -731,9 +835,15 @@ class PsychoPyPresenter:
                 for key in self._poll_keys(keys_wanted):
                     event = state.press(key.name, key.rt, can_switch=not playback_over)
                     if event == "escape":
-                        return TrialResult(answers=[], rt_s=float("nan"), onset_s=float(onset),
-                                           dropped_frames=win.nDroppedFrames - dropped0, switches=state.switches,
-                                           gaze_left_fovea=gaze_left, escaped=True)
+                        return TrialResult(
+                            answers=[],
+                            rt_s=float("nan"),
+                            onset_s=float(onset),
+                            dropped_frames=win.nDroppedFrames - dropped0,
+                            switches=state.switches,
+                            gaze_left_fovea=gaze_left,
+                            escaped=True,
+                        )
                     if event == "switch":
                         stim_onset_pending = True
                         shot_pending = self.screenshot_dir is not None
@@ -748,22 +858,28 @@ class PsychoPyPresenter:
         finally:
             win.recordFrameIntervals = False
             loaded.release()
-        return TrialResult(answers=list(state.picks), rt_s=state.rt_s if state.answered else float("nan"),
-                           onset_s=float(onset), dropped_frames=int(win.nDroppedFrames - dropped0),
-                           switches=state.switches, gaze_left_fovea=gaze_left)
+        return TrialResult(
+            answers=list(state.picks),
+            rt_s=state.rt_s if state.answered else float("nan"),
+            onset_s=float(onset),
+            dropped_frames=int(win.nDroppedFrames - dropped0),
+            switches=state.switches,
+            gaze_left_fovea=gaze_left,
+        )
 
     # ------------------------------------------------------------------ screens
     def _poll_keys(self, key_list: list[str] | None) -> list:
         """Key presses since the last poll, each once, in the order they went down.
 
         ``Keyboard.getKeys(waitRelease=False)`` skips a press that was already released when polled (a tap
-        shorter than the time between two polls is lost), and ``waitRelease=True`` reports a press only once it
-        is released; so both are polled, and a press seen before (still down last time, released now) is
+        shorter than the time between two polls is lost), and ``waitRelease=True`` reports a press only once
+        it is released; so both are polled, and a press seen before (still down last time, released now) is
         dropped by identity.
         """
         kb = self.kb
-        got = (kb.getKeys(keyList=key_list, waitRelease=False, clear=True)
-               + kb.getKeys(keyList=key_list, waitRelease=True, clear=True))
+        got = kb.getKeys(keyList=key_list, waitRelease=False, clear=True) + kb.getKeys(
+            keyList=key_list, waitRelease=True, clear=True
+        )
         fresh = []
         for k in got:
             if not any(k is h for h in self._handled) and not any(k is f for f in fresh):

@@ -1,10 +1,11 @@
 """Drive a real PsychoPyPresenter from a JSON spec (run under Xvfb by the GUI tests).
 
-Spec: ``{"display": {...DisplaySettings}, "presenter": {...kwargs}, "steps": [...], "result": path}``; a step is
-``{"instructions": text}``, ``{"trial": {...TrialDisplay}}`` (stimuli as ``{"condition", "frames", "fps"}``),
-``{"preload": {...}}``, ``{"prefetch": {...}}`` or ``{"message": text, "seconds": s}``. A trial that comes back escaped is followed by
-``pause()`` and, on "resume", shown again. Every presenter event is printed as ``EVENT {json}`` (flushed), so
-the test knows when to press keys; the results are written as JSON to ``result``.
+Spec: ``{"display": {...DisplaySettings}, "presenter": {...kwargs}, "steps": [...], "result": path}``; a step
+is ``{"instructions": text}``, ``{"trial": {...TrialDisplay}}`` (stimuli as ``{"condition", "frames",
+"fps"}``), ``{"preload": {...}}``, ``{"prefetch": {...}}`` or ``{"message": text, "seconds": s}``. A trial
+that comes back escaped is followed by ``pause()`` and, on "resume", shown again. Every presenter event is
+printed as ``EVENT {json}`` (flushed), so the test knows when to press keys; the results are written as JSON
+to ``result``.
 """
 
 from __future__ import annotations
@@ -26,8 +27,9 @@ def emit(name: str, info: dict) -> None:
 
 def make_trial(d: dict) -> TrialDisplay:
     d = dict(d)
-    d["stimuli"] = tuple(Stimulus(s["condition"], tuple(Path(f) for f in s["frames"]), s.get("fps", 0.0))
-                         for s in d["stimuli"])
+    d["stimuli"] = tuple(
+        Stimulus(s["condition"], tuple(Path(f) for f in s["frames"]), s.get("fps", 0.0)) for s in d["stimuli"]
+    )
     for k in ("fixation_px", "progress"):
         if d.get(k) is not None:
             d[k] = tuple(d[k])
@@ -60,8 +62,9 @@ def main(spec_path: str) -> int:
                 trial = make_trial(step["trial"])
                 while True:
                     r = pres.present(trial)
-                    out["trials"].append({k: clean(v) for k, v in dataclasses.asdict(r).items()}
-                                         | {"index": trial.index})
+                    out["trials"].append(
+                        {k: clean(v) for k, v in dataclasses.asdict(r).items()} | {"index": trial.index}
+                    )
                     if not r.escaped:
                         break
                     choice = pres.pause()

@@ -40,9 +40,12 @@ class Xvfb:
 
     def __enter__(self) -> "Xvfb":
         r, w = os.pipe()
-        self.proc = subprocess.Popen(["Xvfb", "-displayfd", str(w), "-screen", "0", self.screen, "-nolisten", "tcp",
-                                      "-noreset"], pass_fds=(w,), stdout=subprocess.DEVNULL,
-                                     stderr=subprocess.DEVNULL)
+        self.proc = subprocess.Popen(
+            ["Xvfb", "-displayfd", str(w), "-screen", "0", self.screen, "-nolisten", "tcp", "-noreset"],
+            pass_fds=(w,),
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         os.close(w)
         buf = b""
         deadline = time.monotonic() + self.timeout_s
@@ -102,8 +105,14 @@ class Driver:
         self._lines: queue.Queue = queue.Queue()
         self.stderr_path = workdir / "driver.stderr"
         with open(self.stderr_path, "w") as err:  # a file, not a pipe: PsychoPy's logging must never block
-            self.proc = subprocess.Popen([PYTHON, str(HERE / "drive_presenter.py"), str(self.spec_path)],
-                                         env=x.env, cwd=str(workdir), stdout=subprocess.PIPE, stderr=err, text=True)
+            self.proc = subprocess.Popen(
+                [PYTHON, str(HERE / "drive_presenter.py"), str(self.spec_path)],
+                env=x.env,
+                cwd=str(workdir),
+                stdout=subprocess.PIPE,
+                stderr=err,
+                text=True,
+            )
         threading.Thread(target=self._read_lines, daemon=True).start()
 
     def _read_lines(self) -> None:
@@ -121,8 +130,10 @@ class Driver:
                 raise AssertionError(f"GUI driver timed out; events so far: {self.events}") from None
             if line is None:
                 err = self.stderr_path.read_text()
-                raise AssertionError(f"GUI driver exited ({self.proc.wait()}) early; events so far: {self.events}\n"
-                                     f"{err[-3000:]}")
+                raise AssertionError(
+                    f"GUI driver exited ({self.proc.wait()}) early; events so far: {self.events}\n"
+                    f"{err[-3000:]}"
+                )
             if line.startswith("EVENT "):
                 ev = json.loads(line[6:])
                 self.events.append(ev)
