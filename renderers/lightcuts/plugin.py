@@ -156,6 +156,7 @@ def _finish(ctx, hits: Hits, diffuse: np.ndarray, rspp, seed: int, lspp_bounce: 
     ctx.extra["glossy_pass"] = bool(has_glossy)
     ctx.extra["directional_lights_ignored"] = len(ctx.scene.directional_lights)
     ctx.extra["diffuse_image"] = (hits.base + diffuse.reshape(-1, 3)).reshape(h, w, 3).astype(np.float32)
+    ctx.extra["glossy_mask"] = hits.glossy.reshape(h, w).copy()
     return (img.reshape(h, w, 3) * ctx.scene.exposure).astype(np.float32)
 
 
