@@ -135,6 +135,7 @@ def test_gui_trials_keys_screenshots_and_pause(tmp_path):
         "black_before_s": 0.2,
     }
     t_esc = yes_no_still(3, tmp_path / "c.png", fix, 0.1)
+    t_esc_black = yes_no_still(4, tmp_path / "c.png", fix, 1.0)
     spec = {
         "display": DISPLAY,
         "presenter": {"screenshot_dir": str(shots)},
@@ -147,6 +148,7 @@ def test_gui_trials_keys_screenshots_and_pause(tmp_path):
             {"trial": t_seq},
             {"trial": t_pref},
             {"trial": t_esc},
+            {"trial": t_esc_black},
         ],
     }
     with Xvfb() as x:
@@ -164,6 +166,9 @@ def test_gui_trials_keys_screenshots_and_pause(tmp_path):
                 ("onset", {"trial": 3}, ["Escape"]),
                 ("pause", {}, ["r"]),
                 ("onset", {"trial": 3}, ["y"]),
+                ("black", {"trial": 4}, ["Escape"]),  # during the black interval: paused before the onset
+                ("pause", {}, ["r"]),
+                ("onset", {"trial": 4}, ["n"]),
             ]:
                 d.wait_for(event, **match)
                 x.key(*keys)
@@ -173,13 +178,15 @@ def test_gui_trials_keys_screenshots_and_pause(tmp_path):
     assert result["facts"]["keyboard_backend"] == "ptb"
     assert result["facts"]["window_size_px"] == [WIN_W, WIN_H]
     trials = result["trials"]
-    assert [t["index"] for t in trials] == [0, 1, 2, 3, 3]
-    assert [t["answers"] for t in trials] == [["B"], ["no"], ["2", "0"], [], ["yes"]]
-    assert [t["escaped"] for t in trials] == [False, False, False, True, False]
-    assert [t["switches"] for t in trials] == [2, 0, 2, 0, 0]
-    assert result["pauses"] == ["resume"]
+    assert [t["index"] for t in trials] == [0, 1, 2, 3, 3, 4, 4]
+    assert [t["answers"] for t in trials] == [["B"], ["no"], ["2", "0"], [], ["yes"], [], ["no"]]
+    assert [t["escaped"] for t in trials] == [False, False, False, True, False, True, False]
+    assert [t["switches"] for t in trials] == [2, 0, 2, 0, 0, 0, 0]
+    assert result["pauses"] == ["resume", "resume"]
+    assert [bool(i.get("escaped_in_black")) for i in result["trial_info"]] == [False] * 5 + [True, False]
     for t in trials:
-        assert t["onset_s"] > 0 and t["dropped_frames"] >= 0 and t["gaze_left_fovea"] is None
+        assert t["dropped_frames"] >= 0 and t["gaze_left_fovea"] is None
+        assert t["onset_s"] is None if t is trials[5] else t["onset_s"] > 0
         if not t["escaped"]:
             assert t["rt_s"] > 0
     seq_info = result["trial_info"][1]  # the key was pressed only once the question had replaced the sequence

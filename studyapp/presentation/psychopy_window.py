@@ -24,8 +24,9 @@ What a trial looks like (:meth:`PsychoPyPresenter.present`)
    whose answer is ``""`` ends the picking early ("only one"). ``rt_s`` runs from the onset flip of the first
    stimulus frame (the keyboard clock is reset with ``win.callOnFlip``) to the key press that completed the
    answer.
-5. **Escape** ends the trial at once with ``escaped=True`` and no answer; the runner then calls :meth:`pause`
-   ("R" resume / "E" end) and re-presents the trial on resume.
+5. **Escape** ends the trial at once with ``escaped=True`` and no answer (pressed during the black interval,
+   before the stimulus is shown; ``onset_s`` is then NaN); the runner then calls :meth:`pause` ("R" resume /
+   "E" end) and re-presents the trial on resume.
 
 Per trial the presenter records the onset time (``win.flip()`` time stamp on PsychoPy's monotonic clock), the
 number of dropped frames (``win.recordFrameIntervals`` / ``win.nDroppedFrames``) and, with an eye tracker
@@ -440,6 +441,8 @@ class PsychoPyPresenter:
             "pyglet_version": pyglet.version,
             "window_size_px": [int(v) for v in self.win.size],
             "window_pos_px": [int(v) for v in self._window_location()],
+            "window_matches_display": [int(v) for v in self.win.size]
+            == [display.width_px, display.height_px],
             "fullscreen": bool(display.fullscreen),
             "screen": int(display.screen),
             "pixels_per_degree": pixels_per_degree(display),
@@ -762,6 +765,10 @@ class PsychoPyPresenter:
             "gaze": [],
         }
         self.trial_info.append(info)
+        if self._poll_keys([ESCAPE]):  # Escape during the black interval: pause before the stimulus shows
+            loaded.release()
+            info["escaped_in_black"] = True
+            return TrialResult(answers=[], rt_s=float("nan"), onset_s=float("nan"), escaped=True)
 
         labels = _stim_labels(trial)
         loop = trial.family != "yes_no"
