@@ -248,25 +248,30 @@ def test_gui_mousegaze_flags_gaze_outside_fovea_and_pause_end(tmp_path):
     np.testing.assert_allclose(g1[-1, 1:], [left + fix[0] + 200, top + fix[1]], atol=1.0)
 
 
-def test_gui_refuses_a_keyboard_without_psychtoolbox(tmp_path):
-    """If psychtoolbox cannot be imported, PsychoPy silently falls back to its 'event' keyboard; open()
-    refuses."""
-    fake = tmp_path / "fake" / "psychtoolbox"
-    fake.mkdir(parents=True)
-    (fake / "__init__.py").write_text('raise ImportError("simulated: libjack missing")\n')
+def _open_refusal(x: Xvfb, screen: int, pythonpath: str) -> list[str]:
+    """Open a presenter on ``screen`` in a subprocess; return the PresentationError line(s) it printed."""
     code = (
         "from studyapp.presentation.psychopy_window import PsychoPyPresenter, PresentationError\n"
         "from studyapp.presentation.base import DisplaySettings\n"
-        "try:\n    PsychoPyPresenter().open(DisplaySettings(640, 480, 30.0, 60.0))\n"
+        f"try:\n    PsychoPyPresenter().open(DisplaySettings(640, 480, 30.0, 60.0, screen={screen}))\n"
         "except PresentationError as e:\n    print('REFUSED', e)\n"
     )
+    env = dict(x.env, PYTHONPATH=pythonpath)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60)
+    return [ln for ln in out.stdout.splitlines() if ln.startswith("REFUSED")] or [out.stderr[-2000:]]
+
+
+def test_gui_refuses_a_keyboard_without_psychtoolbox_and_a_missing_screen(tmp_path):
+    """If psychtoolbox cannot be imported, PsychoPy silently falls back to its 'event' keyboard; asked for a
+    screen that does not exist, it silently uses screen 0: open() refuses both."""
+    fake = tmp_path / "fake" / "psychtoolbox"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text('raise ImportError("simulated: libjack missing")\n')
     with Xvfb() as x:
-        env = dict(x.env, PYTHONPATH=f"{fake.parent}{os.pathsep}{x.env['PYTHONPATH']}")
-        out = subprocess.run(
-            [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60
-        )
-    lines = [ln for ln in out.stdout.splitlines() if ln.startswith("REFUSED")]
-    assert lines == [
+        no_ptb = _open_refusal(x, 0, f"{fake.parent}{os.pathsep}{x.env['PYTHONPATH']}")
+        screen_1 = _open_refusal(x, 1, x.env["PYTHONPATH"])
+    assert no_ptb == [
         "REFUSED keyboard backend is 'event', not 'ptb': psychtoolbox did not load (on Debian "
         "install libjack-jackd2-0); refusing to run with imprecise reaction times"
-    ], out.stderr[-2000:]
+    ]
+    assert screen_1 == ["REFUSED display.screen=1 does not exist: this machine has 1 screen(s), 0..0"]

@@ -389,6 +389,14 @@ class PsychoPyPresenter:
             ) from None
         self._core, self._visual = core, visual
         self._now = logging.defaultClock.getTime  # the clock of win.flip()'s time stamps
+        import pyglet
+
+        n_screens = len(pyglet.canvas.get_display().get_screens())
+        if display.screen >= n_screens:  # PsychoPy would silently open the window on screen 0
+            raise PresentationError(
+                f"display.screen={display.screen} does not exist: this machine has {n_screens} screen(s), "
+                f"0..{n_screens - 1}"
+            )
         mon = monitors.Monitor("studyapp", width=display.width_cm, distance=display.distance_cm)
         mon.setSizePix([display.width_px, display.height_px])
         try:
@@ -419,8 +427,6 @@ class PsychoPyPresenter:
         period = 1.0 / (measured or display.refresh_hz)
         self.win.refreshThreshold = 1.2 * period
         self._frame_period = period
-        import pyglet
-
         try:
             from importlib.metadata import version
 
