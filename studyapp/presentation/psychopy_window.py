@@ -743,26 +743,64 @@ class PsychoPyPresenter:
         self._loaded = {trial.index: self._load(trial)}
 
     # ------------------------------------------------------------------ trials
-    def present(self, trial: TrialDisplay) -> TrialResult:
-        """Black interval (stimuli loaded in it), then the stimulus until answered; see the module
-        docstring."""
-        self._require_open()
-        validate_trial(trial)
-        core, win, kb = self._core, self.win, self.kb
-        if trial.index in self._loaded and self._black_since is not None:
+    def _black_interval(self, trial: TrialDisplay) -> tuple[_Loaded, bool]:
+        """Show (or finish) the black interval before ``trial`` with its stimuli loaded in it; return them
+        and whether loading overran the interval."""
+        core = self._core
+        if trial.index in self._loaded and self._black_since is not None:  # preload() started it
             loaded = self._loaded.pop(trial.index)
             remaining = trial.black_before_s - (self._now() - self._black_since)
-            overran = remaining < 0
             if remaining > 0:
                 core.wait(remaining, hogCPUperiod=min(remaining, 0.02))
+            overran = remaining < 0
         else:
             self._start_black(trial)
-            period = core.StaticPeriod(win=win, screenHz=1.0 / self._frame_period)
+            period = core.StaticPeriod(win=self.win, screenHz=1.0 / self._frame_period)
             period.start(trial.black_before_s)
             loaded = self._loaded.pop(trial.index, None) or self._load(trial)
             overran = period.complete() != 1
         self._release_loaded()
         self._black_since = None
+        return loaded, overran
+
+    def _draw_stimulus(
+        self, trial: TrialDisplay, loaded: _Loaded, state: AnswerState, elapsed_s: float
+    ) -> None:
+        """Draw into the back buffer the current stimulus' frame at ``elapsed_s``, the fixation cross, the
+        stimulus label with the picks so far, and the question if there is a margin for it."""
+        current = state.current
+        seq, placement = loaded.frames[current], loaded.placements[current]
+        seq[sequence_frame(elapsed_s, trial.stimuli[current].fps, len(seq), trial.family != "yes_no")].draw()
+        if trial.fixation_px is not None:
+            fx, fy = placement.image_to_pix(*trial.fixation_px)
+            for r in self._fix:
+                r.pos = (fx, fy)
+                r.draw()
+        labels = _stim_labels(trial)
+        if self.show_labels and len(labels) > 1:
+            picked = ("  picked: " + ", ".join(labels[int(p)] for p in state.picks)) if state.picks else ""
+            _set_text(self._corner, labels[current] + picked)
+            self._corner.draw()
+        self._draw_question_in_margin(trial.question, placement)
+
+    def _sample_gaze(self, trial: TrialDisplay, placement: Placement, t_s: float, info: dict) -> bool:
+        """Record the last gaze sample at ``t_s`` after onset; True if it lies outside the foveal disc."""
+        g = self._gaze_window_px()
+        if g is None:
+            return False
+        info["gaze"].append([t_s, g[0], g[1]])
+        if trial.fixation_px is None:
+            return False
+        fx, fy = placement.image_to_window(*trial.fixation_px)
+        return math.hypot(g[0] - fx, g[1] - fy) > self.fovea_deg * pixels_per_degree(self.display)
+
+    def present(self, trial: TrialDisplay) -> TrialResult:
+        """Black interval (stimuli loaded in it), then the stimulus until answered; see the module
+        docstring."""
+        self._require_open()
+        validate_trial(trial)
+        win, kb = self.win, self.kb
+        loaded, overran = self._black_interval(trial)
         info = {
             "trial": trial.index,
             "load_s": loaded.load_s,
@@ -776,108 +814,74 @@ class PsychoPyPresenter:
             info["escaped_in_black"] = True
             return TrialResult(answers=[], rt_s=float("nan"), onset_s=float("nan"), escaped=True)
 
-        labels = _stim_labels(trial)
-        loop = trial.family != "yes_no"
         keys_wanted = sorted({*trial.answer_keys, *trial.switch_keys, ESCAPE})
-        ppd = pixels_per_degree(self.display)
+        # a yes/no (or unanswered) stimulus with a duration plays once, then the question stays up
+        timed_once = trial.duration_s is not None and (trial.family == "yes_no" or not trial.answer_keys)
         state = AnswerState(trial)
-        onset = None  # first stimulus onset (the RT origin)
-        stim_onset = None  # onset of the current stimulus (sequence time origin)
-        shot_pending = self.screenshot_dir is not None
-        playback_over = False
+        onset = stim_onset = None  # first stimulus onset (the RT origin); current stimulus onset (its t = 0)
+        onset_pending, shot_pending, playback_over = True, self.screenshot_dir is not None, False
         gaze_left = False if self._tracker is not None and trial.fixation_px is not None else None
         dropped0 = win.nDroppedFrames
         win.recordFrameIntervals = True
-        stim_onset_pending = True
         next_flip = self._now() + self._frame_period
         try:
             while True:
-                current = state.current
-                seq = loaded.frames[current]
-                placement = loaded.placements[current]
-                stimulus = trial.stimuli[current]
-                if stim_onset is None:
-                    elapsed = 0.0
-                else:
-                    elapsed = next_flip - stim_onset
-                if trial.duration_s is not None and onset is not None and not loop:
+                if timed_once and onset is not None:
                     playback_over = next_flip - onset >= trial.duration_s
                 if playback_over:
                     self._draw_text(trial.question, self._progress_text(trial))
                 else:
-                    k = sequence_frame(elapsed, stimulus.fps, len(seq), loop)
-                    seq[k].draw()
-                    if trial.fixation_px is not None:
-                        fx, fy = placement.image_to_pix(*trial.fixation_px)
-                        for r in self._fix:
-                            r.pos = (fx, fy)
-                            r.draw()
-                    if self.show_labels and len(labels) > 1:
-                        picks = state.picks
-                        picked = ("  picked: " + ", ".join(labels[int(p)] for p in picks)) if picks else ""
-                        _set_text(self._corner, labels[current] + picked)
-                        self._corner.draw()
-                    self._draw_question_in_margin(trial.question, placement)
+                    self._draw_stimulus(
+                        trial, loaded, state, 0.0 if stim_onset is None else next_flip - stim_onset
+                    )
                     if shot_pending:
-                        self._save_shot(trial, current)
+                        self._save_shot(trial, state.current)
                         shot_pending = False
-                if stim_onset_pending:
-                    if onset is None:
-                        win.callOnFlip(kb.clock.reset)
-                        win.callOnFlip(kb.clearEvents)
+                if onset is None:  # RT clock and key queue restart with the first stimulus frame
+                    win.callOnFlip(kb.clock.reset)
+                    win.callOnFlip(kb.clearEvents)
                 t_flip = win.flip()
                 next_flip = t_flip + self._frame_period
-                if stim_onset_pending:
+                if onset_pending:
                     stim_onset = t_flip
-                    if onset is None:
-                        onset = t_flip
-                    info["onsets"].append([current, t_flip])
-                    stim_onset_pending = False
-                    self._emit("onset", trial=trial.index, stimulus=current, t=t_flip)
-                if playback_over and not state.answered and info.get("question_shown") is None:
+                    onset = t_flip if onset is None else onset
+                    info["onsets"].append([state.current, t_flip])
+                    onset_pending = False
+                    self._emit("onset", trial=trial.index, stimulus=state.current, t=t_flip)
+                if playback_over and not state.answered and "question_shown" not in info:
                     info["question_shown"] = t_flip
                     self._emit("question", trial=trial.index)
                 if self._tracker is not None and not playback_over:
-                    g = self._gaze_window_px()
-                    if g is not None:
-                        info["gaze"].append([t_flip - onset, g[0], g[1]])
-                        if gaze_left is not None:
-                            fx, fy = placement.image_to_window(*trial.fixation_px)
-                            if math.hypot(g[0] - fx, g[1] - fy) > self.fovea_deg * ppd:
-                                gaze_left = True
+                    outside = self._sample_gaze(trial, loaded.placements[state.current], t_flip - onset, info)
+                    if gaze_left is not None:
+                        gaze_left = gaze_left or outside
                 for key in self._poll_keys(keys_wanted):
                     event = state.press(key.name, key.rt, can_switch=not playback_over)
                     if event == "escape":
-                        return TrialResult(
-                            answers=[],
-                            rt_s=float("nan"),
-                            onset_s=float(onset),
-                            dropped_frames=win.nDroppedFrames - dropped0,
-                            switches=state.switches,
-                            gaze_left_fovea=gaze_left,
-                            escaped=True,
-                        )
+                        state.picks, state.rt_s = [], None
+                        return self._result(state, onset, win.nDroppedFrames - dropped0, gaze_left, True)
                     if event == "switch":
-                        stim_onset_pending = True
-                        shot_pending = self.screenshot_dir is not None
+                        onset_pending, shot_pending = True, self.screenshot_dir is not None
                         self._emit("switch", trial=trial.index, stimulus=state.current)
                     elif event == "pick":
                         self._emit("pick", trial=trial.index, answer=state.picks[-1])
-                done_playing = trial.duration_s is None or loop or playback_over
-                if state.answered and done_playing:
-                    break
-                if not trial.answer_keys and playback_over:
+                if (state.answered or not trial.answer_keys) and (playback_over or not timed_once):
                     break
         finally:
             win.recordFrameIntervals = False
             loaded.release()
+        return self._result(state, onset, win.nDroppedFrames - dropped0, gaze_left, False)
+
+    @staticmethod
+    def _result(state: AnswerState, onset: float, dropped: int, gaze_left, escaped: bool) -> TrialResult:
         return TrialResult(
             answers=list(state.picks),
             rt_s=state.rt_s if state.answered else float("nan"),
             onset_s=float(onset),
-            dropped_frames=int(win.nDroppedFrames - dropped0),
+            dropped_frames=int(dropped),
             switches=state.switches,
             gaze_left_fovea=gaze_left,
+            escaped=escaped,
         )
 
     # ------------------------------------------------------------------ screens
