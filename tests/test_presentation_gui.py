@@ -208,7 +208,7 @@ def test_gui_mousegaze_flags_gaze_outside_fovea_and_pause_end(tmp_path):
     trials = [yes_no_still(i, tmp_path / "a.png", fix, 0.5) for i in range(3)]
     spec = {
         "display": DISPLAY,
-        "presenter": {"eyetracker": "mousegaze", "fovea_deg": 2.5},
+        "presenter": {"eyetracker": "mousegaze", "fovea_deg": 2.5, "gaze_log": str(tmp_path / "gaze.csv")},
         "steps": [{"trial": t} for t in trials],
     }
     left, top = (WIN_W - IMG_W) // 2, (WIN_H - IMG_H) // 2
@@ -246,6 +246,12 @@ def test_gui_mousegaze_flags_gaze_outside_fovea_and_pause_end(tmp_path):
     assert len(g0) > 3 and len(g1) > 3
     np.testing.assert_allclose(g0[:, 1:], [[left + fix[0], top + fix[1]]] * len(g0), atol=1.0)
     np.testing.assert_allclose(g1[-1, 1:], [left + fix[0] + 200, top + fix[1]], atol=1.0)
+    logged = np.loadtxt(tmp_path / "gaze.csv", delimiter=",", skiprows=1)  # the same samples, made durable
+    assert (tmp_path / "gaze.csv").read_text().startswith("trial,t_s,x_px,y_px\n")
+    np.testing.assert_allclose(logged[: len(g0), 1:], g0, atol=1e-2)
+    np.testing.assert_array_equal(
+        logged[:, 0], [0] * len(g0) + [1] * len(g1) + [2] * (len(logged) - len(g0) - len(g1))
+    )
 
 
 def _open_refusal(x: Xvfb, screen: int, pythonpath: str) -> list[str]:

@@ -323,6 +323,8 @@ class PsychoPyPresenter:
     eyetracker : ``None`` or ``"mousegaze"`` (psychopy.iohub's mouse-driven simulated eye tracker).
     fovea_deg : radius of the foveal disc around the fixation point; a gaze sample farther away sets
         ``TrialResult.gaze_left_fovea``.
+    gaze_log : with an eye tracker, append every gaze sample to this CSV file (``trial,t_s,x_px,y_px``: time
+        from onset, window pixels, top-left origin), flushed and fsynced at the end of each trial.
     screenshot_dir : if set, the back buffer of the first frame of every stimulus shown is saved there as
         ``trial{index:04d}_stim{i}_{n}.png`` (for tests and for checking a protocol; costs a read-back).
     on_event : called as ``on_event(name, info)`` at ``instructions``, ``black``, ``onset``, ``switch``,
@@ -339,6 +341,7 @@ class PsychoPyPresenter:
         eyetracker: str | None = None,
         fovea_deg: float = 2.5,
         screenshot_dir: str | Path | None = None,
+        gaze_log: str | Path | None = None,
         on_event: EventHook | None = None,
         text_height_px: int = 24,
     ):
@@ -353,6 +356,7 @@ class PsychoPyPresenter:
         self.eyetracker = eyetracker
         self.fovea_deg = float(fovea_deg)
         self.screenshot_dir = Path(screenshot_dir) if screenshot_dir is not None else None
+        self.gaze_log = Path(gaze_log) if gaze_log is not None else None
         self.on_event = on_event
         self.text_height_px = int(text_height_px)
         self.win = None
@@ -423,6 +427,7 @@ class PsychoPyPresenter:
                 "libjack-jackd2-0); refusing to run with imprecise reaction times"
             )
         self.display = display
+        self.win.mouseVisible = False  # no pointer over the stimuli (MouseGaze still follows the mouse)
         measured = self.win.getActualFrameRate(nIdentical=10, nMaxFrames=120, nWarmUpFrames=10, threshold=1)
         period = 1.0 / (measured or display.refresh_hz)
         self.win.refreshThreshold = 1.2 * period
@@ -870,7 +875,22 @@ class PsychoPyPresenter:
         finally:
             win.recordFrameIntervals = False
             loaded.release()
+            self._write_gaze(trial.index, info["gaze"])
         return self._result(state, onset, win.nDroppedFrames - dropped0, gaze_left, False)
+
+    def _write_gaze(self, index: int, samples: list) -> None:
+        """Append ``samples`` of trial ``index`` to :attr:`gaze_log` (header first), then flush and fsync."""
+        if self.gaze_log is None or not samples:
+            return
+        import os
+
+        new = not self.gaze_log.exists() or self.gaze_log.stat().st_size == 0
+        with open(self.gaze_log, "a", encoding="utf-8", newline="\n") as fh:
+            if new:
+                fh.write("trial,t_s,x_px,y_px\n")
+            fh.writelines(f"{index},{t:.6f},{x:.2f},{y:.2f}\n" for t, x, y in samples)
+            fh.flush()
+            os.fsync(fh.fileno())
 
     @staticmethod
     def _result(state: AnswerState, onset: float, dropped: int, gaze_left, escaped: bool) -> TrialResult:
