@@ -86,14 +86,17 @@ def run(repeats: int) -> list[str]:
         foveated_lightcuts(tree, small, small_lr, eccentricity_map(64, 40, 90.0), np.zeros((40, 64, 2)), 0.1,
                            48, occluded=occ, multires=mr)
     sample_rows = []
-    for budget in (8, 48):
-        t_free = _median(lambda: stochastic_lightcuts(tree, g, budget, seed=1), repeats, warm=False)
-        res = stochastic_lightcuts(tree, g, budget, seed=1, occluded=occ)
-        t_occ = _median(lambda: stochastic_lightcuts(tree, g, budget, seed=1, occluded=occ), repeats, warm=False)
+    for budget, (bw, bh) in ((8, (w, h)), (48, (w // 2, h // 2))):
+        gb = g if bw == w else _gbuffer(bw, bh)
+        t_free = _median(lambda: stochastic_lightcuts(tree, gb, budget, seed=1), repeats, warm=False)
+        runs = []
+        t_occ = _median(lambda: runs.append(stochastic_lightcuts(tree, gb, budget, seed=1, occluded=occ)), repeats,
+                        warm=False)
+        res = runs[-1]
         n_s = int(res.samples.sum())
         sample_rows.append(
-            f"| SL, {budget} nodes/pixel | {w}×{h}, 110k lights | {t_free:.2f} s ({n_s / t_free / 1e6:.2f} M "
-            f"samples/s, no shadows) | {t_occ:.2f} s with {res.shadow_rays / 1e6:.1f} M shadow rays |")
+            f"| SL, {budget} nodes/pixel | {bw}×{bh}, 110k lights | {t_free:.2f} s without shadows "
+            f"({n_s / t_free / 1e6:.2f} M samples/s) | {t_occ:.2f} s with {res.shadow_rays / 1e6:.1f} M shadow rays |")
     gl = _gbuffer(w // 8, h // 8)
     ecc = eccentricity_map(w, h, 90.0)
     vel = np.zeros((h, w, 2))
@@ -111,7 +114,29 @@ def run(repeats: int) -> list[str]:
         fov_rows.append(f"| foveated, α = 0.1, {'with' if multires else 'without'} multi-resolution selection | "
                         f"{w}×{h}, 110k lights | {tt:.2f} s (mean {r.samples.mean():.1f} samples/pixel, "
                         f"{r.reused.sum() / max(r.samples.sum(), 1):.0%} reused) | steps (s): {steps} |")
-    return rows + sample_rows + fov_rows
+    return rows + sample_rows + fov_rows + scene_rows(repeats)
+
+
+def scene_rows(repeats: int) -> list[str]:
+    """``cornell_many`` (111,858 mesh lights) through the renderer plug-ins at 1280×720 (issue 6 item 8)."""
+    from renderers import registry
+    from renderers.lightcuts.plugin import register_all
+    from renderers.lightcuts.scenes import cornell_many
+
+    register_all()
+    sc = cornell_many()
+    registry.render(sc, "fsl", {}, 64, 36)  # compile
+    rows = []
+    for name, params in (("fsl", {"alpha": 0.1}), ("sl_e", {"lspp": 8, "rspp": 8})):
+        out = []
+        t = _median(lambda: out.append(registry.render(sc, name, params, 1280, 720)[1]), repeats, warm=False)
+        st = out[-1]
+        steps = ", ".join(f"{k} {v:.1f}" for k, v in st.get("steps", {}).items())
+        rows.append(f"| plug-in `{name}` {params} | cornell_many 1280×720, 111,858 lights | {t:.1f} s (frame "
+                    f"{st['seconds']['total']:.1f} s, mean {np.mean(st['spp']):.1f} light samples/pixel, "
+                    f"{st['glossy_rays'] / 1e6:.2f} M glossy rays) | "
+                    f"{'target ≤ 30 s; steps (s): ' + steps if name == 'fsl' else 'reference'} |")
+    return rows
 
 
 def main(argv=None) -> int:
