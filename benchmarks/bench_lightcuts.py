@@ -72,7 +72,7 @@ def run(repeats: int) -> list[str]:
     rows = []
     for n in (250_000, 110_000):
         pos, rgb = _lights(n)
-        t = _median(lambda: build_light_tree(pos, rgb), repeats)
+        t = _median(lambda pos=pos, rgb=rgb: build_light_tree(pos, rgb), repeats)
         rows.append(f"| tree build | {n:,} lights | {t:.3f} s | {'≤ 1 s' if n == 250_000 else ''} |")
     pos, rgb = _lights(110_000)
     tree = build_light_tree(pos, rgb)
@@ -88,9 +88,11 @@ def run(repeats: int) -> list[str]:
     sample_rows = []
     for budget, (bw, bh) in ((8, (w, h)), (48, (w // 2, h // 2))):
         gb = g if bw == w else _gbuffer(bw, bh)
-        t_free = _median(lambda: stochastic_lightcuts(tree, gb, budget, seed=1), repeats, warm=False)
+        t_free = _median(lambda gb=gb, budget=budget: stochastic_lightcuts(tree, gb, budget, seed=1), repeats,
+                         warm=False)
         runs = []
-        t_occ = _median(lambda: runs.append(stochastic_lightcuts(tree, gb, budget, seed=1, occluded=occ)), repeats,
+        t_occ = _median(lambda gb=gb, budget=budget, runs=runs: runs.append(
+            stochastic_lightcuts(tree, gb, budget, seed=1, occluded=occ)), repeats,
                         warm=False)
         res = runs[-1]
         n_s = int(res.samples.sum())
@@ -104,7 +106,7 @@ def run(repeats: int) -> list[str]:
     for multires in (True, False):
         runs = []
 
-        def once():
+        def once(runs=runs, multires=multires):
             runs.append(foveated_lightcuts(tree, g, gl, ecc, vel, 0.1, 48, seed=1, occluded=occ,
                                            multires=multires))
 
@@ -129,7 +131,8 @@ def scene_rows(repeats: int) -> list[str]:
     rows = []
     for name, params in (("fsl", {"alpha": 0.1}), ("sl_e", {"lspp": 8, "rspp": 8})):
         out = []
-        t = _median(lambda: out.append(registry.render(sc, name, params, 1280, 720)[1]), repeats, warm=False)
+        t = _median(lambda out=out, name=name, params=params: out.append(
+            registry.render(sc, name, params, 1280, 720)[1]), repeats, warm=False)
         st = out[-1]
         steps = ", ".join(f"{k} {v:.1f}" for k, v in st.get("steps", {}).items())
         rows.append(f"| plug-in `{name}` {params} | cornell_many 1280×720, 111,858 lights | {t:.1f} s (frame "

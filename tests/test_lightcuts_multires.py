@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from renderers.lightcuts import _kernels as K
 from renderers.lightcuts import multires as MR
 from renderers.lightcuts.foveated import foveated_lightcuts
 from renderers.lightcuts.sampling import GBuffer, clamp2, cut_and_sample
@@ -123,7 +123,7 @@ def _image_scene(w=32, h=24, n_lights=200, seed=0):
 
 
 def test_select_without_reuse_equals_hierarchical_sampling():
-    tree, full, low, ecc, _ = _image_scene()
+    tree, full, low, _, _ = _image_scene()
     c2 = clamp2(tree)
     ids = np.arange(full.n, dtype=np.int64)
     cut, size, leaf0, pdf0 = cut_and_sample(tree, full.position, full.normal, np.full(full.n, 6), ids, 9, 6)

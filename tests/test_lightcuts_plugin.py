@@ -54,7 +54,7 @@ def test_plugins_agree_with_ground_truth_on_average(name, params):
 
 
 def test_fsl_reports_its_map_and_steps():
-    img, st = registry.render(_diffuse_scene(), "fsl", {"alpha": 0.2}, 48, 32)
+    _, st = registry.render(_diffuse_scene(), "fsl", {"alpha": 0.2}, 48, 32)
     assert st["fpsm"].shape == (32, 48) and 0 <= st["fpsm"].min() and st["fpsm"].max() <= 1
     assert set(st["steps"]) == {"low_res", "fpsm", "cuts", "select", "shade"}
     assert np.all(st["spp"] <= 48)

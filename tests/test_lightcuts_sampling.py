@@ -95,7 +95,7 @@ def test_cut_of_all_leaves_is_exact(one_sided):
 
 
 def test_descend_pdf_matches_leaf_pdf_and_sums_to_one():
-    tree, pos, nrm, alb, _ = _scene(n_lights=30)
+    tree, pos, nrm, _, _ = _scene(n_lights=30)
     c2 = clamp2(tree)
     for i in range(4):
         p, n = pos[i], nrm[i] / np.linalg.norm(nrm[i])

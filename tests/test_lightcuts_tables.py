@@ -1,9 +1,9 @@
 """Seed 003 tables as records: keys, tables, regions, uniform-count searches, ratios."""
 
 import numpy as np
+from test_lightcuts_plugin import _diffuse_scene
 
 from renderers.lightcuts.tables import lightcut_tables, summary_ratios
-from test_lightcuts_plugin import _diffuse_scene
 
 
 def test_tables_records_and_ratios():

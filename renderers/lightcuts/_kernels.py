@@ -70,7 +70,7 @@ def dot_interval(v0, v1, v2, p, bmin, bmax, k):
 @njit(cache=True)
 def geom_bound(p, n, t, b, bmin, bmax, k):
     """Upper bound of ``cos(theta)`` over the box of node ``k`` (0 if the box is behind the surface)."""
-    lo, nrm_max = dot_interval(n[0], n[1], n[2], p, bmin, bmax, k)
+    _, nrm_max = dot_interval(n[0], n[1], n[2], p, bmin, bmax, k)
     if nrm_max <= 0.0:
         return 0.0
     lo_t, hi_t = dot_interval(t[0], t[1], t[2], p, bmin, bmax, k)

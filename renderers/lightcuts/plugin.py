@@ -31,7 +31,7 @@ from numba import njit, prange
 from renderers._shade import texture_weight
 
 from .foveated import foveated_lightcuts
-from .fpsm import acuity_map, eccentricity_map, spatiotemporal_feature, light_budget
+from .fpsm import acuity_map, eccentricity_map, light_budget, spatiotemporal_feature
 from .glossy import glossy_pass
 from .sampling import GBuffer, stochastic_lightcuts
 from .tree import LightTree, build_light_tree

@@ -15,8 +15,8 @@ Visibility ``V`` comes from an ``occluded(origins, targets) -> bool`` callback (
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -39,7 +39,7 @@ class GBuffer:
     shape: tuple[int, ...]
 
     @classmethod
-    def create(cls, position, normal, albedo, valid=None) -> "GBuffer":
+    def create(cls, position, normal, albedo, valid=None) -> GBuffer:
         """Validate and flatten ``(..., 3)`` arrays; normals are renormalised, invalid pixels are skipped."""
         pos = np.asarray(position, dtype=np.float64)
         if pos.ndim < 2 or pos.shape[-1] != 3:
@@ -83,13 +83,6 @@ class ShadingResult:
 def clamp2(tree: LightTree) -> float:
     """Squared distance clamp ``(0.001 * scene light radius)^2``."""
     return (1e-3 * tree.scene_radius) ** 2
-
-
-def check_budget(name: str, value) -> int:
-    """Validate a light-sample budget (an integer >= 1), naming ``name`` in the error."""
-    if isinstance(value, bool) or not np.isscalar(value) or float(value) != int(value) or int(value) < 1:
-        raise ValueError(f"{name}={value!r} is out of range: must be a whole number >= 1")
-    return int(value)
 
 
 def ray_offset_for(tree: LightTree, gbuf: GBuffer) -> float:
@@ -152,9 +145,8 @@ def stochastic_lightcuts(tree: LightTree, gbuf: GBuffer, budget, *, seed: int = 
         Pixels per batch (bounds memory: about ``tile * max_budget * 56`` bytes).
     """
     b = np.broadcast_to(np.asarray(budget), gbuf.shape).reshape(-1)
-    if not np.issubdtype(b.dtype, np.integer):
-        if not np.all(np.isfinite(b)) or np.any(b != np.round(b)):
-            raise ValueError("budget must hold whole numbers of light samples")
+    if not np.issubdtype(b.dtype, np.integer) and (not np.all(np.isfinite(b)) or np.any(b != np.round(b))):
+        raise ValueError("budget must hold whole numbers of light samples")
     b = b.astype(np.int64)
     if np.any(b < 0):
         raise ValueError(f"budget must be >= 0 (found {int(b.min())})")

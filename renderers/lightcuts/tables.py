@@ -19,8 +19,9 @@ foveal / peripheral MSE is at most Ours'. Regions: ``analysis.quality.region_mas
 
 from __future__ import annotations
 
+import itertools
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -78,7 +79,7 @@ def lightcut_tables(scene, width: int, height: int, *, alphas=(0.025, 0.05, 0.1,
             out[("mse_g", rn)] = _mse(img, gt, m & glossy) if glossy.any() else None
         return out
 
-    ms = lambda st: 1000.0 * st["seconds"]["total"]  # noqa: E731
+    ms = lambda st: 1000.0 * st["seconds"]["total"]
     base = {"max_lspp": max_lspp, "max_rspp": max_rspp, "seed": seed}
     ours, ours_st = render("fsl", {"alpha": alpha, **base})
     _, ours2_st = render("fsl'", {"alpha": alpha, **base, "multires": False})
@@ -149,5 +150,5 @@ def summary_ratios(records: list[dict]) -> dict:
         "speedup_vs_sl_f": ratio(get("3", "SL_f", "ms", "all"), get("3", "Ours", "ms", "all")),
         "foveal_mse_sl_e_over_ours": ratio(get("1", "SL_e", "mse", "fovea"), get("1", "Ours", "mse", "fovea")),
         "multires_speedup": ratio(get("3", "Ours'", "ms", "all"), get("3", "Ours", "ms", "all")),
-        "time_falls_with_alpha": bool(times) and all(b <= a for a, b in zip(times, times[1:])),
+        "time_falls_with_alpha": bool(times) and all(b <= a for a, b in itertools.pairwise(times)),
     }
