@@ -67,3 +67,20 @@ def test_fsl_reports_its_map_and_steps():
 def test_bad_parameters_name_the_parameter(name, params, match):
     with pytest.raises(ValueError, match=match):
         registry.render(_diffuse_scene(), name, params, 16, 16)
+
+
+def test_scene_without_lights_is_a_one_line_error():
+    b = MeshBuilder()
+    b.material(Material("floor"))
+    b.quad((-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1), "floor", (0, 1, 0))
+    sc = b.scene("dark", camera=Camera((0.0, 1.0, -2.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 50.0))
+    for name in ("fsl", "sl_e", "sl_gt"):
+        with pytest.raises(ValueError, match="(no|zero) lights") as err:
+            registry.render(sc, name, {}, 8, 8)
+        assert "\n" not in str(err.value)
+    # only a directional light: the scene model accepts it, the many-light tree has nothing to hold
+    from renderers.scene import DirectionalLight
+
+    sc.directional_lights.append(DirectionalLight((0.0, -1.0, 0.0), (1.0, 1.0, 1.0)))
+    with pytest.raises(ValueError, match="zero lights"):
+        registry.render(sc, "fsl", {}, 8, 8)
