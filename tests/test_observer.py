@@ -153,3 +153,17 @@ def test_condition_without_images_or_quality_is_an_error(task1, tmp_path):
     p = dataclasses.replace(task1, conditions=conds)
     with pytest.raises(ValueError, match="condition EC: no stimuli for scene s and no declared quality"):
         SimulatedObserver(p, "W", 0, {}).impairment(Stimulus("EC", ()), "s")
+
+
+@given(st.integers(0, 2**32 - 1), st.floats(0.1, 4.0))
+def test_foveated_difference_is_a_weighted_rms(seed, k):
+    rng = np.random.default_rng(seed)
+    gt = rng.random((6, 9))
+    err = rng.normal(0, 0.1, (6, 9))
+    ecc = rng.uniform(0, 40, (6, 9))
+    d = foveated_difference(gt + err, gt, ecc)
+    assert d == pytest.approx(foveated_difference(gt, gt + err, ecc), rel=1e-12)  # symmetric
+    assert foveated_difference(gt + k * err, gt, ecc) == pytest.approx(k * d, rel=1e-9)  # homogeneous
+    w = E2_DEG / (ecc + E2_DEG)
+    assert d == pytest.approx(math.sqrt((w * err**2).sum() / w.sum()), rel=1e-9)
+    assert abs(err).min() - 1e-12 <= d <= abs(err).max() + 1e-12  # a weighted mean of |err|^2
