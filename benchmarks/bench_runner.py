@@ -55,7 +55,9 @@ def bench_commits(folder: Path, n: int) -> dict:
     lat = timed_commit_latencies(folder / "bench.db", n)
     floor = fdatasync_floor(folder, min(n, 1000))
     return {"n": n, "p50": percentile(lat, 50), "p90": percentile(lat, 90), "p99": percentile(lat, 99),
-            "max": max(lat), "floor_p50": percentile(floor, 50), "floor_p99": percentile(floor, 99)}
+            "max": max(lat), "floor_p50": percentile(floor, 50), "floor_p99": percentile(floor, 99),
+            "share_5ms": sum(x <= 0.005 for x in lat) / len(lat),
+            "floor_share_5ms": sum(x <= 0.005 for x in floor) / len(floor)}
 
 
 def bench_schedules(n: int = 1000) -> list[dict]:
@@ -117,8 +119,9 @@ def main() -> int:
         f"| commit one response, p90 | {commits['p90'] * ms:.2f} ms | |",
         f"| commit one response, p99 | {commits['p99'] * ms:.2f} ms | ≤ 5 ms |",
         f"| commit one response, max of {commits['n']} | {commits['max'] * ms:.2f} ms | |",
+        f"| share of commits within 5 ms | {commits['share_5ms']:.1%} | |",
         (f"| floor: one 4 KiB pwrite + fdatasync on the same disk, p50 / p99 | {commits['floor_p50'] * ms:.2f} / "
-         f"{commits['floor_p99'] * ms:.2f} ms | |"),
+         f"{commits['floor_p99'] * ms:.2f} ms (within 5 ms: {commits['floor_share_5ms']:.1%}) | |"),
     ]
     for r in schedules:
         lines.append(f"| schedules for 1,000 participants, {r['protocol']} ({r['trials']} trials each) | "
@@ -129,7 +132,8 @@ def main() -> int:
     ratio = commits["p99"] / commits["floor_p99"] if commits["floor_p99"] else float("nan")
     lines += ["", (f"Commit p99 is {ratio:.2f}× the p99 of a bare fdatasync on the same disk: a durable commit "
                    "cannot be faster than the disk's flush, so on this shared virtual disk the 5 ms target holds "
-                   "only when the flush itself does. Re-running gives byte-identical schedules: "
+                   "only when the flush itself does (here flushes complete on a ~4 ms tick: the median is one "
+                   "tick, the 99th percentile two). Re-running gives byte-identical schedules: "
                    f"{'yes' if all(r['identical'] for r in schedules) else 'NO'}."), "",
               "Reproduce: `.venv/bin/python benchmarks/bench_runner.py --write docs/benchmarks.md`"]
     print("\n".join(lines))
