@@ -23,7 +23,7 @@ import numpy as np
 ENTRY_POINT_GROUP = "studyapp.renderers"
 #: Largest side accepted (pixels) and the share of the available memory a render may plan to use.
 MAX_SIDE = 32768
-MEMORY_SHARE = 0.8
+MEMORY_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -86,7 +86,7 @@ class RendererPlugin:
     params: dict[str, Param]
     run: Callable[["RenderContext"], np.ndarray]
     #: Rough bytes per screen pixel this renderer holds at once (for the memory check).
-    bytes_per_pixel: float = 12.0
+    bytes_per_pixel: float = 16.0
 
 
 @dataclass
@@ -168,7 +168,7 @@ def _available_bytes() -> float:
     return 8e9
 
 
-def check_resolution(width, height, bytes_per_pixel: float = 12.0) -> tuple[int, int]:
+def check_resolution(width, height, bytes_per_pixel: float = 16.0) -> tuple[int, int]:
     """Validate the resolution and refuse renders that would not fit in memory (one-line ValueError)."""
     for k, v in (("width", width), ("height", height)):
         if isinstance(v, bool) or not float(v).is_integer() or not 1 <= v <= MAX_SIDE:

@@ -83,7 +83,7 @@ class Material:
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self):
-        f = f"material {self.name!r}"
+        f = f"materials.{self.name}"
         object.__setattr__(self, "albedo", _vec3(f"{f}.albedo", self.albedo, nonneg=True))
         object.__setattr__(self, "albedo2", _vec3(f"{f}.albedo2", self.albedo2, nonneg=True))
         object.__setattr__(self, "emission", _vec3(f"{f}.emission", self.emission, nonneg=True))
@@ -333,7 +333,9 @@ def _read_mesh(path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError(f"{where}.file={str(path)!r} cannot be read: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
     if isinstance(mesh, pv.MultiBlock):
         mesh = mesh.combine()
-    mesh = mesh.extract_surface().triangulate()
+    if not isinstance(mesh, pv.PolyData):
+        mesh = mesh.extract_surface()
+    mesh = mesh.triangulate()
     faces = np.asarray(mesh.faces).reshape(-1, 4)
     if len(faces) == 0 or not np.all(faces[:, 0] == 3):
         raise ValueError(f"{where}.file={str(path)!r} has no triangles")

@@ -19,10 +19,18 @@ import numpy as np
 
 
 def to_srgb8(img: np.ndarray, exposure: float = 1.0) -> np.ndarray:
-    """Linear RGB -> 8-bit sRGB: ``clip(exposure * x, 0, 1)``, then the sRGB transfer curve, rounded."""
-    x = np.clip(np.asarray(img, dtype=np.float64) * exposure, 0.0, 1.0)
-    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
-    return np.round(s * 255.0).astype(np.uint8)
+    """Linear RGB -> 8-bit sRGB: ``clip(exposure * x, 0, 1)``, then the sRGB transfer curve, rounded.
+
+    Converted in row blocks so that the float64 temporaries stay small for any resolution.
+    """
+    img = np.asarray(img)
+    out = np.empty(img.shape, dtype=np.uint8)
+    step = max(1, (1 << 20) // max(1, img[0].size))
+    for r0 in range(0, img.shape[0], step):
+        x = np.clip(np.asarray(img[r0:r0 + step], dtype=np.float64) * exposure, 0.0, 1.0)
+        s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+        out[r0:r0 + step] = np.round(s * 255.0)
+    return out
 
 
 def write_png(path, img: np.ndarray, exposure: float = 1.0) -> Path:
