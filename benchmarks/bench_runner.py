@@ -130,11 +130,12 @@ def main() -> int:
     lines.append(f"| whole simulated session, seed003_task1 ({session['trials']} trials, fresh DB) | "
                  f"{session['seconds']:.2f} s | |")
     ratio = commits["p99"] / commits["floor_p99"] if commits["floor_p99"] else float("nan")
-    lines += ["", (f"Commit p99 is {ratio:.2f}× the p99 of a bare fdatasync on the same disk: a durable commit "
-                   "cannot be faster than the disk's flush, so on this shared virtual disk the 5 ms target holds "
-                   "only when the flush itself does (here flushes complete on a ~4 ms tick: the median is one "
-                   "tick, the 99th percentile two). Re-running gives byte-identical schedules: "
-                   f"{'yes' if all(r['identical'] for r in schedules) else 'NO'}."), "",
+    verdict = "holds" if commits["p99"] <= 0.005 else "is missed"
+    lines += ["", (f"The 5 ms target {verdict} in this run. Commit p99 is {ratio:.2f}× the p99 of a bare "
+                   "fdatasync on the same disk: a durable commit cannot be faster than the disk's flush, and on "
+                   "this shared virtual disk the flush varies between runs (other runs measured flushes of one "
+                   "or two ~4 ms ticks, p99 8-12 ms, while other jobs were writing). Re-running gives "
+                   f"byte-identical schedules: {'yes' if all(r['identical'] for r in schedules) else 'NO'}."), "",
               "Reproduce: `.venv/bin/python benchmarks/bench_runner.py --write docs/benchmarks.md`"]
     print("\n".join(lines))
     if args.write:
