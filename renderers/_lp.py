@@ -119,6 +119,20 @@ def fast_angle(dx, dy):
     return a
 
 
+@njit(cache=True, inline="always")
+def _rows_fast(t, nc):
+    """Rows around ``t`` (>= -0.5) wrapped modulo ``nc``, and the weight of the second; no integer modulo
+    unless ``t`` lies past the column's last row (the seam)."""
+    if t < 0.0:
+        return nc - 1, 0, t + 1.0
+    r0 = int(t)
+    f = t - r0
+    if r0 >= nc - 1:
+        r0 = r0 % nc
+        return r0, (r0 + 1) % nc, f
+    return r0, r0 + 1, f
+
+
 @njit(cache=True, parallel=True, fastmath=True)
 def inverse_map_table(lp, utab, inv_step, gx, gy, Lr, n, w_eff, y0, out):
     """:func:`inverse_map` with ``u(r)`` read from a table (``utab[k] = u(k / inv_step)``, linear
@@ -139,22 +153,8 @@ def inverse_map_table(lp, utab, inv_step, gx, gy, Lr, n, w_eff, y0, out):
             c0 = int(uc)
             fu = uc - c0
             c1 = min(c0 + 1, w_eff - 1)
-            t = theta * Lr[c0] - 0.5
-            a0 = int(math.floor(t))
-            fa = t - a0
-            nc = n[c0]
-            a0 = a0 % nc
-            a1 = a0 + 1
-            if a1 == nc:
-                a1 = 0
-            t = theta * Lr[c1] - 0.5
-            b0 = int(math.floor(t))
-            fb = t - b0
-            nc = n[c1]
-            b0 = b0 % nc
-            b1 = b0 + 1
-            if b1 == nc:
-                b1 = 0
+            a0, a1, fa = _rows_fast(theta * Lr[c0] - 0.5, n[c0])
+            b0, b1, fb = _rows_fast(theta * Lr[c1] - 0.5, n[c1])
             w00 = (1.0 - fu) * (1.0 - fa)
             w01 = (1.0 - fu) * fa
             w10 = fu * (1.0 - fb)

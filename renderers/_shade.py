@@ -244,3 +244,32 @@ def clear_occluded(need, pairs, hit):
         if hit[r] != -1:
             p = pairs[r]
             need[p // k, p % k] = False
+
+
+@njit(cache=True, parallel=True)
+def hit_geometry(origin, d, t, prim, vertices, faces, P, N, V):
+    """Hit points ``P = o + t d``, unit geometric normals facing the ray ``N`` and view directions ``V = -d``."""
+    for i in prange(d.shape[0]):
+        f = prim[i]
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        e1x = vertices[b, 0] - vertices[a, 0]
+        e1y = vertices[b, 1] - vertices[a, 1]
+        e1z = vertices[b, 2] - vertices[a, 2]
+        e2x = vertices[c, 0] - vertices[a, 0]
+        e2y = vertices[c, 1] - vertices[a, 1]
+        e2z = vertices[c, 2] - vertices[a, 2]
+        nx = e1y * e2z - e1z * e2y
+        ny = e1z * e2x - e1x * e2z
+        nz = e1x * e2y - e1y * e2x
+        ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+        if ln > 0:
+            nx, ny, nz = nx / ln, ny / ln, nz / ln
+        dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
+        if nx * dx + ny * dy + nz * dz > 0:
+            nx, ny, nz = -nx, -ny, -nz
+        ti = t[i]
+        P[i, 0] = origin[0] + dx * ti
+        P[i, 1] = origin[1] + dy * ti
+        P[i, 2] = origin[2] + dz * ti
+        N[i, 0], N[i, 1], N[i, 2] = nx, ny, nz
+        V[i, 0], V[i, 1], V[i, 2] = -dx, -dy, -dz

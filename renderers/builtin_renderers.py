@@ -59,6 +59,7 @@ def run_foveated(method: str):
         layout = pl.LPLayout(mapping)
         ctx.extra["lp_shape"] = [layout.w, layout.h]
         ctx.extra["lp_pixels"] = int(layout.mask.sum())
+        ctx.extra["finite_checked"] = True  # finish() checks the LP buffers
         exposure = ctx.scene.exposure
         eyes = _eyes(ctx)
         images = []

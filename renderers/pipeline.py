@@ -123,7 +123,8 @@ def _inverse_map(tracer, layout: LPLayout, lp, aa_post: bool, width: int, height
     for y0, y1 in _row_tiles(width, height):
         t0 = time.perf_counter()
         a0, a1 = max(0, y0 - halo), min(height, y1 + halo)
-        tile = np.empty((a1 - a0, width, 3), dtype=np.float32)
+        # Without post-filtering the kernel writes straight into the image rows (no copy).
+        tile = np.empty((a1 - a0, width, 3), dtype=np.float32) if aa_post else img[y0:y1]
         if layout.table_ok:
             _lp.inverse_map_table(lp, layout.utab, layout.inv_step, disp.gaze_x, disp.gaze_y, layout.Lr,
                                   layout.n, layout.w_eff, float(a0), tile)
@@ -134,8 +135,6 @@ def _inverse_map(tracer, layout: LPLayout, lp, aa_post: bool, width: int, height
         if aa_post:
             img[y0:y1] = foveal_gaussian(tile, disp.gaze, disp.c_r, a0, rows=(y0 - a0, y1 - a0))
             c.add_time("antialias", t0)
-        else:
-            img[y0:y1] = tile
     return img
 
 
@@ -186,6 +185,8 @@ def finish(tracer: Tracer, layout: LPLayout, lp, params: dict, width: int, heigh
     elif layout.method != "vafr" and params.get("aa", False):
         lp = lp_filter(lp, layout.n, "gaussian3")
     tracer.counters.add_time("antialias", t0)
+    if not np.isfinite(lp).all():  # the screen image is a convex blend of LP pixels: checking them suffices
+        raise ValueError(f"{layout.method}: the LP buffer holds non-finite values")
     aa_post = layout.method != "vafr" and params.get("aa", False)
     return _inverse_map(tracer, layout, lp, aa_post, width, height)
 

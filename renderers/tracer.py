@@ -153,16 +153,15 @@ class Tracer:
     def _shade_chunk(self, origin, d, prim, t):
         sc = self.scene
         t0 = time.perf_counter()
-        d = np.asarray(d, dtype=np.float64)
-        P = np.asarray(origin, dtype=np.float64)[None, :] + d * t.astype(np.float64)[:, None]
-        tri = sc.vertices[sc.faces[prim]].astype(np.float64)
-        Ng = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        Ng /= np.maximum(np.linalg.norm(Ng, axis=1, keepdims=True), 1e-300)
-        flip = np.einsum("ij,ij->i", Ng, d) > 0
-        Ng[flip] *= -1.0
-        V = -d
+        d = np.ascontiguousarray(d, dtype=np.float64)
+        n = len(d)
+        P = np.empty((n, 3))
+        Ng = np.empty((n, 3))
+        V = np.empty((n, 3))
+        S.hit_geometry(np.asarray(origin, dtype=np.float64), d, np.ascontiguousarray(t, dtype=np.float64),
+                       np.ascontiguousarray(prim), sc.vertices, sc.faces, P, Ng, V)
         mid = sc.material_ids[prim]
-        n, k = len(d), len(self.L_kind)
+        k = len(self.L_kind)
         contrib = np.empty((n, k, 3), dtype=np.float32)
         base = np.empty((n, 3), dtype=np.float32)
         need = np.empty((n, k), dtype=np.bool_)
