@@ -234,6 +234,11 @@ class Store:
                        measured.get("keyboard_backend"), presenter, seed, utc_now(), resumed_from))
         return sid
 
+    def running_sessions(self, pid: str) -> list[str]:
+        """Sessions of ``pid`` still marked running (stopped without being closed), oldest first."""
+        return [r[0] for r in self.conn.execute("SELECT id FROM sessions WHERE participant = ? AND "
+                                                "status = 'running' ORDER BY rowid", (pid,))]
+
     def last_session(self, pid: str) -> str | None:
         row = self.conn.execute("SELECT id FROM sessions WHERE participant = ? ORDER BY rowid DESC LIMIT 1",
                                 (pid,)).fetchone()

@@ -297,3 +297,18 @@ def test_window_errors_are_one_line(tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "not psychtoolbox" in err
     assert not db.exists()
+
+
+def test_resume_after_a_stop_behind_the_last_answer_closes_the_session(tmp_path, capsys):
+    p = load_protocol(PROTOCOLS / "seed001_pilot.yaml", stimuli_dir=tmp_path / "n", check_renderers=False)
+    db = tmp_path / "s.db"
+    run_session(p, "P1", db, _sim(p, "P1"), allow_declared=True)
+    with open_store(db) as st:  # as if killed after the last commit, before the session was closed
+        st.conn.execute("UPDATE sessions SET status = 'running', ended_utc = NULL")
+    s = run_session(p, "P1", db, _sim(p, "P1"), resume=True, allow_declared=True)
+    assert (s.session, s.status, s.answered, s.planned) == ("P1-s1", "completed", 4, 4)
+    with open_store(db) as st:
+        assert [(x["id"], x["status"]) for x in st.sessions()] == [("P1-s1", "completed")]
+        assert [r[0] for r in st.conn.execute("SELECT kind FROM events")] == ["closed"]
+    with pytest.raises(Exception, match="already answered every trial"):
+        run_session(p, "P1", db, _sim(p, "P1"), resume=True, allow_declared=True)

@@ -67,11 +67,11 @@ def test_sigkill_at_random_points_then_resume(tmp_path):
             time.sleep(rng.uniform(0.0, 0.4))
         else:
             line = proc.stdout.readline()
-            if "started" not in line:
-                proc.wait()
+            if "started" in line:
+                time.sleep(rng.uniform(0.0, 0.03))
+                hit_during_trials += 1
+            elif proc.wait() != 0:  # (0: the previous kill hit after the last answer; the run closed it)
                 raise AssertionError(f"runner did not start: {line!r} {proc.stderr.read()!r}")
-            time.sleep(rng.uniform(0.0, 0.03))
-            hit_during_trials += 1
         if proc.poll() is None:
             os.kill(proc.pid, signal.SIGKILL)
             kills += 1
@@ -79,6 +79,8 @@ def test_sigkill_at_random_points_then_resume(tmp_path):
         proc.stdout.close()
         proc.stderr.close()
         if proc.returncode == 0:  # finished before it was hit: go on with the next participant
+            _, rows = _state(db, pid)
+            assert [r[0] for r in rows] == sorted({r[0] for r in rows}) and len(rows) == 98
             participants.append(f"P{len(participants) + 1}")
             seen = {}
             continue
@@ -90,6 +92,12 @@ def test_sigkill_at_random_points_then_resume(tmp_path):
         for i, value in seen.items():  # nothing committed is lost or changed
             assert now.get(i) == value
         seen = now
+        if len(rows) == 98:  # killed after the last answer: a resume closes the session if it was still open
+            res = subprocess.run(_cmd(db, pid, True), cwd=tmp_path, env=env, capture_output=True, text=True,
+                                 check=False)
+            assert res.returncode == 0 or "already answered every trial" in res.stderr, res.stderr
+            participants.append(f"P{len(participants) + 1}")
+            seen = {}
     # Finish the last participant without interruption.
     enrolled, _ = _state(db, participants[-1])
     res = subprocess.run(_cmd(db, participants[-1], enrolled), cwd=tmp_path, env=env, capture_output=True,
@@ -108,4 +116,5 @@ def test_sigkill_at_random_points_then_resume(tmp_path):
         sessions = st.sessions()
     last = [s for s in sessions if s["participant"] == participants[-1]]
     assert len(sessions) >= 2 and last[-1]["status"] == "completed"
-    assert all(s["status"] in ("interrupted", "completed") for s in sessions)
+    assert all(s["status"] in ("interrupted", "completed") for s in sessions)  # none left 'running'
+    assert sum(s["status"] == "completed" for s in sessions) == len(participants)

@@ -180,7 +180,15 @@ def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_r
         raise StoreError(f"{store.path}: the schedule of participant {pid!r} differs from the stored one "
                          "(protocol or scheduler changed): cannot resume")
     if existing and store.first_unanswered(pid) is None:
-        raise StoreError(f"{store.path}: participant {pid!r} has already answered every trial")
+        # Every answer is recorded. A session stopped after its last answer but before it was closed (crash,
+        # kill) is closed now as completed; otherwise there is nothing to resume.
+        open_ids = store.running_sessions(pid)
+        if not open_ids:
+            raise StoreError(f"{store.path}: participant {pid!r} has already answered every trial")
+        for sid in open_ids:
+            store.event(sid, "closed", "all trials were answered before the session stopped")
+            store.end_session(sid, "completed")
+        return _summary(store, protocol, pid, open_ids[-1], "completed")
     stimuli = StimulusSet(protocol, scale, stimuli_root, allow_declared)
     disp = scaled_display(protocol, scale)
     settings = DisplaySettings(width_px=disp.width_px, height_px=disp.height_px, width_cm=disp.width_cm,
@@ -205,6 +213,10 @@ def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_r
         status = _loop(store, protocol, pid, sid, presenter, stimuli, disp, resume, progress)
     finally:
         presenter.close()
+    return _summary(store, protocol, pid, sid, status)
+
+
+def _summary(store, protocol, pid, sid, status) -> SessionSummary:
     prog = next(p for p in store.progress() if p["participant"] == pid)
     passed = None
     if prog["catch_planned"]:
