@@ -79,8 +79,8 @@ def run_foveated(method: str):
     return run
 
 
-register(RendererPlugin("gt", "ground truth: one ray per pixel, every pixel shaded", dict(COMMON), run_gt))
-register(RendererPlugin(
+GT = register(RendererPlugin("gt", "ground truth: one ray per pixel, every pixel shaded", dict(COMMON), run_gt))
+VAFR = register(RendererPlugin(
     "vafr", "visual-acuity-consistent foveated rendering (seed 001): constant LP buffer, FXAA in the LP buffer",
     {**COMMON, **FOVEATED,
      "stereo": Param(str, "mono", choices=("mono", "dup", "rep"), help="mono, dup (both eyes) or rep "
@@ -90,13 +90,13 @@ register(RendererPlugin(
      "e_max": Param(float, 60.0, 0.0, 90.0, low_open=True, high_open=True, help="largest eccentricity (deg)")},
     run_foveated("vafr"), bytes_per_pixel=40.0))
 _AA = {"aa": Param(bool, True, help="LMFR anti-aliasing: 3x3 Gaussian in the LP buffer + foveal Gaussian")}
-register(RendererPlugin(
+LMFR = register(RendererPlugin(
     "lmfr", "kernel log-polar foveated rendering (Meng et al.), u = w z^alpha",
     {**COMMON, **FOVEATED, **_AA,
      "delta": Param(float, 1.8, 1.0, 16.0, low_open=True, help="LP buffer = screen / delta per axis"),
      "alpha": Param(float, 4.0, 0.0, 16.0, low_open=True, help="kernel exponent")},
     run_foveated("lmfr"), bytes_per_pixel=40.0))
-register(RendererPlugin(
+LAFR = register(RendererPlugin(
     "lafr", "locomotion-aware foveated rendering (Shi et al.), two-part kernel",
     {**COMMON, **FOVEATED, **_AA,
      "delta": Param(float, 1.8, 1.0, 16.0, low_open=True, help="LP buffer = screen / delta per axis"),

@@ -259,3 +259,26 @@ def test_registry_params_and_plugins():
     img, st = render(tiny_scene(), "flat_test", {"level": "0.25"}, 8, 6)
     assert img.shape == (6, 8, 3) and float(img[0, 0, 0]) == 0.25 and calls == [0.25]
     assert set(st["seconds"]) >= {"visibility", "shading", "antialias", "inverse_map", "total"}
+
+
+def test_entry_point_plugins_are_loaded(monkeypatch):
+    """A package adds a renderer through the 'studyapp.renderers' entry-point group."""
+    import importlib.metadata
+    from types import SimpleNamespace
+
+    from renderers import registry
+
+    plugin = RendererPlugin("ep_flat", "entry-point test", {"v": Param(float, 0.75, 0.0, 1.0)},
+                            lambda ctx: np.full((ctx.height, ctx.width, 3), ctx.params["v"], np.float32))
+    groups = []
+
+    def fake_entry_points(group):
+        groups.append(group)
+        return [SimpleNamespace(name="ep_flat", load=lambda: (lambda: plugin))]
+
+    monkeypatch.setattr(importlib.metadata, "entry_points", fake_entry_points)
+    monkeypatch.setattr(registry, "_entry_points_loaded", False)
+    monkeypatch.setattr(registry, "_REGISTRY", dict(registry._REGISTRY))
+    assert "ep_flat" in available() and groups == ["studyapp.renderers"]
+    img, _ = render(tiny_scene(), "ep_flat", {}, 4, 3)
+    assert float(img.max()) == 0.75
