@@ -169,9 +169,22 @@ def render_lp(tracer: Tracer, camera: Camera, layout: LPLayout, pipeline: str, w
     if pipeline == "deferred":
         gb = GBuffer(tracer, camera, width, height)
         lp[jj[sel], ii[sel]] = gb.shade(tracer, xs, ys)
+        # For reprojection: the LP sample's own ray meets the plane of the G-buffer pixel's triangle at t.
         px = np.clip(np.floor(xs), 0, width - 1).astype(np.int64)
         py = np.clip(np.floor(ys), 0, height - 1).astype(np.int64)
-        return lp, jj[sel], ii[sel], px + 0.5, py + 0.5, gb.prim[py, px], gb.tfar[py, px]
+        prim = gb.prim[py, px]
+        t = np.full(len(xs), np.inf, dtype=np.float32)
+        hit = prim >= 0
+        if hit.any():
+            sc = tracer.scene
+            tri = sc.vertices[sc.faces[prim[hit]]].astype(np.float64)
+            n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+            d = camera_rays(camera, width, height, xs[hit], ys[hit])
+            den = np.einsum("ij,ij->i", d, n)
+            num = np.einsum("ij,ij->i", tri[:, 0] - np.asarray(camera.position), n)
+            ok = np.abs(den) > 1e-12
+            t[hit] = np.where(ok, num / np.where(ok, den, 1.0), gb.tfar[py[hit], px[hit]])
+        return lp, jj[sel], ii[sel], xs, ys, prim, t
     else:
         lp[jj[sel], ii[sel]], prim, tfar = tracer.render_points(camera, width, height, xs, ys, keep_hits=True)
     return lp, jj[sel], ii[sel], xs, ys, prim, tfar
