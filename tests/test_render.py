@@ -189,10 +189,11 @@ def test_lp_pixels_offscreen_are_skipped():
     assert st["shading_points"] + st["offscreen_lp_pixels"] == st["lp_pixels"]
 
 
-def test_reprojection_without_parallax_reshades_nothing():
+@pytest.mark.parametrize("pipeline", ["raycast", "deferred"])
+def test_reprojection_without_parallax_reshades_nothing(pipeline):
     sc = tiny_scene(ipd=0.0)
-    left, st = render(sc, "vafr", {"stereo": "rep", "eye": "left"}, 64, 48)
-    right, st_r = render(sc, "vafr", {"stereo": "rep", "eye": "right"}, 64, 48)
+    left, st = render(sc, "vafr", {"stereo": "rep", "eye": "left", "pipeline": pipeline}, 64, 48)
+    right, st_r = render(sc, "vafr", {"stereo": "rep", "eye": "right", "pipeline": pipeline}, 64, 48)
     assert st["reshaded_pixels"] == 0 and st["reshaded_share"] == 0.0
     np.testing.assert_array_equal(left, right)
 
