@@ -141,7 +141,7 @@ def test_images_are_used_when_present(tmp_path, task1):
     assert obs.impairment(Stimulus("EC", (tmp_path / "same.png",)), "s") == 0.0  # declared quality ignored
     d = obs.impairment(Stimulus("CC2", (tmp_path / "noisy.png",)), "s")
     assert d > 3.0  # ~0.2 RMS noise on a 0.02 JND scale (clipping shrinks it a little)
-    assert obs.impairment(Stimulus("CC2", ()), "s") == pytest.approx(5 * (1 - 0.3))  # declared stand-in
+    assert obs.impairment(Stimulus("CC2", ()), "s") == pytest.approx(5 * (1 - task1.conditions["CC2"].quality))
 
 
 def test_condition_without_images_or_quality_is_an_error(task1, tmp_path):

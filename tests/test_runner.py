@@ -1,6 +1,7 @@
 """Sessions end to end with the simulated observer: every shipped protocol, resume, Escape, bad input."""
 
 import csv
+import re
 from pathlib import Path
 
 import pytest
@@ -191,8 +192,9 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys):
 def test_missing_stimulus_file_of_a_folder_condition(tmp_path, capsys):
     folder = tmp_path / "lab"
     p = load_protocol(PROTOCOLS / "seed003_task2.yaml", check_renderers=False)
-    text = (PROTOCOLS / "seed003_task2.yaml").read_text().replace(
-        'CC3: {renderer: sl_as, label: "SL_as", quality: 0.55}', f'CC3: {{folder: {folder}, quality: 0.55}}')
+    text, n = re.subn(r"CC3: \{renderer: sl_as[^}]*\}", f"CC3: {{folder: {folder}, quality: 0.6}}",
+                      (PROTOCOLS / "seed003_task2.yaml").read_text())
+    assert n == 1
     f = tmp_path / "t2.yaml"
     f.write_text(text)
     for scene in p.scenes[:-1]:

@@ -3,6 +3,7 @@
 import io
 import itertools
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -74,8 +75,9 @@ def test_prepare_builds_every_missing_frame_once(tmp_path, monkeypatch):
 
 
 def test_prepare_refuses_missing_folder_stimuli(tmp_path):
-    text = (PROTOCOLS / "seed003_task2.yaml").read_text().replace(
-        'CC3: {renderer: sl_as, label: "SL_as", quality: 0.55}', f'CC3: {{folder: {tmp_path / "lab"}}}')
+    text, n = re.subn(r"CC3: \{renderer: sl_as[^}]*\}", f"CC3: {{folder: {tmp_path / 'lab'}}}",
+                      (PROTOCOLS / "seed003_task2.yaml").read_text())
+    assert n == 1
     f = tmp_path / "p.yaml"
     f.write_text(text)
     p = load_protocol(f, stimuli_dir=tmp_path / "stim", check_renderers=False)

@@ -339,13 +339,30 @@ def write_synthetic_stimuli(protocol: Protocol, scale: float = 1.0, root: Path |
                             max_frames: int | None = None) -> Path:
     """Write a synthetic stimulus set for every stimulus the protocol needs (no renderer involved).
 
-    The ground truth of a scene is :func:`synthetic_scene`; a renderer or folder condition is
-    :func:`foveated_degrade` of it at the condition's declared ``quality`` (1.0 if none is declared); a derived
-    condition is made from its source as :func:`prepare` would. Sequences get ``max_frames`` frames at most
-    (the files are named as the protocol expects; later frames repeat the last one).
+    The ground truth of a scene is :func:`synthetic_scene`; a renderer condition is :func:`foveated_degrade`
+    of it at the condition's declared ``quality`` q (1.0 if none is declared), with the difference from the
+    ground truth scaled so that the simulated observer measures the impairment it would assume for the declared
+    quality, ``D = 5 (1 - q)`` JND (see :mod:`studyapp.runner.observer`): images and declared qualities then
+    tell the same story. A derived condition is made from its source as :func:`prepare` would; folder
+    conditions (a lab's own images) are left alone. Sequences get ``max_frames`` frames at most (the files are
+    named as the protocol expects; later frames repeat the last one).
     """
+    from .observer import DECLARED_SCALE_JND, foveated_difference
+
     disp = scaled_display(protocol, scale)
     ecc = eccentricity_map(disp, protocol.gaze_px(disp))
+    jnd = float(protocol.simulation["jnd"])
+    luma = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+
+    def calibrated(gt, img, q):
+        target = jnd * DECLARED_SCALE_JND * (1.0 - q)
+        for _ in range(3):  # the clip to [0, 1] shrinks the difference a little: repeat
+            d = foveated_difference(img @ luma, gt @ luma, ecc)
+            if d <= 0 or abs(d - target) <= 0.01 * target:
+                break
+            img = np.clip(gt + (img - gt) * (target / d), 0.0, 1.0)
+        return img
+
     base = stimulus_root(protocol, scale, root)
     for need in needed_stimuli(protocol):
         cond = protocol.conditions[need.condition]
@@ -363,5 +380,5 @@ def write_synthetic_stimuli(protocol: Protocol, scale: float = 1.0, root: Path |
                 shutil.copyfile(frames[j], f)
                 continue
             gt = synthetic_scene(disp.width_px, disp.height_px, need.scene, j)
-            save_png(f, foveated_degrade(gt, ecc, q, _seed_of(need.condition, need.scene, j)))
+            save_png(f, calibrated(gt, foveated_degrade(gt, ecc, q, _seed_of(need.condition, need.scene, j)), q))
     return base
