@@ -166,3 +166,19 @@ def test_real_renderers_prepare_and_a_simulated_run_from_their_images(tmp_path):
 
     df = read_trials(db)
     assert len(df) == 2 and set(df.chosen) <= {"GT", "LaFR"}
+
+
+def test_synthetic_images_carry_the_declared_impairment(tmp_path):
+    from studyapp.runner.observer import SimulatedObserver
+    from studyapp.runner.session import StimulusSet, ground_truth_stimuli
+    from studyapp.runner.stimuli import write_synthetic_stimuli
+
+    p = load_protocol(PROTOCOLS / "seed003_task1.yaml", stimuli_dir=tmp_path / "s", check_renderers=False)
+    write_synthetic_stimuli(p, 0.2, max_frames=1)
+    st = StimulusSet(p, 0.2)
+    obs = SimulatedObserver(p, "P1", 0, ground_truth_stimuli(p, st), display=p.display.scaled(0.2))
+    for cond in p.design_conditions:
+        stim = st.stimulus(cond, "yard")
+        assert len(stim.frames) == p.n_frames  # read from the images, not declared
+        want = 5 * (1 - p.conditions[cond].quality)
+        assert obs.impairment(stim, "yard") == pytest.approx(want, rel=0.03, abs=0.02)
