@@ -100,6 +100,8 @@ def test_n_light_picks_nearest_cut_node(data):
     cands = [i for i, x in enumerate(leaves) if lo <= x <= hi]
     dists = [_path_length(node, nodes[i]) for i in cands]
     assert j in cands and _path_length(node, nodes[j]) == min(dists)
+    depths = np.array([x.bit_length() - 1 for x in nodes], np.int64)
+    assert MR.n_light(node, la, na, len(la), first, hi, None, None, 0.0, depths) == j
 
 
 def _image_scene(w=32, h=24, n_lights=200, seed=0):
@@ -141,7 +143,8 @@ def test_select_without_reuse_equals_hierarchical_sampling():
     # map = 0: every node that has a low-resolution sample below it reuses one
     reused = MR.select_lights(*args, np.zeros(full.n), *tail)
     assert reused.sum() > 0
-    lrl_sorted, lrn_sorted, lrp_sorted, counts = ls
+    lrl_sorted, lrn_sorted, lrp_sorted, counts, depths = ls
+    np.testing.assert_array_equal(depths[lrl_sorted >= 0], [MR.depth(int(x)) for x in lrn_sorted[lrl_sorted >= 0]])
     for i in range(0, full.n, 7):
         q = (ids[i] // w * low.shape[0] // h) * low.shape[1] + (ids[i] % w) * low.shape[1] // w
         pool = set(lrl_sorted[q, :counts[q]].tolist())

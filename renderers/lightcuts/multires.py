@@ -103,18 +103,21 @@ def lrls(leaves, count, lid_min, lid_max):
 
 
 @njit(cache=True)
-def n_light(node, leaves, nodes, count, first, lid_max, pdfs=None, inten=None, u=0.0):
+def n_light(node, leaves, nodes, count, first, lid_max, pdfs=None, inten=None, u=0.0, depths=None):
     """nLight: among the samples from ``first`` with offset <= ``lid_max``, one whose cut node is nearest.
 
     Ties (common: e.g. every low-res cut node a leaf at the same depth) are broken at random with probability
     proportional to the reuse weight ``pdf' I(node') / I(node)`` when ``pdfs`` and ``inten`` are given (one
-    uniform ``u``, rescaled per candidate), else the first tied sample is taken.
+    uniform ``u``, rescaled per candidate), else the first tied sample is taken. With ``depths`` (the depth of
+    each ``nodes`` entry) the distance is the depth difference: ``node`` and every candidate's cut node lie
+    above the same leaf, so one is an ancestor of the other.
     """
+    dn = depth(node)
     best = first
-    best_d = tree_distance(node, nodes[first])
+    best_d = tree_distance(node, nodes[first]) if depths is None else abs(dn - depths[first])
     j = first + 1
     while j < count and leaves[j] <= lid_max:
-        d = tree_distance(node, nodes[j])
+        d = tree_distance(node, nodes[j]) if depths is None else abs(dn - depths[j])
         if d < best_d:
             best_d = d
             best = j
@@ -124,7 +127,8 @@ def n_light(node, leaves, nodes, count, first, lid_max, pdfs=None, inten=None, u
     total = 0.0
     pick = best
     for q in range(best, j):
-        if tree_distance(node, nodes[q]) != best_d:
+        dq = tree_distance(node, nodes[q]) if depths is None else abs(dn - depths[q])
+        if dq != best_d:
             continue
         wq = pdfs[q] * inten[nodes[q]]
         if wq <= 0.0:
@@ -141,7 +145,7 @@ def n_light(node, leaves, nodes, count, first, lid_max, pdfs=None, inten=None, u
 
 
 def sort_low_res_samples(cut, size, leaf, pdf):
-    """``LS'`` per low-resolution pixel sorted by leaf offset: ``(leaves, nodes, pdfs, counts)``.
+    """``LS'`` per low-resolution pixel sorted by leaf offset: ``(leaves, nodes, pdfs, counts, depths)``.
 
     ``cut``/``leaf``/``pdf`` are the ``(P', B')`` outputs of ``sampling.cut_and_sample``; empty entries
     (``leaf = -1``) are dropped.
@@ -152,12 +156,14 @@ def sort_low_res_samples(cut, size, leaf, pdf):
     nodes = np.take_along_axis(cut, order, axis=1)
     pdfs = np.take_along_axis(pdf, order, axis=1)
     counts = (leaf >= 0).sum(axis=1).astype(np.int64)
-    return np.ascontiguousarray(leaves), np.ascontiguousarray(nodes), np.ascontiguousarray(pdfs), counts
+    depths = (np.frexp(np.maximum(nodes, 1).astype(np.float64))[1] - 1).astype(np.int64)
+    return (np.ascontiguousarray(leaves), np.ascontiguousarray(nodes), np.ascontiguousarray(pdfs), counts,
+            np.ascontiguousarray(depths))
 
 
 @njit(cache=True, parallel=True)
 def select_lights(pos, nrm, pix_id, pix_x, pix_y, fmap, cut, size, bmin, bmax, inten, n_leaves, levels, clamp2,
-                  seed, lr_leaves, lr_nodes, lr_pdfs, lr_counts, scale_x, scale_y, lr_width, lr_height,
+                  seed, lr_leaves, lr_nodes, lr_pdfs, lr_counts, lr_depths, scale_x, scale_y, lr_width, lr_height,
                   leaf, pdf):
     """Algorithm 2 for every pixel: reuse a low-resolution sample with probability ``1 - map[p]`` when one
     lies under the cut node, else hierarchical importance sampling. Returns the number of reused samples."""
@@ -183,7 +189,7 @@ def select_lights(pos, nrm, pix_id, pix_x, pix_y, fmap, cut, size, bmin, bmax, i
                 first = lrls(lr_leaves[q], lr_counts[q], lo, hi)
                 if first >= 0:
                     j = n_light(k, lr_leaves[q], lr_nodes[q], lr_counts[q], first, hi, lr_pdfs[q], inten,
-                                rad / (1.0 - fmap[i]) if fmap[i] < 1.0 else 0.0)
+                                rad / (1.0 - fmap[i]) if fmap[i] < 1.0 else 0.0, lr_depths[q])
                     leaf[i, s] = lr_leaves[q, j]
                     pdf[i, s] = lr_pdfs[q, j] * inten[lr_nodes[q, j]] / inten[k]
                     reused[i] += 1
