@@ -97,7 +97,7 @@ def _presenter_factory(args, protocol):
             from studyapp.presentation.psychopy_window import PsychoPyPresenter
         except ImportError as exc:
             raise CLIError(f"the PsychoPy presenter is not available ({exc}); use --simulate for a dry run") from None
-        return PsychoPyPresenter()
+        return PsychoPyPresenter(eyetracker=args.eyetracker, gaze_log=args.gaze_log)
     return make_window
 
 
@@ -223,6 +223,10 @@ def register(subparsers, parser_class) -> None:
                    help="use the stimulus set prepared with --scale F (default: 1)")
     r.add_argument("--stimuli", metavar="DIR", help="stimulus folder (default: the protocol's stimuli_dir)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--eyetracker", choices=("mousegaze",),
+                   help="record gaze through psychopy.iohub and flag trials where it left the fovea "
+                        "(mousegaze: the mouse simulates the eye, for testing)")
+    r.add_argument("--gaze-log", metavar="FILE", help="with --eyetracker: write gaze samples to this CSV")
     r.add_argument("--sim-delay", type=float, default=0.0, help=__import__("argparse").SUPPRESS)
     r.set_defaults(func=cmd_run)
 

@@ -238,9 +238,11 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, disp, resume, progress)
     first = True
     displays = {}
 
-    def display_of(t):
+    def display_of(t, done=None):
+        """The trial's display; ``done`` = non-reference trials answered before it (default: so far)."""
         if t.idx not in displays:
-            n = number + 1 if t.kind != "reference" else number
+            done = number if done is None else done
+            n = done + 1 if t.kind != "reference" else done
             displays[t.idx] = trial_display(protocol, t, stimuli, n, total, gaze)
         return displays[t.idx]
 
@@ -254,6 +256,9 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, disp, resume, progress)
             presenter.message(br.get("text", "Take a short break."), float(br.get("seconds", 30.0)))
         first = False
         d = display_of(t)
+        prefetch = getattr(presenter, "prefetch", None)  # optional: decode the next trial during this one
+        if prefetch is not None and k + 1 < len(todo):
+            prefetch(display_of(todo[k + 1], number + (t.kind != "reference")))
         while True:
             result = presenter.present(d)
             if not result.escaped:
