@@ -9,8 +9,10 @@ the renderer's, measured in the same run on this machine.
 
 Writes ``docs/benchmarks.md`` section ``render``, ``docs/bench_render.csv`` and ``docs/bench_render.png``.
 
-    python benchmarks/bench_render.py                        # the default plan (tens of minutes)
-    python benchmarks/bench_render.py --scenes cornell --resolutions 2K --quick
+    python benchmarks/bench_render.py                        # every scene x resolution (hours on 2 cores)
+    python benchmarks/bench_render.py --plan "cornell:2K:VaFR/LaFR(1.8)"      # one scene, chosen methods
+    python benchmarks/bench_render.py --plan "temple:2K+4K;temple:8K+retinal:VaFR/VaFR-noAA/LaFR(2.2)/LaFR(1.8)/LMFR(1.8);street_night:2K+8K:VaFR/VaFR-noAA/LaFR(1.8)/LMFR(1.8);interior:2K+8K:VaFR/VaFR-noAA/LaFR(1.8)/LMFR(1.8);street_day:2K+8K:VaFR/VaFR-noAA/LaFR(1.8)/LMFR(1.8);cornell:2K"
+                                                             # the plan of the committed figures (~40 min)
 """
 
 from __future__ import annotations
