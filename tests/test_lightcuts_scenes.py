@@ -29,3 +29,20 @@ def test_cornell_many_has_about_110k_one_sided_lights():
     kinds = {m.kind for m in sc.materials}
     assert kinds == {"diffuse", "glossy"}
     assert "cornell_many" in SCENES
+
+
+def test_study_and_yard_light_counts_and_materials():
+    from renderers.lightcuts.scenes import study, yard
+
+    st = study()
+    assert len(st.emitters()[0]) == 2 * 120 * 120 + 2 * 2 * 3650 * 2 == 58_000
+    assert {m.kind for m in st.materials} == {"diffuse", "glossy", "metallic"}
+    yd = yard()
+    pos, nrm, _ = yd.emitters()
+    assert len(pos) == 25 * 1253 * 8 == 250_600
+    # bulbs are octahedra emitting outwards: each face normal points away from its bulb's centre
+    centre = pos.reshape(-1, 8, 3).mean(axis=1, keepdims=True)
+    out = ((pos.reshape(-1, 8, 3) - centre) * nrm.reshape(-1, 8, 3)).sum(axis=2)
+    assert np.all(out > 0)
+    assert {m.kind for m in yd.materials} == {"diffuse", "glossy"}
+    assert set(SCENES) == {"cornell_many", "study", "yard"}

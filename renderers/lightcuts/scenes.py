@@ -6,8 +6,13 @@
   (111,858 lights in all). Each
   triangle is one one-sided point light (``Scene.emitters``). Diffuse walls, glossy blocks.
 
-The other scenes of the issue (``study`` ≈58k, ``yard`` ≥250k, ``sponza_vpl`` ≈120k virtual point lights) are
-not built yet (see docs/lightcuts.md).
+* ``study`` — a 6 × 3 × 5 m room: a ceiling panel of 120×120 cells (28,800 triangles) and two LED strips along
+  the upper edges of the side walls (2 × 14,600 triangles): 58,000 lights; diffuse walls, textured floor,
+  glossy desk and shelves, a metallic vase.
+* ``yard`` — an open yard at night: 10,000-cell ground, houses, glossy jars, and 31,325 string-light bulbs
+  (octahedra, 8 emissive triangles each) hung on 25 strings between poles: 250,600 lights.
+
+``sponza_vpl`` (≈120k virtual point lights) is not built yet (see docs/lightcuts.md).
 """
 
 from __future__ import annotations
@@ -61,4 +66,79 @@ def cornell_many() -> Scene:
                  display=base.display, ambient=base.ambient)
 
 
-SCENES = {"cornell_many": cornell_many}
+def _octahedron(radius: float) -> tuple[np.ndarray, np.ndarray]:
+    v = radius * np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=np.float64)
+    f = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    return v, f
+
+
+def study() -> Scene:
+    from renderers.procedural import MeshBuilder
+    from renderers.scene import Camera
+
+    b = MeshBuilder()
+    for m in (Material("wall", albedo=(0.7, 0.68, 0.62)),
+              Material("floor", albedo=(0.55, 0.4, 0.28), albedo2=(0.35, 0.24, 0.16), texture="noise",
+                       texture_scale=0.4),
+              Material("desk", albedo=(0.45, 0.3, 0.2), kind="glossy", roughness=0.25, specular=0.1),
+              Material("shelf", albedo=(0.3, 0.35, 0.5), kind="glossy", roughness=0.4, specular=0.06),
+              Material("vase", albedo=(0.9, 0.75, 0.4), kind="metallic", roughness=0.2),
+              Material("panel", emission=(3.0, 2.9, 2.6)),
+              Material("led", emission=(1.5, 0.6, 0.2))):
+        b.material(m)
+    W, H, D = 6.0, 3.0, 5.0
+    b.quad((0, 0, 0), (W, 0, 0), (W, 0, D), (0, 0, D), "floor", (0, 1, 0))
+    b.quad((0, H, 0), (W, H, 0), (W, H, D), (0, H, D), "wall", (0, -1, 0))
+    b.quad((0, 0, D), (W, 0, D), (W, H, D), (0, H, D), "wall", (0, 0, -1))
+    b.quad((0, 0, 0), (0, 0, D), (0, H, D), (0, H, 0), "wall", (1, 0, 0))
+    b.quad((W, 0, 0), (W, 0, D), (W, H, D), (W, H, 0), "wall", (-1, 0, 0))
+    b.box((2.0, 0.0, 3.0), (4.0, 0.75, 4.0), "desk")
+    for i in range(3):
+        b.box((0.05, 0.4 + 0.7 * i, 0.8), (0.45, 0.45 + 0.7 * i, 4.2), "shelf")
+    b.cylinder((3.5, 0.75, 3.5), 0.12, 0.4, "vase", segments=32)
+    lights = (((2.0, H - 0.001, 1.5), (2.0, 0, 0), (0, 0, 2.0), 120, 120, (0, -1, 0), "panel"),
+              ((0.002, H - 0.2, 0.1), (0, 0, 4.8), (0, 0.1, 0), 3650, 2, (1, 0, 0), "led"),
+              ((W - 0.002, H - 0.2, 0.1), (0, 0, 4.8), (0, 0.1, 0), 3650, 2, (-1, 0, 0), "led"))
+    for origin, du, dv, nu, nv, normal, mat in lights:
+        b.add(*grid_triangles(origin, du, dv, nu, nv, normal), mat)
+    cam = Camera((3.0, 1.6, 0.3), (3.0, 1.0, 4.0), (0.0, 1.0, 0.0), 70.0)
+    return b.scene("study", camera=cam, ambient=(0.01, 0.01, 0.01))
+
+
+def yard() -> Scene:
+    from renderers.procedural import MeshBuilder
+    from renderers.scene import Camera
+
+    b = MeshBuilder()
+    for m in (Material("ground", albedo=(0.4, 0.38, 0.33), albedo2=(0.25, 0.24, 0.22), texture="checker",
+                       texture_scale=1.0),
+              Material("house", albedo=(0.6, 0.55, 0.5), albedo2=(0.35, 0.3, 0.28), texture="brick",
+                       texture_scale=0.5),
+              Material("jar", albedo=(0.2, 0.35, 0.6), kind="glossy", roughness=0.15, specular=0.12),
+              Material("pole", albedo=(0.3, 0.3, 0.3)),
+              Material("bulb_warm", emission=(4.0, 2.8, 1.2)),
+              Material("bulb_cool", emission=(1.2, 2.4, 4.0))):
+        b.material(m)
+    b.add(*grid_triangles((-20, 0, -20), (40, 0, 0), (0, 0, 40), 100, 50, (0, 1, 0)), "ground")
+    for x, z, w, d, h in ((-12, 6, 6, 5, 5), (6, 8, 7, 6, 6), (-4, 14, 8, 4, 7)):
+        b.box((x, 0, z), (x + w, h, z + d), "house")
+    rng = np.random.default_rng(3)
+    for _ in range(12):
+        b.cylinder((rng.uniform(-8, 8), 0, rng.uniform(-2, 6)), rng.uniform(0.2, 0.4), rng.uniform(0.4, 1.0),
+                   "jar", segments=24)
+    n_strings, per = 25, 1253
+    bv, bf = _octahedron(0.03)
+    for k in range(n_strings):
+        z = -4.0 + 0.5 * k
+        x0, x1 = -10.0, 10.0
+        b.cylinder((x0, 0, z), 0.05, 3.5, "pole", segments=8)
+        b.cylinder((x1, 0, z), 0.05, 3.5, "pole", segments=8)
+        t = np.linspace(0.0, 1.0, per)
+        sag = 0.8 * 4.0 * t * (1.0 - t)  # parabolic sag of the string
+        centres = np.column_stack([x0 + (x1 - x0) * t, 3.4 - sag, np.full(per, z)])
+        b.instance(bv, bf, centres, "bulb_warm" if k % 2 == 0 else "bulb_cool")
+    cam = Camera((0.0, 1.7, -9.0), (0.0, 2.0, 4.0), (0.0, 1.0, 0.0), 65.0)
+    return b.scene("yard", camera=cam, ambient=(0.005, 0.005, 0.01))
+
+
+SCENES = {"cornell_many": cornell_many, "study": study, "yard": yard}
