@@ -45,4 +45,21 @@ def test_study_and_yard_light_counts_and_materials():
     out = ((pos.reshape(-1, 8, 3) - centre) * nrm.reshape(-1, 8, 3)).sum(axis=2)
     assert np.all(out > 0)
     assert {m.kind for m in yd.materials} == {"diffuse", "glossy"}
-    assert set(SCENES) == {"cornell_many", "study", "yard"}
+    assert set(SCENES) == {"cornell_many", "study", "yard", "sponza_vpl"}
+
+
+def test_sponza_vpls_face_the_light_and_carry_its_reflected_power():
+    from renderers.lightcuts.scenes import sponza_vpl
+
+    sc = sponza_vpl(n_vpl=3000)
+    pos, nrm, rgb = sc.emitters()
+    assert len(pos) == 3000 and sc.light_count() == 3001  # the point light itself + the VPLs
+    light = np.array(sc.point_lights[0].position)
+    assert np.all(((light - pos) * nrm).sum(axis=1) > 0)  # each VPL lies on a surface lit by the light
+    np.testing.assert_allclose(np.linalg.norm(nrm, axis=1), 1.0)
+    # power: pi * I_vpl / albedo summed = Phi * hits / traced <= Phi = 4 pi I per channel
+    total = np.pi * rgb.sum(axis=0)
+    phi = 4 * np.pi * np.array(sc.point_lights[0].intensity)
+    assert np.all(total > 0) and np.all(total < phi)
+    assert sc.content_hash() != sponza_vpl(n_vpl=2000).content_hash()
+    assert {m.kind for m in sc.materials} == {"diffuse"}

@@ -12,7 +12,12 @@
 * ``yard`` — an open yard at night: 10,000-cell ground, houses, glossy jars, and 31,325 string-light bulbs
   (octahedra, 8 emissive triangles each) hung on 25 strings between poles: 250,600 lights.
 
-``sponza_vpl`` (≈120k virtual point lights) is not built yet (see docs/lightcuts.md).
+* ``sponza_vpl`` — a Sponza-like atrium (floor, walls, two colonnades of 8 columns, galleries, red and green
+  curtains; all diffuse) lit by one point light whose indirect light is 120,000 virtual point lights: light
+  paths traced from the point light (uniform directions, fixed seed) leave a VPL at their first hit, a one-sided
+  cosine emitter on the surface with intensity ``Φ/N · albedo / π`` (``Φ = 4π I`` per channel) along the hit
+  normal. ``VPLScene.emitters()`` appends them to the emissive triangles, so every renderer of the scene model
+  (and its content hash) sees the same lights.
 """
 
 from __future__ import annotations
@@ -141,4 +146,101 @@ def yard() -> Scene:
     return b.scene("yard", camera=cam, ambient=(0.005, 0.005, 0.01))
 
 
-SCENES = {"cornell_many": cornell_many, "study": study, "yard": yard}
+class VPLScene(Scene):
+    """A :class:`~renderers.scene.Scene` with extra one-sided point lights (``vpl_pos``, ``vpl_nrm``,
+    ``vpl_rgb``) reported by :meth:`emitters` after the emissive triangles."""
+
+    def __init__(self, *args, vpl_pos, vpl_nrm, vpl_rgb, **kw):
+        super().__init__(*args, **kw)
+        self.vpl = tuple(np.ascontiguousarray(a, dtype=np.float64).reshape(-1, 3)
+                         for a in (vpl_pos, vpl_nrm, vpl_rgb))
+
+    def emitters(self):
+        if self._emitters is None:
+            tp, tn, ti = super().emitters()
+            vp, vn, vi = self.vpl
+            self._emitters = (np.concatenate([tp, vp]), np.concatenate([tn, vn]), np.concatenate([ti, vi]))
+        return self._emitters
+
+    def content_hash(self) -> str:
+        if self._hash is None:
+            import hashlib
+
+            h = hashlib.sha256(super().content_hash().encode())
+            for a in self.vpl:
+                h.update(a.tobytes())
+            self._hash = h.hexdigest()
+        return self._hash
+
+
+def trace_vpls(scene: Scene, light_pos, light_intensity, n: int, seed: int = 0, batch: int = 1 << 16):
+    """``n`` virtual point lights of one isotropic point light: ``(positions, normals, intensities)``.
+
+    Paths leave in uniform directions (batches of ``batch``, fixed ``seed``) until ``n`` of them hit the scene;
+    every traced path carries ``Φ / N_traced`` (escaping paths included), so the VPLs' total power is the
+    light's power reflected by the first hit.
+    """
+    from renderers.tracer import Tracer
+
+    from .plugin import Hits
+
+    rng = np.random.default_rng(seed)
+    tracer = Tracer(scene, shadows=False)
+    pos, nrm, alb = [], [], []
+    found = traced = 0
+    while found < n:
+        z = rng.uniform(-1.0, 1.0, batch)
+        phi = rng.uniform(0.0, 2.0 * np.pi, batch)
+        r = np.sqrt(1.0 - z * z)
+        hits = Hits(tracer, np.asarray(light_pos, dtype=np.float64),
+                    np.column_stack([r * np.cos(phi), r * np.sin(phi), z]))
+        idx = np.nonzero(hits.hit)[0][: n - found]
+        traced += batch if found + int(hits.hit.sum()) <= n else int(idx[-1]) + 1
+        found += len(idx)
+        pos.append(hits.gbuf.position[idx])
+        nrm.append(hits.gbuf.normal[idx])
+        alb.append(hits.albedo[idx])
+        if traced > 1000 * n:
+            raise ValueError("light paths escape the scene: no surface around the light")
+    nrm = np.concatenate(nrm)
+    flux = 4.0 * np.pi * np.asarray(light_intensity, dtype=np.float64) / traced
+    return np.concatenate(pos) + 1e-4 * scene.scale * nrm, nrm, flux * np.concatenate(alb) / np.pi
+
+
+def sponza_vpl(n_vpl: int = 120_000) -> Scene:
+    from renderers.procedural import MeshBuilder
+    from renderers.scene import Camera, PointLight
+
+    b = MeshBuilder()
+    for m in (Material("stone", albedo=(0.62, 0.58, 0.5), albedo2=(0.45, 0.42, 0.36), texture="brick",
+                       texture_scale=0.8),
+              Material("floor", albedo=(0.55, 0.52, 0.48), albedo2=(0.4, 0.38, 0.35), texture="checker",
+                       texture_scale=1.0),
+              Material("column", albedo=(0.7, 0.66, 0.58)),
+              Material("red", albedo=(0.6, 0.08, 0.06)),
+              Material("green", albedo=(0.1, 0.5, 0.12))):
+        b.material(m)
+    L, W, H = 30.0, 12.0, 10.0
+    b.add(*grid_triangles((-L / 2, 0, -W / 2), (L, 0, 0), (0, 0, W), 60, 24, (0, 1, 0)), "floor")
+    for z, nz in ((-W / 2, 1), (W / 2, -1)):
+        b.add(*grid_triangles((-L / 2, 0, z), (L, 0, 0), (0, H, 0), 30, 10, (0, 0, nz)), "stone")
+    for x, nx in ((-L / 2, 1), (L / 2, -1)):
+        b.add(*grid_triangles((x, 0, -W / 2), (0, 0, W), (0, H, 0), 12, 10, (nx, 0, 0)), "stone")
+    for side in (-1, 1):
+        zc = side * 3.0
+        for i in range(8):
+            b.cylinder((-12.25 + 3.5 * i, 0, zc), 0.35, 4.0, "column", segments=24, flutes=12, flute_depth=0.08)
+        b.box((-L / 2, 4.0, min(zc, side * W / 2)), (L / 2, 4.4, max(zc, side * W / 2)), "stone")
+        for i in range(7):
+            x0 = -12.25 + 3.5 * i + 0.6
+            b.add(*grid_triangles((x0, 1.2, zc + side * 0.5), (2.3, 0, 0), (0, 2.6, 0), 4, 4, (0, 0, -side)),
+                  "red" if (i + (side > 0)) % 2 else "green")
+    base = b.scene("sponza_vpl", camera=Camera((-13.0, 1.8, 0.0), (10.0, 2.5, 0.0), (0.0, 1.0, 0.0), 60.0),
+                   point_lights=[PointLight((0.0, 8.5, 0.0), (400.0, 380.0, 340.0))])
+    vpos, vnrm, vrgb = trace_vpls(base, (0.0, 8.5, 0.0), (400.0, 380.0, 340.0), n_vpl, seed=7)
+    return VPLScene(name=base.name, vertices=base.vertices, faces=base.faces, material_ids=base.material_ids,
+                    materials=base.materials, point_lights=base.point_lights, camera=base.camera,
+                    display=base.display, vpl_pos=vpos, vpl_nrm=vnrm, vpl_rgb=vrgb)
+
+
+SCENES = {"cornell_many": cornell_many, "study": study, "yard": yard, "sponza_vpl": sponza_vpl}
