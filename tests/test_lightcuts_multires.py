@@ -158,9 +158,16 @@ def test_select_without_reuse_equals_hierarchical_sampling():
             can = any(lo <= x <= hi for x in pool)
             if can:
                 assert leaf[i, s] in pool
-                j = list(lrl_sorted[q, :counts[q]]).index(leaf[i, s])
-                assert pdf[i, s] == pytest.approx(lrp_sorted[q, j] * tree.intensity[lrn_sorted[q, j]]
-                                                  / tree.intensity[k])
+                row = list(lrl_sorted[q, :counts[q]])
+                j = row.index(leaf[i, s])
+                src = int(lrn_sorted[q, j])
+                if MR.depth(src) < MR.depth(k):  # (a) one ancestor cut node: intensity-share weight
+                    expect = lrp_sorted[q, j] * tree.intensity[src] / tree.intensity[k]
+                else:  # (b) cut nodes below k partition it: drawn in proportion to their intensity
+                    cands = [int(lrn_sorted[q, c]) for c, x in enumerate(row) if lo <= x <= hi]
+                    assert all(MR.depth(c) >= MR.depth(k) for c in cands)
+                    expect = lrp_sorted[q, j] * tree.intensity[src] / sum(tree.intensity[c] for c in cands)
+                assert pdf[i, s] == pytest.approx(expect)
                 n_reuse += 1
         assert n_reuse == reused[i]
 
@@ -207,3 +214,27 @@ def test_n_light_breaks_ties_in_proportion_to_the_reuse_weight():
     freq = np.bincount(picks, minlength=4) / len(us)
     np.testing.assert_allclose(freq, inten[32:36] / inten[32:36].sum(), atol=2e-3)
     assert MR.n_light(8, leaves, leaves, 4, 0, hi) == 0  # without weights: the first tied sample
+
+
+def test_reuse_sample_draws_partitioning_cut_nodes_by_intensity():
+    # node 2 (depth 1) of a 4-level tree; low-res cut nodes below it: 4 (leaves 16-19) and 10, 11 (20-21, 22-23)
+    leaves = np.array([17, 21, 22], dtype=np.int64)
+    nodes = np.array([4, 10, 11], dtype=np.int64)
+    depths = np.array([2, 3, 3], dtype=np.int64)
+    pdfs = np.array([0.5, 0.25, 0.8])
+    inten = np.zeros(32)
+    inten[[4, 10, 11]] = [2.0, 1.0, 5.0]
+    inten[2] = 8.0
+    lo, hi = MR.leaf_range(2, 5)
+    first = MR.lrls(leaves, 3, lo, hi)
+    us = (np.arange(8000) + 0.5) / 8000
+    out = [MR.reuse_sample(2, leaves, nodes, pdfs, depths, 3, first, hi, inten, u) for u in us]
+    picks = np.array([j for j, _ in out])
+    np.testing.assert_allclose(np.bincount(picks, minlength=3) / len(us), [2 / 8, 1 / 8, 5 / 8], atol=1e-3)
+    for j, pj in out[:: 500]:
+        assert pj == pytest.approx(pdfs[j] * inten[nodes[j]] / 8.0)
+    # case (a): the only candidate comes from an ancestor cut node (node 1 above node 5)
+    j, pj = MR.reuse_sample(5, np.array([21], np.int64), np.array([1], np.int64), np.array([0.1]),
+                            np.array([0], np.int64), 1, 0, 23, np.r_[16.0, 16.0, np.zeros(3), 4.0, np.zeros(26)],
+                            0.3)
+    assert j == 0 and pj == pytest.approx(0.1 * 16.0 / 4.0)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from renderers import registry
-from renderers.lightcuts.plugin import register_all, scene_light_tree
+from renderers.lightcuts.plugin import register_all, scene_light_tree, split_triangles
 from renderers.procedural import MeshBuilder
 from renderers.scene import Camera, Material
 
@@ -26,11 +26,30 @@ def _diffuse_scene(glossy=False):
 
 def test_light_tree_from_emitters():
     sc = _diffuse_scene()
-    tree = scene_light_tree(sc)
     pos, nrm, rgb = sc.emitters()
-    assert tree.n_lights == len(pos) == 32
-    np.testing.assert_allclose(tree.intensity[1], rgb.sum())
-    np.testing.assert_allclose(tree.light_nrm[:tree.n_lights], nrm[tree.order])
+    assert len(pos) == 32
+    whole = scene_light_tree(sc, max_edge_frac=1.0)  # no triangle is split
+    assert whole.n_lights == 32
+    np.testing.assert_allclose(whole.intensity[1], rgb.sum())
+    np.testing.assert_allclose(whole.light_nrm[:32], nrm[whole.order])
+    # split until the edges are below 1 % of the scene diagonal: 4^k pieces each, same power and normals
+    fine = scene_light_tree(sc)
+    k = round(np.log(fine.n_lights / 32) / np.log(4))
+    assert k >= 1 and fine.n_lights == 32 * 4 ** k
+    np.testing.assert_allclose(fine.intensity[1], rgb.sum(), rtol=1e-12)
+    np.testing.assert_allclose(fine.light_nrm[:fine.n_lights], np.tile([0.0, -1.0, 0.0], (fine.n_lights, 1)),
+                               atol=1e-12)
+
+
+def test_split_triangles_tile_the_triangle():
+    tri = np.array([[[0.0, 0, 0], [2, 0, 0], [0, 3, 0]]])
+    sub = split_triangles(tri, 2)
+    assert sub.shape == (16, 3, 3)
+    area = 0.5 * np.linalg.norm(np.cross(sub[:, 1] - sub[:, 0], sub[:, 2] - sub[:, 0]), axis=1)
+    np.testing.assert_allclose(area, 3.0 / 16)
+    normal = np.cross(sub[:, 1] - sub[:, 0], sub[:, 2] - sub[:, 0])
+    assert np.all(normal[:, 2] > 0)  # winding kept
+    np.testing.assert_allclose(sub.reshape(-1, 3).mean(axis=0), tri[0].mean(axis=0))
 
 
 def test_all_diffuse_scene_casts_no_glossy_ray():

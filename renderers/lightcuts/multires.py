@@ -22,15 +22,13 @@ a leaf of ``node``): it is true for a node whose range misses every sample and f
 inside the samples' span that holds none. ``lrls`` implements the stated purpose: a sample offset in
 ``[lid_min, lid_max]``, found by binary search in the sorted ``LS'[p']``.
 
-Weight of a reused sample. ``l`` was drawn at the low-resolution pixel from cut node ``node'`` with
-probability ``pdf'(l | node')``. For ``node`` (an ancestor or descendant of ``node'``) the selection
-probability is approximated by ``pdf'(l | node') * I(node') / I(node)``: the branch probabilities between
-``node'`` and ``node`` are replaced by intensity shares. This saves the traversal (the point of Algorithm 2) but
-makes reused samples biased; the bias vanishes where ``map[p] = 1`` (no reuse) and the seed accepts it in the
-periphery. Hierarchical sampling (the ``else`` branch) stays unbiased. Ties in ``nLight`` are broken at random
-in proportion to that weight: taking always the first tied sample (lowest offset) reuses the same light for a
-whole region — on a 32-triangle lamp it biased the image mean by +7 %; with weighted ties the expected value
-is ``sum_C f / sum_C p̂`` over the tied candidates ``C``, exact when they cover the node's subtree.
+Which sample is reused, with which weight: ``reuse_sample``. The seed's ``nLight`` (the sample whose cut node
+is nearest, ``n_light`` here, kept for reference and tests) reuses one fixed sample for every pixel of a
+low-resolution pixel; with its weight it biased image means by +7 % (first of tied samples) and still −5 %
+(ties broken at random) on small test scenes. ``reuse_sample`` instead uses that ``LC'[p']`` is a cut: the
+samples under ``node`` either come from one ancestor cut node (one candidate, weight approximated) or from
+cut nodes that partition ``node``'s subtree (one drawn in proportion to its intensity, exact weight).
+Hierarchical sampling (the ``else`` branch of Algorithm 2) stays unbiased.
 """
 
 from __future__ import annotations
@@ -144,6 +142,44 @@ def n_light(node, leaves, nodes, count, first, lid_max, pdfs=None, inten=None, u
     return pick
 
 
+@njit(cache=True)
+def reuse_sample(node, leaves, nodes, pdfs, depths, count, first, lid_max, inten, u):
+    """The reused sample for cut node ``node`` and its probability ``(index, pdf)`` (used by Algorithm 2).
+
+    The low-resolution cut ``LC'[p']`` partitions the lights, so the samples under ``node`` come either
+    (a) from one cut node ``node'`` above ``node`` — a single candidate, probability approximated by
+    ``pdf'(l | node') · I(node') / I(node)`` (branch probabilities between the two replaced by intensity shares;
+    exact when ``node' = node``) — or (b) from cut nodes ``node'_j`` at or below ``node``, which partition its
+    subtree: one is drawn with probability ``q_j = I(node'_j) / Σ I`` and ``pdf = pdf'_j · q_j``, so
+    ``f(l_j) / pdf`` estimates the whole subtree without bias apart from nodes that had no live sample at
+    ``p'``. This replaces the seed's "nearest node" choice (``n_light``), which drew a fixed sample per region
+    and biased the image (−5 % to +7 % on small lamps; docs/lightcuts.md).
+    """
+    dn = depth(node)
+    if depths[first] < dn:
+        return first, pdfs[first] * inten[nodes[first]] / inten[node]
+    total = 0.0
+    pick = first
+    pick_w = 0.0
+    j = first
+    while j < count and leaves[j] <= lid_max:
+        wj = inten[nodes[j]]
+        if wj > 0.0:
+            total += wj
+            r = wj / total
+            if u < r:
+                pick = j
+                pick_w = wj
+                u = u / r
+            else:
+                u = (u - r) / (1.0 - r)
+            u = min(u, K.ONE_MINUS)
+        j += 1
+    if total <= 0.0:
+        return first, pdfs[first]
+    return pick, pdfs[pick] * pick_w / total
+
+
 def sort_low_res_samples(cut, size, leaf, pdf):
     """``LS'`` per low-resolution pixel sorted by leaf offset: ``(leaves, nodes, pdfs, counts, depths)``.
 
@@ -188,10 +224,10 @@ def select_lights(pos, nrm, pix_id, pix_x, pix_y, fmap, cut, size, bmin, bmax, i
                 lo, hi = leaf_range(k, levels)
                 first = lrls(lr_leaves[q], lr_counts[q], lo, hi)
                 if first >= 0:
-                    j = n_light(k, lr_leaves[q], lr_nodes[q], lr_counts[q], first, hi, lr_pdfs[q], inten,
-                                rad / (1.0 - fmap[i]) if fmap[i] < 1.0 else 0.0, lr_depths[q])
+                    j, pj = reuse_sample(k, lr_leaves[q], lr_nodes[q], lr_pdfs[q], lr_depths[q], lr_counts[q],
+                                         first, hi, inten, rad / (1.0 - fmap[i]) if fmap[i] < 1.0 else 0.0)
                     leaf[i, s] = lr_leaves[q, j]
-                    pdf[i, s] = lr_pdfs[q, j] * inten[lr_nodes[q, j]] / inten[k]
+                    pdf[i, s] = pj
                     reused[i] += 1
                     done = True
             if not done:

@@ -4,7 +4,8 @@
 Every plug-in renders one frame: primary rays through pixel centres (Embree via ``renderers.tracer``), a
 G-buffer (hit position, face normal turned towards the camera, textured albedo of the scene's materials),
 direct diffuse light from the scene's lights through a light tree (emissive triangles become one-sided point
-lights at their centroids with ``L_e · area``; point lights are isotropic; directional lights are not part of
+lights at their centroids with ``L_e · area``, large ones split first, ``mesh_lights``; point lights are
+isotropic; directional lights are not part of
 the many-light model and are ignored, counted in ``extra["directional_lights_ignored"]``), plus emission and
 ambient as in the built-in renderers. Glossy and metallic materials add the one-bounce glossy pass
 (``glossy.py``, seed 003 Algorithm 1 line 16–17), skipped when the scene has none.
@@ -41,20 +42,61 @@ _TREES: dict[str, LightTree] = {}
 _OCCLUDERS: dict[str, EmbreeOccluder] = {}
 
 
-def scene_light_tree(scene) -> LightTree:
-    """Light tree of a ``renderers.scene.Scene`` (built once per scene content)."""
-    key = scene.content_hash()
+def split_triangles(tri: np.ndarray, times: int) -> np.ndarray:
+    """Midpoint subdivision, ``times`` rounds: ``(m, 3, 3)`` triangles -> ``(m 4^times, 3, 3)``, same winding."""
+    for _ in range(times):
+        a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+        ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
+        tri = np.stack([np.stack(t, axis=1) for t in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))],
+                       axis=1).reshape(-1, 3, 3)
+    return tri
+
+
+def mesh_lights(vertices, faces, emission, max_edge: float, max_splits: int = 4):
+    """Point lights of emissive triangles: ``(positions, normals, intensities)``.
+
+    Triangles whose longest edge exceeds ``max_edge`` are split ``ceil(log2(edge / max_edge))`` times (at most
+    ``max_splits``: 4^k pieces); each piece is a one-sided light at its centroid with intensity
+    ``L_e · area`` along its normal (the scene model's emitter, so the total power is unchanged).
+    """
+    tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
+    emission = np.asarray(emission, dtype=np.float64).reshape(-1, 3)
+    edge = np.max(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2), axis=1) if len(tri) else np.zeros(0)
+    with np.errstate(divide="ignore"):
+        k = np.clip(np.ceil(np.log2(np.maximum(edge, 1e-300) / max_edge)), 0, max_splits).astype(int)
+    pos, nrm, rgb = [np.zeros((0, 3))], [np.zeros((0, 3))], [np.zeros((0, 3))]
+    for times in np.unique(k):
+        sel = k == times
+        sub = split_triangles(tri[sel], int(times))
+        cross = np.cross(sub[:, 1] - sub[:, 0], sub[:, 2] - sub[:, 0])
+        area2 = np.linalg.norm(cross, axis=1)
+        ok = area2 > 0
+        pos.append(sub[ok].mean(axis=1))
+        nrm.append(cross[ok] / area2[ok, None])
+        rgb.append(np.repeat(emission[sel], 4 ** int(times), axis=0)[ok] * 0.5 * area2[ok, None])
+    return np.concatenate(pos), np.concatenate(nrm), np.concatenate(rgb)
+
+
+def scene_light_tree(scene, max_edge_frac: float = 0.01) -> LightTree:
+    """Light tree of a ``renderers.scene.Scene`` (built once per scene content).
+
+    Emissive triangles become point lights (``mesh_lights``, split until their edges are below
+    ``max_edge_frac`` of the scene diagonal); point lights are isotropic; a ``VPLScene``'s VPLs are added.
+    """
+    key = f"{scene.content_hash()}:{max_edge_frac}"
     tree = _TREES.get(key)
     if tree is None:
-        ep, en, ei = scene.emitters()
-        pos = [np.asarray(ep, dtype=np.float64).reshape(-1, 3)]
-        rgb = [np.asarray(ei, dtype=np.float64).reshape(-1, 3)]
-        nrm = [np.asarray(en, dtype=np.float64).reshape(-1, 3)]
+        em = np.array([m.emissive for m in scene.materials])[scene.material_ids]
+        emission = np.array([m.emission for m in scene.materials])[scene.material_ids[em]]
+        lights = [mesh_lights(scene.vertices, scene.faces[em], emission, max_edge_frac * scene.scale)]
+        if getattr(scene, "vpl", None) is not None:
+            lights.append(scene.vpl)
         if scene.point_lights:
-            pos.append(np.array([L.position for L in scene.point_lights], dtype=np.float64))
-            rgb.append(np.array([L.intensity for L in scene.point_lights], dtype=np.float64))
-            nrm.append(np.zeros((len(scene.point_lights), 3)))
-        tree = build_light_tree(np.concatenate(pos), np.concatenate(rgb), np.concatenate(nrm))
+            lights.append((np.array([L.position for L in scene.point_lights], dtype=np.float64),
+                           np.zeros((len(scene.point_lights), 3)),
+                           np.array([L.intensity for L in scene.point_lights], dtype=np.float64)))
+        pos, nrm, rgb = (np.concatenate([x[i] for x in lights]) for i in range(3))
+        tree = build_light_tree(pos, rgb, nrm)
         _TREES.clear()
         _TREES[key] = tree
     return tree
