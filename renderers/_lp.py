@@ -140,9 +140,13 @@ def inverse_map_table(lp, utab, inv_step, gx, gy, Lr, n, w_eff, y0, out):
     distance from the gaze only (seed 001 Eq 5; Eq 1, 14-15), so the table is exact up to interpolation."""
     th, tw = out.shape[0], out.shape[1]
     kmax = utab.size - 2
-    for j in prange(th):
+    # Blocks of 64 columns x the tile's rows: a compact screen block reads a compact part of the LP buffer.
+    nb = (tw + 63) // 64
+    for blk in prange(nb * th):
+        b = blk // th
+        j = blk - b * th
         dy = y0 + j + 0.5 - gy
-        for i in range(tw):
+        for i in range(b * 64, min(tw, b * 64 + 64)):
             dx = i + 0.5 - gx
             s = math.sqrt(dx * dx + dy * dy) * inv_step
             k = min(int(s), kmax)
