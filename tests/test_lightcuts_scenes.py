@@ -63,3 +63,18 @@ def test_sponza_vpls_face_the_light_and_carry_its_reflected_power():
     assert np.all(total > 0) and np.all(total < phi)
     assert sc.content_hash() != sponza_vpl(n_vpl=2000).content_hash()
     assert {m.kind for m in sc.materials} == {"diffuse"}
+
+
+def test_demo_step_writes_the_stimulus_and_its_map(tmp_path):
+    from PIL import Image
+
+    from renderers.lightcuts.demo import demo_step
+
+    said = []
+    a = demo_step(tmp_path, said.append, width=64, height=36)
+    assert [p.name for p in a] == ["cornell_many_fsl.png", "cornell_many_fpsm.png"] and said
+    img = np.asarray(Image.open(a[0]))
+    assert img.shape == (36, 64, 3) and img.max() > 50
+    assert np.asarray(Image.open(a[1])).shape == (36, 64)
+    b = demo_step(tmp_path / "again", None, width=64, height=36)
+    assert a[0].read_bytes() == b[0].read_bytes()  # same seed, same bytes
