@@ -20,6 +20,7 @@ COMMAND_MODULES = (
     "studyapp.commands.quality",
     "studyapp.commands.render",
     "studyapp.commands.study",
+    "studyapp.commands.lightcuts",
 )
 
 
@@ -83,6 +84,7 @@ def cmd_foveation_plots(args) -> int:
 #: Demo steps after the foveation table and plots: (command module, output sub-folder, what it shows).
 DEMO_STEPS = (
     ("studyapp.commands.render", "render", "stimuli: the Cornell box with GT and the foveated renderers"),
+    ("studyapp.commands.lightcuts", "lightcuts", "a lightcuts stimulus: cornell_many (111,858 lights), fsl"),
     ("studyapp.commands.study", "", "simulated participants run two shipped protocols into fresh databases"),
     ("studyapp.commands.analyze", "analysis", "analysis of the simulated studies and of synthetic seed logs"),
 )

@@ -39,8 +39,12 @@ def _mse(img, ref, mask):
 def lightcut_tables(scene, width: int, height: int, *, alphas=(0.025, 0.05, 0.1, 0.2, 0.4), alpha: float = 0.1,
                     max_lspp: int = 48, max_rspp: int = 48, gt_lspp: int = 2048, gt_rspp: int = 2048,
                     fovea_deg: float = 5.0, seed: int = 0, camera: dict | None = None,
-                    progress: Callable[[str], None] | None = None) -> list[dict]:
-    """Render and measure (see the module docstring); ``scene`` is a Scene, a registered name or a YAML path."""
+                    progress: Callable[[str], None] | None = None, images: dict | None = None) -> list[dict]:
+    """Render and measure (see the module docstring); ``scene`` is a Scene, a registered name or a YAML path.
+
+    ``images``, if given, receives the linear images ``gt``, ``ours``, ``sl_e``, ``sl_as`` and the FPSM ``fpsm``
+    of Ours (for the seed's Fig 5-7: FPSM and error maps).
+    """
     from analysis.quality import region_masks
     from renderers import registry
     from renderers.scene import resolve
@@ -108,6 +112,8 @@ def lightcut_tables(scene, width: int, height: int, *, alphas=(0.025, 0.05, 0.1,
                 lo = mid + 1
         return best if best is not None else (max_lspp, uniform(max_lspp)[1])
 
+    if images is not None:
+        images.update(gt=gt, ours=ours, sl_e=sl_e, sl_as=sl_as, fpsm=np.asarray(ours_st["fpsm"]))
     lspp_f, sl_f_st = match("fovea")
     lspp_p, sl_p_st = match("periphery")
 

@@ -1,0 +1,42 @@
+"""``studyapp lightcuts tables``: records, tables, figures and bad input (tiny renders)."""
+
+import json
+
+import pytest
+
+from studyapp.cli import main
+
+TINY = ["--scenes", "study", "--width", "32", "--height", "18", "--gt-samples", "16"]
+
+
+def test_tables_json_records_and_files(tmp_path, capsys):
+    assert main(["lightcuts", "tables", *TINY, "--json", "--out", str(tmp_path)]) == 0
+    records = json.loads(capsys.readouterr().out)
+    assert records and all(set(r) == {"table", "scene", "method", "metric", "region", "value"} for r in records)
+    assert {r["table"] for r in records} == {"1", "2", "3", "4", "fig8"}
+    assert {r["metric"] for r in records} >= {"mse", "mse_d", "spp", "ms"}
+    assert {r["region"] for r in records} == {"fovea", "periphery", "all"}
+    t3 = {r["method"] for r in records if r["table"] == "3" and r["metric"] == "ms"}
+    assert t3 == {"Ours", "Ours'", "SL_as", "SL_f", "SL_p"}
+    assert len([r for r in records if r["table"] == "4"]) == 5  # alpha = 0.025 ... 0.4
+    assert all(r["value"] >= 0 for r in records)
+    md = (tmp_path / "lightcuts_tables.md").read_text()
+    assert "Table 1" in md and "| study | Ours |" in md and "Targets" in md
+    ratios = json.loads((tmp_path / "lightcuts_ratios.json").read_text())["study"]
+    t3v = {r["method"]: r["value"] for r in records if r["table"] == "3" and r["metric"] == "ms"}
+    assert ratios["speedup_vs_sl_f"] == pytest.approx(t3v["SL_f"] / t3v["Ours"])
+    for name in ("study_fpsm.png", "study_error_ours.png", "study_error_sl_e.png", "fig8_mse_vs_alpha.png"):
+        assert (tmp_path / name).stat().st_size > 100
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--alpha", "1.5"], "alpha=1.5 is out of range"),
+    (["--alpha", "0"], "alpha=0 is out of range"),
+    (["--scenes", "nowhere"], "unknown scene 'nowhere'"),
+    (["--width", "2"], "--width=2 is out of range"),
+])
+def test_bad_input_is_one_line_exit_2(tmp_path, capsys, argv, message):
+    assert main(["lightcuts", "tables", *TINY, *argv, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err, err
+    assert not (tmp_path / "o").exists()
