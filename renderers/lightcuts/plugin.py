@@ -310,3 +310,32 @@ def register_all():
     for p in plugins():
         if p.name not in _REGISTRY:
             register(p)
+
+
+def _plugin(name: str):
+    return next(p for p in plugins() if p.name == name)
+
+
+# Entry points of the ``studyapp.renderers`` group (pyproject.toml): one factory per plug-in.
+def fsl_plugin():
+    return _plugin("fsl")
+
+
+def sl_e_plugin():
+    return _plugin("sl_e")
+
+
+def sl_f_plugin():
+    return _plugin("sl_f")
+
+
+def sl_p_plugin():
+    return _plugin("sl_p")
+
+
+def sl_as_plugin():
+    return _plugin("sl_as")
+
+
+def sl_gt_plugin():
+    return _plugin("sl_gt")
