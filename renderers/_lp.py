@@ -134,10 +134,11 @@ def _rows_fast(t, nc):
 
 
 @njit(cache=True, parallel=True, fastmath=True)
-def inverse_map_table(lp, utab, inv_step, gx, gy, Lr, n, w_eff, y0, out):
+def inverse_map_table(lp, utab, inv_step, kcut, method, P, gx, gy, Lr, n, w_eff, y0, out):
     """:func:`inverse_map` with ``u(r)`` read from a table (``utab[k] = u(k / inv_step)``, linear
-    interpolation) and a polynomial polar angle; ``Lr = L / (2 pi)``. Every mapping's column depends on the
-    distance from the gaze only (seed 001 Eq 5; Eq 1, 14-15), so the table is exact up to interpolation."""
+    interpolation) below table index ``kcut`` and from the exact kernel beyond, and a polynomial polar angle;
+    ``Lr = L / (2 pi)``. Every mapping's column depends on the distance from the gaze only (seed 001 Eq 5;
+    Eq 1, 14-15), so the table is exact up to interpolation."""
     th, tw = out.shape[0], out.shape[1]
     kmax = utab.size - 2
     # Blocks of 64 columns x the tile's rows: a compact screen block reads a compact part of the LP buffer.
@@ -150,8 +151,11 @@ def inverse_map_table(lp, utab, inv_step, gx, gy, Lr, n, w_eff, y0, out):
             dx = i + 0.5 - gx
             s = math.sqrt(dx * dx + dy * dy) * inv_step
             k = min(int(s), kmax)
-            f = s - k
-            u = utab[k] * (1.0 - f) + utab[k + 1] * f
+            if k < kcut:
+                f = s - k
+                u = utab[k] * (1.0 - f) + utab[k + 1] * f
+            else:
+                u, _ = point(method, FORWARD, dx, dy, P)
             theta = fast_angle(dx, dy)
             uc = min(max(u - 0.5, 0.0), w_eff - 1.0)
             c0 = int(uc)

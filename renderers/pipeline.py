@@ -78,10 +78,11 @@ class LPLayout:
         self.kernel = MAPPING_KERNEL[self.method]
         # u(r) table for the fast inverse mapping, out to the farthest corner (+2 px): the coarsest of 4, 16, 64
         # samples per pixel whose linear interpolation is within 0.01 LP pixel of the exact mapping at every
-        # mid-point. LaFR's infinite slope at the farthest corner fails at any step: it uses the exact kernel.
+        # mid-point. Where no step reaches that (LaFR's infinite slope at the farthest corner), the table is used
+        # up to the first interval that misses it (``kcut``) and the exact kernel beyond.
         disp = mapping.display
         self.Lr = self.L / (2 * math.pi)
-        self.table_ok = False
+        best = None
         for step in (4.0, 16.0, 64.0):
             size = int((disp.corner_distance() + 2.0) * step) + 2
             if size > (1 << 22):
@@ -90,11 +91,14 @@ class LPLayout:
             utab = mapping.forward(disp.gaze_x + r, np.full(r.shape, disp.gaze_y))[0]
             mid = r[:-1] + 0.5 / step
             exact = mapping.forward(disp.gaze_x + mid, np.full(mid.shape, disp.gaze_y))[0]
-            self.inv_step, self.utab = step, np.ascontiguousarray(utab)
-            if np.max(np.abs(0.5 * (utab[:-1] + utab[1:]) - exact)) <= 0.01:
-                self.table_ok = True
+            bad = np.nonzero(np.abs(0.5 * (utab[:-1] + utab[1:]) - exact) > 0.01)[0]
+            kcut = int(bad[0]) if bad.size else size
+            if best is None or kcut / step > best[2] / best[0]:
+                best = (step, np.ascontiguousarray(utab), kcut)
+            if not bad.size:
                 break
-
+        self.inv_step, self.utab, self.kcut = best
+        self.table_ok = self.kcut >= self.utab.size
     def shaded_pixels(self):
         """``(jj, ii, x, y, needed)``: LP pixel indices, their screen positions and which must be shaded."""
         m = self.mapping
@@ -132,12 +136,8 @@ def _inverse_map(tracer, layout: LPLayout, lp, aa_post: bool, width: int, height
         a0, a1 = max(0, y0 - halo), min(height, y1 + halo)
         # Without post-filtering the kernel writes straight into the image rows (no copy).
         tile = np.empty((a1 - a0, width, 3), dtype=np.float32) if aa_post else img[y0:y1]
-        if layout.table_ok:
-            _lp.inverse_map_table(lp, layout.utab, layout.inv_step, disp.gaze_x, disp.gaze_y, layout.Lr,
-                                  layout.n, layout.w_eff, float(a0), tile)
-        else:
-            _lp.inverse_map(lp, layout.kernel, layout.P, disp.gaze_x, disp.gaze_y, layout.L, layout.n,
-                            layout.w_eff, 0.0, float(a0), tile)
+        _lp.inverse_map_table(lp, layout.utab, layout.inv_step, layout.kcut, layout.kernel, layout.P, disp.gaze_x,
+                              disp.gaze_y, layout.Lr, layout.n, layout.w_eff, float(a0), tile)
         t0 = c.add_time("inverse_map", t0)
         if aa_post:
             img[y0:y1] = foveal_gaussian(tile, disp.gaze, disp.c_r, a0, rows=(y0 - a0, y1 - a0))

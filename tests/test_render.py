@@ -286,7 +286,7 @@ def test_entry_point_plugins_are_loaded(monkeypatch):
 
 
 @settings(max_examples=20)
-@given(st.sampled_from(["vafr", "lmfr"]), st.floats(0, 200), st.floats(0, 150))
+@given(st.sampled_from(["vafr", "lmfr", "lafr"]), st.floats(0, 200), st.floats(0, 150))
 def test_table_inverse_map_matches_exact_kernel(method, gx, gy):
     """The u(r)-table inverse mapping equals the exact per-pixel mapping on a smooth LP buffer."""
     from renderers import _lp
@@ -294,12 +294,13 @@ def test_table_inverse_map_matches_exact_kernel(method, gx, gy):
     from renderers.pipeline import LPLayout
 
     lay = LPLayout(make_mapping(method, 200, 150, 60.0, (gx, gy)))
-    assert lay.table_ok
+    assert lay.table_ok or method == "lafr"   # LaFR: exact kernel near the farthest corner (infinite slope)
     j, i = np.mgrid[0:lay.h, 0:lay.w]
     lp = np.stack([np.sin(i / 7.0), np.cos(j / 9.0), np.sin((i + j) / 11.0)], axis=2).astype(np.float32)
     fast = np.empty((150, 200, 3), np.float32)
     exact = np.empty_like(fast)
-    _lp.inverse_map_table(lp, lay.utab, lay.inv_step, gx, gy, lay.Lr, lay.n, lay.w_eff, 0.0, fast)
+    _lp.inverse_map_table(lp, lay.utab, lay.inv_step, lay.kcut, lay.kernel, lay.P, gx, gy, lay.Lr, lay.n,
+                          lay.w_eff, 0.0, fast)
     _lp.inverse_map(lp, lay.kernel, lay.P, gx, gy, lay.L, lay.n, lay.w_eff, 0.0, 0.0, exact)
     # away from the angular seam (where both wrap), the two agree to interpolation accuracy
     X, Y = np.meshgrid(np.arange(200) + 0.5 - gx, np.arange(150) + 0.5 - gy)
