@@ -70,11 +70,11 @@ def run_foveated(method: str):
             t.counters.reshaded_pixels += reshaded
             ctx.extra["reshaded_share"] = reshaded / max(1, len(jj))
             for buf in (lp, right_lp):
-                images.append(pl.finish(t, layout, buf, p, ctx.width, ctx.height, exposure))
+                images.append(pl.finish(t, layout, buf, p, ctx.width, ctx.height, exposure, (jj, ii)))
         else:
             for cam in eyes:
-                lp = pl.render_lp(t, cam, layout, p["pipeline"], ctx.width, ctx.height)[0]
-                images.append(pl.finish(t, layout, lp, p, ctx.width, ctx.height, exposure))
+                lp, jj, ii = pl.render_lp(t, cam, layout, p["pipeline"], ctx.width, ctx.height)[:3]
+                images.append(pl.finish(t, layout, lp, p, ctx.width, ctx.height, exposure, (jj, ii)))
         return _pick(ctx, images)
     return run
 

@@ -197,9 +197,28 @@ def render_lp(tracer: Tracer, camera: Camera, layout: LPLayout, pipeline: str, w
     return lp, jj[sel], ii[sel], xs, ys, prim, tfar
 
 
-def finish(tracer: Tracer, layout: LPLayout, lp, params: dict, width: int, height: int, exposure: float):
-    """LP-buffer anti-aliasing, inverse mapping and post anti-aliasing."""
+def fill_unshaded(lp, layout: LPLayout, jj, ii):
+    """Copy into each unshaded LP pixel the last shaded pixel of its row at a smaller column (``u``).
+
+    Unshaded pixels lie off the display, beyond the shaded ones along their row (angle), so this continues the
+    image past the display's edge (clamp to edge) and the LP-buffer filters do not blend black into the border.
+    """
+    shaded = np.zeros((layout.h, layout.w), dtype=np.bool_)
+    shaded[jj, ii] = True
+    src = np.where(shaded, np.arange(layout.w)[None, :], 0)
+    np.maximum.accumulate(src, axis=1, out=src)
+    rows = np.arange(layout.h)[:, None]
+    return lp[rows, src]
+
+
+def finish(tracer: Tracer, layout: LPLayout, lp, params: dict, width: int, height: int, exposure: float,
+           shaded=None):
+    """LP-buffer anti-aliasing, inverse mapping and post anti-aliasing; ``shaded = (jj, ii)`` of the shaded
+    LP pixels (the others are filled from their row before the LP filters)."""
     t0 = time.perf_counter()
+    lp_aa = (params.get("fxaa", False) if layout.method == "vafr" else params.get("aa", False))
+    if lp_aa and shaded is not None:
+        lp = fill_unshaded(lp, layout, *shaded)
     if layout.method == "vafr" and params.get("fxaa", False):
         lp = lp_filter(lp, layout.n, "fxaa", exposure)
     elif layout.method != "vafr" and params.get("aa", False):
