@@ -307,3 +307,15 @@ def test_table_inverse_map_matches_exact_kernel(method, gx, gy):
     theta = np.mod(np.arctan2(Y, X), 2 * np.pi)
     away = (theta > 0.05) & (theta < 2 * np.pi - 0.05)
     assert np.abs(fast - exact)[away].max() < 0.02
+
+
+@pytest.mark.parametrize("renderer", ["vafr", "lmfr", "lafr"])
+def test_lp_filters_do_not_darken_the_screen_border(renderer):
+    """Unshaded (off-screen) LP pixels are filled before the LP filters, so the border keeps GT's level."""
+    sc = plane_scene()
+    gt, _ = render(sc, "gt", {}, 160, 120)
+    img, _ = render(sc, renderer, {}, 160, 120, gaze=(40, 30))
+    border = np.zeros((120, 160), bool)
+    border[:2] = border[-2:] = True
+    border[:, :2] = border[:, -2:] = True
+    assert abs(float(img[border].mean()) / float(gt[border].mean()) - 1.0) < 0.02
