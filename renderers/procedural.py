@@ -305,8 +305,20 @@ def interior() -> Scene:
                    ambient=(0.01, 0.01, 0.01))
 
 
+def _many_lights(name: str):
+    """The many-light scenes of the lightcuts renderers (renderers/lightcuts/scenes.py), built on demand."""
+    def make() -> Scene:
+        from .lightcuts.scenes import SCENES
+
+        return SCENES[name]()
+
+    make.__name__ = name
+    return make
+
+
 BUILTIN = {"cornell": cornell, "temple": temple, "street_night": street_night, "interior": interior,
-           "street_day": street_day}
+           "street_day": street_day,
+           **{n: _many_lights(n) for n in ("cornell_many", "study", "yard", "sponza_vpl")}}
 
 
 @functools.lru_cache(maxsize=None)

@@ -113,6 +113,28 @@ def render_stimulus(scene, renderer: str, params: dict | None, width: int, heigh
     from data_schema.atomic import write_text
 
     write_npy(folder / f"{key}.npy", img)
-    write_text(folder / f"{key}.json", json.dumps({"key": key, **stats}, indent=1, sort_keys=True) + "\n")
+    write_text(folder / f"{key}.json", json.dumps({"key": key, **jsonable_stats(stats)}, indent=1, sort_keys=True)
+               + "\n")
     write_png(png, img, sc.exposure)
     return png
+
+
+def jsonable_stats(stats: dict) -> dict:
+    """The stats record with per-pixel arrays (e.g. the lightcuts' ``fpsm``, ``spp``) summarised for JSON."""
+    import numpy as np
+
+    def conv(v):
+        if isinstance(v, dict):
+            return {k: conv(x) for k, x in v.items()}
+        if isinstance(v, np.ndarray):
+            if v.size == 1:
+                return v.item()
+            return {"shape": list(v.shape), "mean": float(np.mean(v)), "min": float(np.min(v)),
+                    "max": float(np.max(v))}
+        if isinstance(v, np.generic):
+            return v.item()
+        if isinstance(v, (list, tuple)):
+            return [conv(x) for x in v]
+        return v
+
+    return conv(stats)

@@ -104,7 +104,9 @@ def cmd_render(args) -> int:
     write_npy(out.with_suffix(".npy"), img)
     write_png(out, img, scene.exposure)
     if args.json:
-        print(json.dumps(stats, indent=2))
+        from renderers.stimuli import jsonable_stats
+
+        print(json.dumps(jsonable_stats(stats), indent=2))
     else:
         s = stats["seconds"]
         print(f"wrote {out} ({args.width}x{args.height}, {stats['shading_points']:,} shading points, "
