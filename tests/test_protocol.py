@@ -56,8 +56,8 @@ def test_seed003_designs():
 def test_ppd_from_display_geometry():
     p = load_protocol(PROTOCOLS / "seed003_task1.yaml", check_renderers=False)
     d = p.display
-    # 640 px over 53 cm seen from 45 cm: px per cm * cm per degree at the centre.
-    assert d.ppd == pytest.approx(640 / 53.0 * 45.0 * 0.017455064928217585, rel=1e-12)
+    # 256 px over 53 cm seen from 45 cm: px per cm * cm per degree at the centre.
+    assert d.ppd == pytest.approx(256 / 53.0 * 45.0 * 0.017455064928217585, rel=1e-12)
 
 
 def test_schema_file_is_json_schema_and_the_shipped_files_pass_it():

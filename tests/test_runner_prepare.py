@@ -92,9 +92,9 @@ def test_camera_keyframes_interpolate():
     n = p.n_frames
     assert camera_at(p, 0) == {"yaw_deg": -12.0}
     assert camera_at(p, n - 1) == {"yaw_deg": -12.0}
-    assert n == 16  # 16.0 s at 1 fps; keyframes -12 deg at t=0 and t=1, +12 deg at t=0.5
-    assert camera_at(p, 7)["yaw_deg"] == pytest.approx(-12 + 24 * (7 / 15) / 0.5)
-    assert camera_at(p, 8)["yaw_deg"] == pytest.approx(12 - 24 * (8 / 15 - 0.5) / 0.5)
+    assert n == 8  # 16.0 s at 0.5 fps; keyframes -12 deg at t=0 and t=1, +12 deg at t=0.5
+    assert camera_at(p, 3)["yaw_deg"] == pytest.approx(-12 + 24 * (3 / 7) / 0.5)
+    assert camera_at(p, 4)["yaw_deg"] == pytest.approx(12 - 24 * (4 / 7 - 0.5) / 0.5)
 
 
 def test_yaw_offsets_turn_the_scene_camera():
