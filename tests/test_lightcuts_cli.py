@@ -10,8 +10,20 @@ TINY = ["--scenes", "study", "--width", "32", "--height", "18", "--gt-samples", 
 
 
 def test_tables_json_records_and_files(tmp_path, capsys):
-    assert main(["lightcuts", "tables", *TINY, "--json", "--out", str(tmp_path)]) == 0
+    cache = tmp_path / "cache"
+    assert main(["lightcuts", "tables", *TINY, "--json", "--out", str(tmp_path), "--cache", str(cache)]) == 0
     records = json.loads(capsys.readouterr().out)
+    gt_files = sorted(cache.rglob("*.npy"))
+    assert len(gt_files) == 1  # GT stored once in the stimulus cache ...
+    stamp = gt_files[0].stat().st_mtime_ns
+    assert main(["lightcuts", "tables", *TINY, "--json", "--cache", str(cache)]) == 0
+    again = json.loads(capsys.readouterr().out)
+
+    def errors(recs):  # Ours' and SL_as' errors do not depend on timing (SL_e's equal-time count does)
+        return [r for r in recs if r["method"] in ("Ours", "SL_as") and r["metric"].startswith("mse")]
+
+    assert errors(again) == errors(records)  # ... and reused: the same GT, the same seed
+    assert gt_files[0].stat().st_mtime_ns == stamp
     assert records and all(set(r) == {"table", "scene", "method", "metric", "region", "value"} for r in records)
     assert {r["table"] for r in records} == {"1", "2", "3", "4", "fig8"}
     assert {r["metric"] for r in records} >= {"mse", "mse_d", "spp", "ms"}

@@ -39,11 +39,13 @@ def _mse(img, ref, mask):
 def lightcut_tables(scene, width: int, height: int, *, alphas=(0.025, 0.05, 0.1, 0.2, 0.4), alpha: float = 0.1,
                     max_lspp: int = 48, max_rspp: int = 48, gt_lspp: int = 2048, gt_rspp: int = 2048,
                     fovea_deg: float = 5.0, seed: int = 0, camera: dict | None = None,
-                    progress: Callable[[str], None] | None = None, images: dict | None = None) -> list[dict]:
+                    progress: Callable[[str], None] | None = None, images: dict | None = None,
+                    cache_dir=None) -> list[dict]:
     """Render and measure (see the module docstring); ``scene`` is a Scene, a registered name or a YAML path.
 
     ``images``, if given, receives the linear images ``gt``, ``ours``, ``sl_e``, ``sl_as`` and the FPSM ``fpsm``
-    of Ours (for the seed's Fig 5-7: FPSM and error maps).
+    of Ours (for the seed's Fig 5-7: FPSM and error maps). With ``cache_dir`` the GT comes from the stimulus
+    cache (:func:`renderers.stimuli.render_stimulus`): rendered once, then a lookup.
     """
     from analysis.quality import region_masks
     from renderers import registry
@@ -72,8 +74,17 @@ def lightcut_tables(scene, width: int, height: int, *, alphas=(0.025, 0.05, 0.1,
         img, st = registry.render(sc, name.rstrip("'"), params, width, height, camera=camera)
         return img, st
 
-    gt, gt_st = render("sl_gt", {"lspp": gt_lspp, "rspp": gt_rspp, "seed": seed + 1})
-    glossy = gt_st["glossy_mask"]
+    gt_params = {"lspp": gt_lspp, "rspp": gt_rspp, "seed": seed + 1}
+    if cache_dir is not None:
+        from renderers.stimuli import render_stimulus
+
+        say(f"{sc.name}: sl_gt {gt_params} (stimulus cache)")
+        png = render_stimulus(sc, "sl_gt", gt_params, width, height, None, camera=camera, cache_dir=cache_dir)
+        gt = np.load(png.with_suffix(".npy"))
+        glossy = None  # taken from Ours' G-buffer below (same primary hits)
+    else:
+        gt, gt_st = render("sl_gt", gt_params)
+        glossy = gt_st["glossy_mask"]
 
     def quality(img):
         out = {}
@@ -86,6 +97,8 @@ def lightcut_tables(scene, width: int, height: int, *, alphas=(0.025, 0.05, 0.1,
     ms = lambda st: 1000.0 * st["seconds"]["total"]
     base = {"max_lspp": max_lspp, "max_rspp": max_rspp, "seed": seed}
     ours, ours_st = render("fsl", {"alpha": alpha, **base})
+    if glossy is None:
+        glossy = np.asarray(ours_st["glossy_mask"])
     _, ours2_st = render("fsl'", {"alpha": alpha, **base, "multires": False})
     sl_as, sl_as_st = render("sl_as", base)
     q_ours = quality(ours)

@@ -36,6 +36,8 @@ def register(sub, parser_class) -> None:
     t.add_argument("--gt-samples", type=int, default=2048, metavar="N",
                    help="GT light and glossy samples per pixel (default 2048, as seed 003)")
     t.add_argument("--seed", type=int, default=0, help="random stream (default 0)")
+    t.add_argument("--cache", metavar="DIR", default="stimulus_cache",
+                   help="stimulus cache for the GT renders (default: ./stimulus_cache); GT is rendered once")
     t.set_defaults(func=cmd_tables)
 
 
@@ -152,7 +154,8 @@ def cmd_tables(args) -> int:
         scene = SCENES[name]()
         im: dict = {}
         recs = lightcut_tables(scene, args.width, args.height, alpha=args.alpha, gt_lspp=args.gt_samples,
-                               gt_rspp=args.gt_samples, seed=args.seed, progress=_progress, images=im)
+                               gt_rspp=args.gt_samples, seed=args.seed, progress=_progress, images=im,
+                               cache_dir=Path(args.cache))
         records += recs
         ratios[scene.name] = summary_ratios(recs)
         images[scene.name] = im
