@@ -134,9 +134,9 @@ def _rows_fast(t, nc):
 
 
 @njit(cache=True, parallel=True, fastmath=True)
-def inverse_map_table(lp, utab, inv_step, kcut, method, P, gx, gy, Lr, n, w_eff, y0, out):
+def inverse_map_table(lp, utab, inv_step, exact, method, P, gx, gy, Lr, n, w_eff, y0, out):
     """:func:`inverse_map` with ``u(r)`` read from a table (``utab[k] = u(k / inv_step)``, linear
-    interpolation) below table index ``kcut`` and from the exact kernel beyond, and a polynomial polar angle;
+    interpolation) except in the intervals flagged in ``exact`` (exact kernel there), and a polynomial polar angle;
     ``Lr = L / (2 pi)``. Every mapping's column depends on the distance from the gaze only (seed 001 Eq 5;
     Eq 1, 14-15), so the table is exact up to interpolation."""
     th, tw = out.shape[0], out.shape[1]
@@ -151,7 +151,7 @@ def inverse_map_table(lp, utab, inv_step, kcut, method, P, gx, gy, Lr, n, w_eff,
             dx = i + 0.5 - gx
             s = math.sqrt(dx * dx + dy * dy) * inv_step
             k = min(int(s), kmax)
-            if k < kcut:
+            if exact[k] == 0:
                 f = s - k
                 u = utab[k] * (1.0 - f) + utab[k + 1] * f
             else:

@@ -78,27 +78,22 @@ class LPLayout:
         self.kernel = MAPPING_KERNEL[self.method]
         # u(r) table for the fast inverse mapping, out to the farthest corner (+2 px): the coarsest of 4, 16, 64
         # samples per pixel whose linear interpolation is within 0.01 LP pixel of the exact mapping at every
-        # mid-point. Where no step reaches that (LaFR's infinite slope at the farthest corner), the table is used
-        # up to the first interval that misses it (``kcut``) and the exact kernel beyond.
+        # interval mid-point. Intervals that miss it at the finest step (LaFR's kink at its foveal boundary and
+        # infinite slope at the farthest corner) are flagged in ``exact`` and use the exact kernel.
         disp = mapping.display
         self.Lr = self.L / (2 * math.pi)
-        best = None
         for step in (4.0, 16.0, 64.0):
             size = int((disp.corner_distance() + 2.0) * step) + 2
-            if size > (1 << 22):
-                break
             r = np.arange(size) / step
             utab = mapping.forward(disp.gaze_x + r, np.full(r.shape, disp.gaze_y))[0]
             mid = r[:-1] + 0.5 / step
             exact = mapping.forward(disp.gaze_x + mid, np.full(mid.shape, disp.gaze_y))[0]
-            bad = np.nonzero(np.abs(0.5 * (utab[:-1] + utab[1:]) - exact) > 0.01)[0]
-            kcut = int(bad[0]) if bad.size else size
-            if best is None or kcut / step > best[2] / best[0]:
-                best = (step, np.ascontiguousarray(utab), kcut)
-            if not bad.size:
+            bad = np.abs(0.5 * (utab[:-1] + utab[1:]) - exact) > 0.01
+            if not bad.any() or size * 16 > (1 << 22):
                 break
-        self.inv_step, self.utab, self.kcut = best
-        self.table_ok = self.kcut >= self.utab.size
+        self.inv_step, self.utab = step, np.ascontiguousarray(utab)
+        self.exact = np.ascontiguousarray(np.append(bad, True), dtype=np.uint8)
+        self.table_ok = not bad.any()
     def shaded_pixels(self):
         """``(jj, ii, x, y, needed)``: LP pixel indices, their screen positions and which must be shaded."""
         m = self.mapping
@@ -136,8 +131,8 @@ def _inverse_map(tracer, layout: LPLayout, lp, aa_post: bool, width: int, height
         a0, a1 = max(0, y0 - halo), min(height, y1 + halo)
         # Without post-filtering the kernel writes straight into the image rows (no copy).
         tile = np.empty((a1 - a0, width, 3), dtype=np.float32) if aa_post else img[y0:y1]
-        _lp.inverse_map_table(lp, layout.utab, layout.inv_step, layout.kcut, layout.kernel, layout.P, disp.gaze_x,
-                              disp.gaze_y, layout.Lr, layout.n, layout.w_eff, float(a0), tile)
+        _lp.inverse_map_table(lp, layout.utab, layout.inv_step, layout.exact, layout.kernel, layout.P,
+                              disp.gaze_x, disp.gaze_y, layout.Lr, layout.n, layout.w_eff, float(a0), tile)
         t0 = c.add_time("inverse_map", t0)
         if aa_post:
             img[y0:y1] = foveal_gaussian(tile, disp.gaze, disp.c_r, a0, rows=(y0 - a0, y1 - a0))

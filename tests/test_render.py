@@ -299,7 +299,7 @@ def test_table_inverse_map_matches_exact_kernel(method, gx, gy):
     lp = np.stack([np.sin(i / 7.0), np.cos(j / 9.0), np.sin((i + j) / 11.0)], axis=2).astype(np.float32)
     fast = np.empty((150, 200, 3), np.float32)
     exact = np.empty_like(fast)
-    _lp.inverse_map_table(lp, lay.utab, lay.inv_step, lay.kcut, lay.kernel, lay.P, gx, gy, lay.Lr, lay.n,
+    _lp.inverse_map_table(lp, lay.utab, lay.inv_step, lay.exact, lay.kernel, lay.P, gx, gy, lay.Lr, lay.n,
                           lay.w_eff, 0.0, fast)
     _lp.inverse_map(lp, lay.kernel, lay.P, gx, gy, lay.L, lay.n, lay.w_eff, 0.0, 0.0, exact)
     # away from the angular seam (where both wrap), the two agree to interpolation accuracy
