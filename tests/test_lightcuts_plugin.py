@@ -103,3 +103,11 @@ def test_scene_without_lights_is_a_one_line_error():
     sc.directional_lights.append(DirectionalLight((0.0, -1.0, 0.0), (1.0, 1.0, 1.0)))
     with pytest.raises(ValueError, match="zero lights"):
         registry.render(sc, "fsl", {}, 8, 8)
+
+
+def test_shading_points_are_the_primary_hits():
+    _, st = registry.render(_diffuse_scene(), "sl_e", {"lspp": 2}, 48, 32)
+    # the camera sees the floor's edge and the sky: some rays miss, every hit is shaded once
+    hits = st["spp"] > 0
+    assert 0 < st["shading_points"] < 48 * 32
+    assert st["shading_points"] == int(hits.sum())

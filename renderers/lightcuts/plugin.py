@@ -187,6 +187,7 @@ def _finish(ctx, hits: Hits, diffuse: np.ndarray, rspp, seed: int, lspp_bounce: 
     h, w = ctx.height, ctx.width
     tree, occ = scene_light_tree(ctx.scene), scene_occluder(ctx.scene)
     img = hits.base + diffuse.reshape(-1, 3)
+    ctx.tracer.counters.shading_points += int(hits.hit.sum())  # every primary hit is shaded (missed rays not)
     has_glossy = any(m.kind in ("glossy", "metallic") for m in ctx.scene.materials)
     rays = 0
     if has_glossy and hits.glossy.any():
