@@ -101,6 +101,7 @@ class RenderContext:
     params: dict
     tracer: Any
     extra: dict = field(default_factory=dict)
+    previous_camera: Any = None  # the previous frame's camera (screen-space velocity), or None
 
 
 _REGISTRY: dict[str, RendererPlugin] = {}
@@ -218,7 +219,8 @@ def render(scene, renderer: str, params: dict | None, width: int, height: int,
     gaze : (x, y), optional
         Gaze point in pixels, inside the display; default the scene display's gaze or the centre.
     camera : dict, optional
-        Overrides of the scene camera: ``position``, ``look_at``, ``up``, ``fov_y``.
+        Overrides of the scene camera: ``position``, ``look_at``, ``up``, ``fov_y``, and ``previous`` (the
+        overrides of the previous frame's camera, for renderers that use screen-space velocity).
 
     Returns
     -------
@@ -248,7 +250,7 @@ def render(scene, renderer: str, params: dict | None, width: int, height: int,
     # Scene loading and the BVH build (once per scene) are setup, not part of the frame time.
     setup = time.perf_counter() - t_start
     t_start = time.perf_counter()
-    ctx = RenderContext(sc, cam, width, height, gaze, full, tracer)
+    ctx = RenderContext(sc, cam, width, height, gaze, full, tracer, previous_camera=sc.camera.previous(camera))
     img = plugin.run(ctx)
     c = tracer.counters
     c.seconds["total"] = time.perf_counter() - t_start

@@ -157,13 +157,26 @@ class Camera:
         return f, r, u
 
     def override(self, camera: dict | None) -> "Camera":
-        """A copy with the keys of ``camera`` (position, look_at, up, fov_y) replaced."""
+        """A copy with the keys of ``camera`` (position, look_at, up, fov_y) replaced.
+
+        ``camera`` may also hold ``previous``: the overrides of the previous frame's camera (for screen-space
+        velocity, see :meth:`previous`); it does not change this camera.
+        """
         if not camera:
             return self
-        unknown = sorted(set(camera) - {"position", "look_at", "up", "fov_y"})
+        unknown = sorted(set(camera) - {"position", "look_at", "up", "fov_y", "previous"})
         if unknown:
-            raise ValueError(f"camera.{unknown[0]} is unknown: allowed position, look_at, up, fov_y")
-        return Camera(**{**asdict(self), **camera})
+            raise ValueError(f"camera.{unknown[0]} is unknown: allowed position, look_at, up, fov_y, previous")
+        return Camera(**{**asdict(self), **{k: v for k, v in camera.items() if k != "previous"}})
+
+    def previous(self, camera: dict | None) -> "Camera | None":
+        """The previous frame's camera given by ``camera['previous']`` (None if there is none)."""
+        prev = (camera or {}).get("previous")
+        if prev is None:
+            return None
+        if not isinstance(prev, dict) or "previous" in prev:
+            raise ValueError("camera.previous is invalid: must be a mapping of position, look_at, up, fov_y")
+        return self.override(prev)
 
     def eye(self, offset: float) -> "Camera":
         """The camera moved by ``offset`` along its right vector (parallel stereo)."""

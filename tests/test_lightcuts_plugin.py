@@ -111,3 +111,51 @@ def test_shading_points_are_the_primary_hits():
     hits = st["spp"] > 0
     assert 0 < st["shading_points"] < 48 * 32
     assert st["shading_points"] == int(hits.sum())
+
+
+def test_view_projection_maps_each_ray_back_to_its_pixel():
+    from renderers.lightcuts.plugin import view_projection
+    from renderers.tracer import camera_rays
+
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        cam = Camera(tuple(rng.normal(size=3)), tuple(rng.normal(size=3) + 5.0), (0.0, 1.0, 0.0),
+                     float(rng.uniform(20, 120)))
+        w, h = int(rng.integers(16, 300)), int(rng.integers(16, 300))
+        x, y = rng.uniform(0, w, 50), rng.uniform(0, h, 50)
+        p = np.asarray(cam.position) + camera_rays(cam, w, h, x, y) * rng.uniform(0.5, 50, (50, 1))
+        c = np.c_[p, np.ones(50)] @ view_projection(cam, w, h).T
+        assert np.allclose((c[:, 0] / c[:, 3] + 1) * w / 2, x, atol=1e-8)
+        assert np.allclose((1 - c[:, 1] / c[:, 3]) * h / 2, y, atol=1e-8)
+
+
+def test_velocity_buffer_follows_the_camera_motion():
+    scene = _diffuse_scene()
+    cam = scene.camera
+    still = {"previous": {"position": cam.position}}
+    _, st0 = registry.render(scene, "fsl", {}, 48, 32)
+    _, st1 = registry.render(scene, "fsl", {}, 48, 32, camera=still)
+    assert np.array_equal(st0["fpsm"], st1["fpsm"])  # no motion: the same map as without a previous camera
+    # the camera moved 0.3 to the right since the previous frame: every visible point moved left on screen
+    _, right = cam.basis()[:2]
+    prev = {"position": tuple(np.subtract(cam.position, 0.3 * right)),
+            "look_at": tuple(np.subtract(cam.look_at, 0.3 * right))}
+    from renderers.lightcuts import plugin as P
+
+    seen = {}
+    orig = P.screen_velocity
+
+    def spy(*a, **k):
+        seen["v"] = orig(*a, **k)
+        return seen["v"]
+
+    P.screen_velocity = spy
+    try:
+        _, st2 = registry.render(scene, "fsl", {}, 48, 32, camera={"previous": prev})
+    finally:
+        P.screen_velocity = orig
+    vx = seen["v"][..., 0]
+    assert np.all(vx[np.abs(vx) > 0] < 0) and (vx < -0.1).mean() > 0.5
+    assert not np.array_equal(st0["fpsm"], st2["fpsm"])  # parallax edges raise the spatio-temporal feature
+    with pytest.raises(ValueError, match="camera.previous is invalid"):
+        registry.render(scene, "fsl", {}, 48, 32, camera={"previous": 3})

@@ -182,3 +182,14 @@ def test_synthetic_images_carry_the_declared_impairment(tmp_path):
         assert len(stim.frames) == p.n_frames  # read from the images, not declared
         want = 5 * (1 - p.conditions[cond].quality)
         assert obs.impairment(stim, "yard") == pytest.approx(want, rel=0.03, abs=0.02)
+
+
+def test_frame_camera_carries_the_previous_frame():
+    pytest.importorskip("renderers.scene")
+    from studyapp.runner.stimuli import absolute_camera, frame_camera
+
+    p = load_protocol(PROTOCOLS / "seed003_task2.yaml", check_renderers=False)
+    assert "previous" not in frame_camera(p, "study", 0)
+    cam = frame_camera(p, "study", 3)
+    assert cam["previous"] == absolute_camera("study", camera_at(p, 2))
+    assert {k: v for k, v in cam.items() if k != "previous"} == absolute_camera("study", camera_at(p, 3))

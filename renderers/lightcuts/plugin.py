@@ -32,7 +32,7 @@ from numba import njit, prange
 from renderers._shade import texture_weight
 
 from .foveated import foveated_lightcuts
-from .fpsm import acuity_map, eccentricity_map, light_budget, spatiotemporal_feature
+from .fpsm import acuity_map, eccentricity_map, light_budget, screen_velocity, spatiotemporal_feature
 from .glossy import glossy_pass
 from .sampling import GBuffer, stochastic_lightcuts
 from .tree import LightTree, build_light_tree
@@ -220,6 +220,36 @@ def run_sl_uniform(ctx):
     return _finish(ctx, hits, diffuse, int(p["rspp"]), p["seed"])
 
 
+def view_projection(camera, width: int, height: int) -> np.ndarray:
+    """World -> clip matrix (4x4, column vectors) of the tracer's pinhole camera (``camera_rays``).
+
+    With ``v = p - eye`` and the camera basis ``(f, r, u)``: ``clip = (r.v / (t a), u.v / t, 0, f.v)``,
+    ``t = tan(fov_y / 2)``, ``a = width / height``, so ``x = (ndc_x + 1) w / 2`` and ``y = (1 - ndc_y) h / 2`` are
+    the screen position whose ray ``camera_rays`` shoots through ``p``.
+    """
+    f, r, u = camera.basis()
+    e = np.asarray(camera.position, dtype=np.float64)
+    t = math.tan(math.radians(camera.fov_y) / 2.0)
+    a = width / height
+    m = np.zeros((4, 4))
+    m[0, :3], m[0, 3] = r / (t * a), -(r @ e) / (t * a)
+    m[1, :3], m[1, 3] = u / t, -(u @ e) / t
+    m[3, :3], m[3, 3] = f, -(f @ e)
+    return m
+
+
+def _velocity(ctx, hits) -> np.ndarray:
+    """Screen-space motion (pixels, (h, w, 2)) of the visible points from the previous frame's camera to this
+    one (seed 003 §3.1's velocity buffer); zero without a previous camera and for rays that missed."""
+    h, w = ctx.height, ctx.width
+    if ctx.previous_camera is None:
+        return np.zeros((h, w, 2))
+    pos = hits.gbuf.position.reshape(h, w, 3)
+    vel = screen_velocity(pos, view_projection(ctx.camera, w, h), view_projection(ctx.previous_camera, w, h),
+                          w, h)
+    return np.where(hits.hit.reshape(h, w, 1), vel, 0.0)
+
+
 def _eccentricity(ctx):
     return eccentricity_map(ctx.width, ctx.height, ctx.camera.fov_y, ctx.gaze)
 
@@ -230,7 +260,7 @@ def run_sl_as(ctx):
     hits = primary_hits(ctx.tracer, ctx.camera, ctx.width, ctx.height)
     h, w = ctx.height, ctx.width
     afsm = spatiotemporal_feature(acuity_map(_eccentricity(ctx)), hits.gbuf.normal.reshape(h, w, 3),
-                                  hits.albedo.reshape(h, w, 3), np.zeros((h, w, 2)))
+                                  hits.albedo.reshape(h, w, 3), _velocity(ctx, hits))
     ctx.extra["afsm"] = afsm.astype(np.float32)
     lspp = light_budget(afsm, p["max_lspp"])
     _, diffuse = _sl(ctx, lspp, p["seed"])
@@ -249,7 +279,7 @@ def run_fsl(ctx):
     low = Hits(ctx.tracer, np.asarray(ctx.camera.position, dtype=np.float64), camera_rays(ctx.camera, w, h, x, y),
                (hl, wl))
     t0 = time.perf_counter()
-    res = foveated_lightcuts(tree, hits.gbuf, low.gbuf, _eccentricity(ctx), np.zeros((h, w, 2)), p["alpha"],
+    res = foveated_lightcuts(tree, hits.gbuf, low.gbuf, _eccentricity(ctx), _velocity(ctx, hits), p["alpha"],
                              p["max_lspp"], seed=p["seed"], occluded=occ, multires=p["multires"])
     ctx.tracer.counters.add_time("shading", t0)
     ctx.tracer.counters.rays_shadow += res.shadow_rays

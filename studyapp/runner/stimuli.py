@@ -126,6 +126,18 @@ def camera_at(protocol: Protocol, frame: int) -> dict | None:
     return {k: path[-1][k] for k in keys if k in path[-1]}
 
 
+def frame_camera(protocol: Protocol, scene: str, frame: int) -> dict | None:
+    """The renderer's camera of ``frame``, with the previous frame's camera under ``previous`` (frames after
+    the first of a moving sequence), so renderers that use screen-space velocity see the camera motion."""
+    cam = absolute_camera(scene, camera_at(protocol, frame))
+    if cam is None or frame == 0:
+        return cam
+    prev = absolute_camera(scene, camera_at(protocol, frame - 1))
+    if prev is None or prev == cam:
+        return cam
+    return {**cam, "previous": prev}
+
+
 def absolute_camera(scene: str, camera: dict | None) -> dict | None:
     """Turn ``yaw_deg``/``pitch_deg`` offsets into the renderer's ``look_at`` for the scene's own camera.
 
@@ -266,7 +278,7 @@ def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, ca
                     continue
                 t1 = time.perf_counter()
                 png = render(need.scene, cond.renderer, dict(cond.params), disp.width_px, disp.height_px, gaze,
-                             camera=absolute_camera(need.scene, camera_at(protocol, i)), cache_dir=cache)
+                             camera=frame_camera(protocol, need.scene, i), cache_dir=cache)
                 dst.parent.mkdir(parents=True, exist_ok=True)
                 with atomic_path(dst) as tmp:
                     shutil.copyfile(png, tmp)
