@@ -170,3 +170,86 @@ def inverse_map_table(lp, utab, inv_step, exact, method, P, gx, gy, Lr, n, w_eff
             for ch in range(3):
                 out[j, i, ch] = (w00 * lp[a0, c0, ch] + w01 * lp[a1, c0, ch] + w10 * lp[b0, c1, ch]
                                  + w11 * lp[b1, c1, ch])
+
+
+@njit(cache=True)
+def _raster_triangle(pu, pp, pz, pc, L, n, w_eff, w, zbuf, out, covered, max_extent):
+    """Rasterise one warped triangle (LP coordinates u, phi; depth z; colours c) into the LP buffer: every LP
+    pixel centre inside it takes the barycentric colour if its interpolated depth is the nearest so far."""
+    two_pi = 2.0 * math.pi
+    umin = min(pu[0], min(pu[1], pu[2]))
+    umax = max(pu[0], max(pu[1], pu[2]))
+    if umax - umin > max_extent:
+        return
+    c0 = max(0, int(math.ceil(umin - 0.5)))
+    c1 = min(w_eff - 1, int(math.floor(umax - 0.5)))
+    det = (pu[1] - pu[0]) * (pp[2] - pp[0]) - (pu[2] - pu[0]) * (pp[1] - pp[0])
+    if abs(det) < 1e-18:
+        return
+    pmin = min(pp[0], min(pp[1], pp[2]))
+    pmax = max(pp[0], max(pp[1], pp[2]))
+    for c in range(c0, c1 + 1):
+        if n[c] <= 0:
+            continue
+        per = L[c] / two_pi  # rows per radian in this column
+        if (pmax - pmin) * per > max_extent:
+            continue
+        uc = c + 0.5
+        j0 = int(math.ceil(pmin * per - 0.5))
+        j1 = int(math.floor(pmax * per - 0.5))
+        for j in range(j0, j1 + 1):
+            pc_ = (j + 0.5) / per
+            b1 = ((uc - pu[0]) * (pp[2] - pp[0]) - (pu[2] - pu[0]) * (pc_ - pp[0])) / det
+            b2 = ((pu[1] - pu[0]) * (pc_ - pp[0]) - (uc - pu[0]) * (pp[1] - pp[0])) / det
+            b0 = 1.0 - b1 - b2
+            if b0 < -1e-9 or b1 < -1e-9 or b2 < -1e-9:
+                continue
+            jm = j % n[c]
+            idx = jm * w + c
+            z = b0 * pz[0] + b1 * pz[1] + b2 * pz[2]
+            if z < zbuf[idx]:
+                zbuf[idx] = z
+                for k in range(3):
+                    out[idx, k] = b0 * pc[0, k] + b1 * pc[1, k] + b2 * pc[2, k]
+                covered[idx] = True
+
+
+@njit(cache=True)
+def grid_warp(grid, u, phi, z, col, L, n, w_eff, w, zbuf, out, covered, max_ratio, max_extent):
+    """Forward grid warping (Wissmann et al. 2020) in the LP buffer: the left LP samples ``grid[j, c]`` (index
+    into ``u, phi, z, col``, or -1) form quads with their row and column neighbours; each quad whose corners
+    are all valid and whose depths differ by at most ``max_ratio`` (no depth discontinuity) is split into two
+    triangles, warped to the right view's LP coordinates and rasterised with a depth test."""
+    h = grid.shape[0]
+    two_pi = 2.0 * math.pi
+    pu = np.empty(3)
+    pp = np.empty(3)
+    pz = np.empty(3)
+    pc = np.empty((3, 3))
+    tri = np.empty((2, 3), dtype=np.int64)
+    for c in range(w_eff - 1):
+        for j in range(h - 1):
+            a, b = grid[j, c], grid[j, c + 1]
+            cc, d = grid[j + 1, c], grid[j + 1, c + 1]
+            if a < 0 or b < 0 or cc < 0 or d < 0:
+                continue
+            zmin = min(min(z[a], z[b]), min(z[cc], z[d]))
+            zmax = max(max(z[a], z[b]), max(z[cc], z[d]))
+            if not (zmax < np.inf) or zmin <= 0.0 or zmax > zmin * max_ratio:
+                continue
+            tri[0, 0], tri[0, 1], tri[0, 2] = a, b, d
+            tri[1, 0], tri[1, 1], tri[1, 2] = a, d, cc
+            for t in range(2):
+                for k in range(3):
+                    s = tri[t, k]
+                    pu[k] = u[s]
+                    pp[k] = phi[s]
+                    pz[k] = z[s]
+                    for ch in range(3):
+                        pc[k, ch] = col[s, ch]
+                # unwrap a triangle that straddles the angle seam
+                if max(pp[0], max(pp[1], pp[2])) - min(pp[0], min(pp[1], pp[2])) > math.pi:
+                    for k in range(3):
+                        if pp[k] < math.pi:
+                            pp[k] += two_pi
+                _raster_triangle(pu, pp, pz, pc, L, n, w_eff, w, zbuf, out, covered, max_extent)

@@ -225,13 +225,25 @@ def finish(tracer: Tracer, layout: LPLayout, lp, params: dict, width: int, heigh
     return _inverse_map(tracer, layout, lp, aa_post, width, height)
 
 
+#: Forward grid warping in :func:`reproject` (False: nearest-sample splatting only).
+GRID_WARP = True
+#: A quad whose corner depths differ by more than this ratio spans a depth discontinuity and is not warped.
+GRID_WARP_MAX_DEPTH_RATIO = 1.05
+#: Warped triangles larger than this many LP pixels in either direction are stretched: not rasterised.
+GRID_WARP_MAX_EXTENT = 6.0
+
+
 def reproject(tracer: Tracer, layout: LPLayout, lp_left, jj, ii, xs, ys, prim, tfar, left: Camera,
               right: Camera, width: int, height: int):
     """Right-eye LP buffer from the left one (seed 001 §5.1): warp, depth-test, re-shade the holes.
 
     Each shaded left LP pixel's hit point (or, for a miss, its direction at infinity) is projected into the
     right view, forward-mapped into the LP buffer and splatted to the LP pixel containing it, nearest depth
-    winning. Needed right LP pixels that receive no sample are re-shaded by ray casting from the right eye.
+    winning. Then forward grid warping (Wissmann et al. 2020, done in the LP buffer as seed 001 §5.1 says):
+    each quad of neighbouring left LP samples without a depth discontinuity is split into two triangles,
+    warped into the right view's LP coordinates (u, angle) and rasterised with the depth test, so continuous
+    surfaces leave no gaps between samples. Needed right LP pixels that receive nothing are re-shaded by ray
+    casting from the right eye.
     Returns the right LP buffer and the number of re-shaded pixels.
     """
     t0 = time.perf_counter()
@@ -257,6 +269,23 @@ def reproject(tracer: Tracer, layout: LPLayout, lp_left, jj, ii, xs, ys, prim, t
     src = lp_left[jj, ii][front]
     flat[lin[order]] = src[order]
     covered[lin[order]] = True
+    if GRID_WARP:
+        # Forward grid warping: neighbouring left samples span triangles that fill the right LP pixels
+        # between the splatted samples (continuous surfaces); depth discontinuities stay holes.
+        zbuf = np.full(layout.h * layout.w, np.inf)
+        np.minimum.at(zbuf, lin, depth)
+        disp = layout.mapping.display
+        u_all = np.zeros(len(jj))
+        phi_all = np.zeros(len(jj))
+        z_all = np.full(len(jj), np.inf)
+        u_all[front] = layout.mapping.forward(xr[front], yr[front])[0]
+        phi_all[front] = np.mod(np.arctan2(yr[front] - disp.gaze_y, xr[front] - disp.gaze_x), 2 * math.pi)
+        z_all[front] = depth
+        grid = np.full((layout.h, layout.w), -1, dtype=np.int64)
+        grid[jj, ii] = np.arange(len(jj))
+        _lp.grid_warp(grid, u_all, phi_all, z_all, np.ascontiguousarray(lp_left[jj, ii], dtype=np.float64),
+                      layout.L, layout.n, layout.w_eff, layout.w, zbuf, flat, covered, GRID_WARP_MAX_DEPTH_RATIO,
+                      GRID_WARP_MAX_EXTENT)
     need = np.zeros(layout.h * layout.w, dtype=np.bool_)
     need[jj * layout.w + ii] = True
     holes = need & ~covered
