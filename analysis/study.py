@@ -32,7 +32,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from .effect_size import effect_size_label
 from .plan import AnalysisPlan
 from .scaling import bradley_terry, plackett_luce, thurstone_jod
 from .stats import dunn, kruskal, pairwise_kruskal, summary_table
@@ -80,10 +79,9 @@ def condition_order(seen: list[str], plan: AnalysisPlan, family: str) -> list[st
 
 def _codes(series: pd.Series, categories: list[str]) -> np.ndarray:
     """Integer codes of ``series`` in ``categories`` (-1 for missing or other values)."""
-    s = series.astype(str) if not isinstance(series.dtype, pd.CategoricalDtype) else series
-    s = s.cat.set_categories(categories) if isinstance(s.dtype, pd.CategoricalDtype) else \
-        pd.Categorical(s, categories=categories)
-    return np.asarray(s.codes if hasattr(s, "codes") else s.cat.codes, dtype=np.int64)
+    if isinstance(series.dtype, pd.CategoricalDtype):
+        return series.cat.set_categories(categories).cat.codes.to_numpy().astype(np.int64)
+    return pd.Categorical(series.astype(str), categories=categories).codes.astype(np.int64)
 
 
 def _dense_unique(codes: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
@@ -380,11 +378,10 @@ def analyze_log(df: pd.DataFrame, plan: AnalysisPlan | None = None, progress=Non
         say(f"{fam}: {len(sub):,} trials")
         if fam == "yes_no":
             seen = _present(sub["condition"])
+        elif fam == "2afc":
+            seen = sorted(set(_present(sub["condition_a"])) | set(_present(sub["condition_b"])))
         else:
-            cols = ["condition_a", "condition_b"] if fam == "2afc" else []
-            seen = sorted({c for col in cols for c in _present(sub[col])})
-            if fam == "preference":
-                seen = sorted({c for s in _present(sub["conditions"]) for c in s.split("|")})
+            seen = sorted({c for s in _present(sub["conditions"]) for c in s.split("|")})
         conds = condition_order(seen, plan, fam)
         if len(conds) < 2:
             raise ValueError(f"the {fam} trials show fewer than two conditions ({', '.join(conds) or 'none'}): "
@@ -457,8 +454,3 @@ def _unit_note(fam: str, plan: AnalysisPlan, dv: str, reference: str) -> str:
             "p against the reference: two-sided Mann-Whitney (= two-group Kruskal-Wallis), unadjusted, as in "
             f"seed 003 Tables 5-6; effect size: {d} (condition minus reference, SDs with ddof = 1), "
             "Sawilowsky (2009) labels.")
-
-
-def label_or_undefined(d: float) -> str:
-    """The Sawilowsky label of ``d``, or ``"undefined"`` for NaN (never a verbal label for NaN)."""
-    return "undefined" if not np.isfinite(d) else str(effect_size_label(d))

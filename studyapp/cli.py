@@ -12,6 +12,8 @@ import sys
 from pathlib import Path
 
 from . import __version__
+from .commands import end_status as _end_progress
+from .commands import status as _progress
 from .errors import EXIT_USAGE, CLIError
 
 # Command groups living in their own modules (see studyapp/commands/__init__.py). One line each.
@@ -27,16 +29,6 @@ COMMAND_MODULES = (
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, not usage + message
         raise CLIError(f"{self.prog}: {message}")
-
-
-def _progress(msg: str) -> None:
-    if sys.stderr.isatty():
-        print(f"\r\033[K{msg}", end="", file=sys.stderr, flush=True)
-
-
-def _end_progress() -> None:
-    if sys.stderr.isatty():
-        print("\r\033[K", end="", file=sys.stderr, flush=True)
 
 
 # --- foveation ------------------------------------------------------------------------------------------------

@@ -23,6 +23,7 @@ The velocity buffer is zero (one frame, no previous camera in the render context
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 
@@ -348,25 +349,5 @@ def _plugin(name: str):
 
 
 # Entry points of the ``studyapp.renderers`` group (pyproject.toml): one factory per plug-in.
-def fsl_plugin():
-    return _plugin("fsl")
-
-
-def sl_e_plugin():
-    return _plugin("sl_e")
-
-
-def sl_f_plugin():
-    return _plugin("sl_f")
-
-
-def sl_p_plugin():
-    return _plugin("sl_p")
-
-
-def sl_as_plugin():
-    return _plugin("sl_as")
-
-
-def sl_gt_plugin():
-    return _plugin("sl_gt")
+fsl_plugin, sl_e_plugin, sl_f_plugin, sl_p_plugin, sl_as_plugin, sl_gt_plugin = (
+    functools.partial(_plugin, name) for name in ("fsl", "sl_e", "sl_f", "sl_p", "sl_as", "sl_gt"))

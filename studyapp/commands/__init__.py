@@ -9,3 +9,17 @@ never at module level, so that ``studyapp --help`` stays fast.
 A module may also define ``demo_step(out_dir: pathlib.Path, progress) -> list[pathlib.Path]`` for the
 end-to-end demo.
 """
+
+import sys
+
+
+def status(msg: str, prefix: str = "") -> None:
+    """One overwritten status line on stderr (only on a terminal: logs and pipes stay clean)."""
+    if sys.stderr.isatty():
+        print(f"\r\033[K{prefix}{msg}"[:200], end="", file=sys.stderr, flush=True)
+
+
+def end_status() -> None:
+    """Clear the status line."""
+    if sys.stderr.isatty():
+        print("\r\033[K", end="", file=sys.stderr, flush=True)

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 from ..errors import CLIError
+from . import end_status, status
 
 HELP = "regenerate a study's tables and figures from its log (CSV, Parquet or study database)"
 DESCRIPTION = """\
@@ -44,8 +44,7 @@ def register(sub, parser_class) -> None:
 
 
 def _progress(msg: str) -> None:
-    if sys.stderr.isatty():
-        print(f"\r\033[Kanalyze: {msg}", end="", file=sys.stderr, flush=True)
+    status(msg, "analyze: ")
 
 
 def load_plan(log: Path, plan_file: str | None):
@@ -68,10 +67,8 @@ def load_plan(log: Path, plan_file: str | None):
         except ValueError as exc:
             raise CLIError(f"--plan {plan_file}: {exc}") from None
     if log.suffix.lower() in (".db", ".sqlite", ".sqlite3"):
-        try:
-            from data_schema.store import read_analysis_plan
-        except ImportError:
-            return plan_from_mapping(None)
+        from data_schema.store import read_analysis_plan
+
         return plan_from_mapping(read_analysis_plan(log))
     return plan_from_mapping(None)
 
@@ -93,8 +90,7 @@ def cmd_analyze(args) -> int:
     result = analyze_log(df, plan, progress=_progress)
     paths = write_report(result, args.out, title=f"Analysis of {log.name}", figures=not args.no_figures,
                          progress=_progress)
-    if sys.stderr.isatty():
-        print("\r\033[K", end="", file=sys.stderr, flush=True)
+    end_status()
     if args.json:
         print(json.dumps(report_json(result), indent=2))
     else:

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 from ..errors import CLIError
+from . import end_status, status
 
 DESCRIPTION = """\
 Render the many-light scenes with foveated stochastic lightcuts (Ours = fsl) and its baselines (SL_e at equal
@@ -42,8 +42,7 @@ def register(sub, parser_class) -> None:
 
 
 def _progress(msg: str) -> None:
-    if sys.stderr.isatty():
-        print(f"\r\033[Klightcuts: {msg}"[:200], end="", file=sys.stderr, flush=True)
+    status(msg, "lightcuts: ")
 
 
 def _pivot_md(records: list[dict], table: str, rows: tuple[str, ...], cols: tuple[str, ...], fmt: str,
@@ -160,8 +159,7 @@ def cmd_tables(args) -> int:
         ratios[scene.name] = summary_ratios(recs)
         images[scene.name] = im
         fov_y[scene.name] = scene.camera.fov_y
-    if sys.stderr.isatty():
-        print("\r\033[K", end="", file=sys.stderr, flush=True)
+    end_status()
     md = tables_markdown(records, ratios)
     if args.out:
         from data_schema.atomic import write_text
