@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from data_schema.trial_log import FAMILIES, FAMILY_COLUMNS, REQUIRED
+from data_schema.errors import UserError
 
 __all__ = ["LogError", "read_log", "validate_log"]
 
@@ -24,7 +25,7 @@ INT_COLUMNS = ("trial", "practice", "catch")
 DB_SUFFIXES = (".db", ".sqlite", ".sqlite3")
 
 
-class LogError(ValueError):
+class LogError(UserError):
     """A log that cannot be analysed; the message names the file and the problem in one line."""
 
 

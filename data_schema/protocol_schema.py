@@ -23,10 +23,12 @@ from typing import Any
 
 import yaml
 
+from .errors import UserError
+
 SCHEMA_PATH = Path(__file__).with_name("protocol.schema.json")
 
 
-class ProtocolError(ValueError):
+class ProtocolError(UserError):
     """A protocol that cannot be used; the message is one line ``FILE:LINE: FIELD: problem``."""
 
 

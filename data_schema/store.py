@@ -47,6 +47,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from .atomic import atomic_path, write_text
+from .errors import UserError
 from .trial_log import ALL_COLUMNS
 
 STORE_FORMAT = "1"
@@ -79,7 +80,7 @@ CREATE TABLE IF NOT EXISTS events (
 """
 
 
-class StoreError(ValueError):
+class StoreError(UserError):
     """The store cannot do what was asked; one line naming the file and the problem."""
 
 

@@ -14,7 +14,7 @@ from pathlib import Path
 from . import __version__
 from .commands import end_status as _end_progress
 from .commands import status as _progress
-from .errors import EXIT_USAGE, CLIError
+from data_schema.errors import EXIT_USAGE, CLIError
 
 # Command groups living in their own modules (see studyapp/commands/__init__.py). One line each.
 COMMAND_MODULES = (

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ..errors import CLIError
+from data_schema.errors import CLIError
 from . import end_status, status
 
 HELP = "regenerate a study's tables and figures from its log (CSV, Parquet or study database)"

@@ -10,7 +10,7 @@ import json
 import math
 from pathlib import Path
 
-from ..errors import CLIError
+from data_schema.errors import CLIError
 
 IMAGE_SUFFIXES = (".png", ".npy")
 #: Columns of the CLI's table: the image, then :data:`analysis.quality.QUALITY_COLUMNS`.

@@ -8,7 +8,7 @@ import threading
 import time
 from pathlib import Path
 
-from ..errors import CLIError
+from data_schema.errors import CLIError
 
 RENDER_HELP = "render a scene with a renderer (GT, VaFR, LMFR, LaFR, plug-ins) to an sRGB PNG"
 RENDER_DESCRIPTION = (

@@ -11,7 +11,7 @@ import math
 import sys
 from pathlib import Path
 
-from studyapp.errors import CLIError
+from data_schema.errors import CLIError
 
 SHIPPED = Path(__file__).resolve().parents[2] / "protocols"
 
