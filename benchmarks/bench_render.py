@@ -109,7 +109,7 @@ def errors(img, gt, fov):
 
 def run(scenes, resolutions, methods, out_rows, progress=print):
     from renderers import render
-    from renderers.scene import resolve
+    from renderers.catalog import resolve
 
     tmp = tempfile.mkdtemp(prefix="bench_render_")
     # Warm-up: load every compiled kernel (numba caches) and build each scene's BVH before any timing.

@@ -16,7 +16,6 @@ name               content                                        lights
 
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
@@ -305,25 +304,3 @@ def interior() -> Scene:
                    ambient=(0.01, 0.01, 0.01))
 
 
-def _many_lights(name: str):
-    """The many-light scenes of the lightcuts renderers (renderers/lightcuts/scenes.py), built on demand."""
-    def make() -> Scene:
-        from .lightcuts.scenes import SCENES
-
-        return SCENES[name]()
-
-    make.__name__ = name
-    return make
-
-
-BUILTIN = {"cornell": cornell, "temple": temple, "street_night": street_night, "interior": interior,
-           "street_day": street_day,
-           **{n: _many_lights(n) for n in ("cornell_many", "study", "yard", "sponza_vpl")}}
-
-
-@functools.lru_cache(maxsize=None)
-def builtin(name: str) -> Scene:
-    """The built-in scene ``name`` (generated once per process)."""
-    if name not in BUILTIN:
-        raise ValueError(f"scene={name!r} is unknown: built-in scenes are {', '.join(BUILTIN)}")
-    return BUILTIN[name]()

@@ -232,7 +232,8 @@ def render(scene, renderer: str, params: dict | None, width: int, height: int,
         after a reset), skip counters ``missed_rays``, ``offscreen_lp_pixels``, ``shadow_rays_skipped``,
         ``glossy_evaluations``, ``lights_culled``, and renderer extras (``lp_shape``, ``reshaded_share``...).
     """
-    from .scene import check_gaze, resolve
+    from .catalog import resolve
+    from .scene import check_gaze
     from .tracer import Tracer
 
     t_start = time.perf_counter()

@@ -16,6 +16,7 @@ they light the scene as one point light per triangle at its centroid with intens
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
@@ -23,6 +24,9 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from data_schema.errors import UserError
+from data_schema.yamlfile import YAMLFileError
 
 TEXTURES = ("none", "checker", "brick", "noise")
 KINDS = ("diffuse", "glossy", "metallic")
@@ -323,27 +327,38 @@ class Scene:
 
 
 # -- YAML ------------------------------------------------------------------------------------------------------
-_TOP_KEYS = {"name", "meshes", "materials", "lights", "camera", "display", "ambient", "background", "shadows",
-             "exposure"}
+class SceneError(YAMLFileError):
+    """A scene file that cannot be used; one line ``FILE:LINE: FIELD: problem``."""
 
 
-def _check_keys(where: str, d, allowed: set[str]):
-    if not isinstance(d, dict):
-        raise ValueError(f"{where} is invalid: must be a mapping")
-    unknown = sorted(set(d) - allowed)
-    if unknown:
-        raise ValueError(f"{where}.{unknown[0]} is unknown: allowed {', '.join(sorted(allowed))}")
+@contextlib.contextmanager
+def _quiet_vtk():
+    """Silence VTK's own error output (it writes ~20 lines to stderr for a corrupt file): our one line says it."""
+    try:
+        import vtk
+    except ImportError:  # pragma: no cover - pyvista brings vtk
+        yield
+        return
+    previous = vtk.vtkObject.GetGlobalWarningDisplay()
+    vtk.vtkObject.GlobalWarningDisplayOff()
+    try:
+        yield
+    finally:
+        vtk.vtkObject.SetGlobalWarningDisplay(previous)
 
 
 def _read_mesh(path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and triangles of a mesh file; an unreadable or empty file is a one-line SceneError."""
     if not path.is_file():
-        raise ValueError(f"{where}.file={str(path)!r} does not exist")
+        raise SceneError(f"{where}: mesh file {str(path)!r} does not exist")
     import pyvista as pv  # heavy: imported only when a mesh file is read
 
     try:
-        mesh = pv.read(str(path))
-    except Exception as exc:  # pyvista raises many kinds of errors for unreadable files
-        raise ValueError(f"{where}.file={str(path)!r} cannot be read: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+        with _quiet_vtk():
+            mesh = pv.read(str(path))
+    except Exception as exc:  # noqa: BLE001 - pyvista raises many kinds of errors for unreadable files
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise SceneError(f"{where}: mesh file {str(path)!r} cannot be read: {reason}") from None
     if isinstance(mesh, pv.MultiBlock):
         mesh = mesh.combine()
     if not isinstance(mesh, pv.PolyData):
@@ -351,14 +366,14 @@ def _read_mesh(path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
     mesh = mesh.triangulate()
     faces = np.asarray(mesh.faces).reshape(-1, 4)
     if len(faces) == 0 or not np.all(faces[:, 0] == 3):
-        raise ValueError(f"{where}.file={str(path)!r} has no triangles")
+        raise SceneError(f"{where}: mesh file {str(path)!r} has no triangles")
     return np.asarray(mesh.points, dtype=np.float64), faces[:, 1:].astype(np.int64)
 
 
 def load_yaml(path) -> Scene:
-    """Load a scene from YAML. Every error names the offending field.
+    """Load a scene from a YAML file, checked against ``data_schema/scene.schema.json``.
 
-    Format (keys not listed are rejected)::
+    Errors are one line ``FILE:LINE: FIELD: problem`` (:class:`SceneError`). Format::
 
         name: my_scene
         materials:
@@ -376,99 +391,54 @@ def load_yaml(path) -> Scene:
         shadows: true
         exposure: 1.0
     """
-    import yaml
+    from data_schema.validation import validate
+    from data_schema.yamlfile import load_yaml as read_yaml
 
     path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"scene file {str(path)!r} does not exist")
-    try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise ValueError(f"scene file {str(path)!r} is malformed YAML{where}: {getattr(exc, 'problem', exc)}") from None
-    _check_keys("scene", doc, _TOP_KEYS)
-    mats_doc = doc.get("materials") or {}
-    _check_keys("materials", mats_doc, set(mats_doc) if isinstance(mats_doc, dict) else set())
+    docy = read_yaml(path, "scene", SceneError)
+    doc = validate(docy, "scene", "a scene")
+
+    def build(field, make):
+        try:
+            return make()
+        except (UserError, ValueError) as exc:
+            raise docy.error(field, str(exc)) from None
+
     materials, mat_index = [], {}
-    mat_fields = {"albedo", "albedo2", "texture", "texture_scale", "kind", "roughness", "specular", "emission"}
-    for name, spec in mats_doc.items():
-        _check_keys(f"materials.{name}", spec, mat_fields)
+    for name, spec in (doc.get("materials") or {}).items():
         mat_index[name] = len(materials)
-        materials.append(Material(name=str(name), **spec))
+        materials.append(build(("materials", name), lambda: Material(name=str(name), **spec)))
     if not materials:
         materials.append(Material())
         mat_index["default"] = 0
-    meshes = doc.get("meshes")
-    if not isinstance(meshes, list) or not meshes:
-        raise ValueError("meshes is missing: a list of {file, material} entries is needed")
     verts, faces, mids, base = [], [], [], 0
-    for k, m in enumerate(meshes):
-        where = f"meshes[{k}]"
-        _check_keys(where, m, {"file", "material", "translate", "scale"})
-        if "file" not in m:
-            raise ValueError(f"{where}.file is missing")
+    for k, m in enumerate(doc["meshes"]):
         mname = m.get("material", next(iter(mat_index)))
         if mname not in mat_index:
-            raise ValueError(f"{where}.material={mname!r} is not defined in materials")
-        v, f = _read_mesh((path.parent / str(m["file"])).resolve(), where)
-        v = v * _num(f"{where}.scale", m.get("scale", 1.0), 0, None, lo_open=True)
-        v = v + np.asarray(_vec3(f"{where}.translate", m.get("translate", (0, 0, 0))))
+            raise docy.error(("meshes", k, "material"), f"{mname!r} is not defined in materials")
+        v, f = _read_mesh((path.parent / str(m["file"])).resolve(), f"{path}:{docy.line_of(('meshes', k))}: "
+                          f"meshes[{k}].file")
+        v = v * float(m.get("scale", 1.0)) + np.asarray(m.get("translate", (0, 0, 0)), dtype=np.float64)
         verts.append(v)
         faces.append(f + base)
         mids.append(np.full(len(f), mat_index[mname]))
         base += len(v)
-    lights_doc = doc.get("lights") or []
-    if not isinstance(lights_doc, list):
-        raise ValueError("lights is invalid: must be a list")
     pls, dls = [], []
-    for k, L in enumerate(lights_doc):
-        where = f"lights[{k}]"
-        if not isinstance(L, dict) or L.get("type") not in ("point", "directional"):
-            raise ValueError(f"{where}.type is invalid: allowed point, directional")
-        try:
-            if L["type"] == "point":
-                _check_keys(where, L, {"type", "position", "intensity", "shadows"})
-                pls.append(PointLight(L["position"], L["intensity"], bool(L.get("shadows", True))))
-            else:
-                _check_keys(where, L, {"type", "direction", "irradiance", "shadows"})
-                dls.append(DirectionalLight(L["direction"], L["irradiance"], bool(L.get("shadows", True))))
-        except KeyError as exc:
-            raise ValueError(f"{where}.{exc.args[0]} is missing") from None
-        except ValueError as exc:
-            raise ValueError(f"{where}: {exc}") from None
-    cam = doc.get("camera")
-    if cam is None:
-        raise ValueError("camera is missing: position, look_at, up, fov_y")
-    _check_keys("camera", cam, {"position", "look_at", "up", "fov_y"})
-    disp = doc.get("display") or {}
-    _check_keys("display", disp, {"width", "height", "gaze", "eye", "ipd"})
-    scene = Scene(name=str(doc.get("name", path.stem)), vertices=np.concatenate(verts),
-                  faces=np.concatenate(faces), material_ids=np.concatenate(mids), materials=materials,
-                  point_lights=pls, directional_lights=dls, camera=Camera(**cam), display=Display(**disp),
-                  ambient=doc.get("ambient", (0, 0, 0)), background=doc.get("background", (0, 0, 0)),
-                  shadows=bool(doc.get("shadows", True)), exposure=doc.get("exposure", 1.0))
-    if scene.light_count() == 0:
-        raise ValueError("lights is empty: the scene has no point, directional or emissive light")
-    return scene
-
-
-def resolve(scene) -> Scene:
-    """A :class:`Scene` from a built-in name, a YAML path or a Scene."""
-    if isinstance(scene, Scene):
-        s = scene
-    elif isinstance(scene, (str, Path)):
-        from .procedural import BUILTIN, builtin
-
-        if str(scene) in BUILTIN:
-            s = builtin(str(scene))
-        elif str(scene).endswith((".yaml", ".yml")) or Path(scene).exists():
-            s = load_yaml(scene)
+    for k, L in enumerate(doc.get("lights") or []):
+        if L["type"] == "point":
+            pls.append(build(("lights", k), lambda: PointLight(L["position"], L["intensity"],
+                                                                bool(L.get("shadows", True)))))
         else:
-            raise ValueError(f"scene={str(scene)!r} is neither a built-in scene ({', '.join(BUILTIN)}) nor a "
-                             "scene file")
-    else:
-        raise ValueError(f"scene={scene!r} is invalid: give a built-in name, a YAML path or a Scene")
-    if s.light_count() == 0:
-        raise ValueError(f"scene {s.name!r} has no lights: add a point, directional or emissive light")
-    return s
+            dls.append(build(("lights", k), lambda: DirectionalLight(L["direction"], L["irradiance"],
+                                                                      bool(L.get("shadows", True)))))
+    camera = build(("camera",), lambda: Camera(**doc["camera"]))
+    display = build(("display",), lambda: Display(**(doc.get("display") or {})))
+    scene = build((), lambda: Scene(
+        name=str(doc.get("name", path.stem)), vertices=np.concatenate(verts), faces=np.concatenate(faces),
+        material_ids=np.concatenate(mids), materials=materials, point_lights=pls, directional_lights=dls,
+        camera=camera, display=display, ambient=doc.get("ambient", (0, 0, 0)),
+        background=doc.get("background", (0, 0, 0)), shadows=bool(doc.get("shadows", True)),
+        exposure=doc.get("exposure", 1.0)))
+    if scene.light_count() == 0:
+        raise docy.error(("lights",), "the scene has no point, directional or emissive light")
+    return scene

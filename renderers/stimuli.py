@@ -33,15 +33,26 @@ def to_srgb8(img: np.ndarray, exposure: float = 1.0) -> np.ndarray:
     return out
 
 
-def write_png(path, img: np.ndarray, exposure: float = 1.0) -> Path:
-    """Atomically write the tone-mapped sRGB PNG of a linear image (deterministic bytes)."""
+def save_png(fh_or_path, img: np.ndarray, exposure: float = 1.0) -> None:
+    """Write the tone-mapped sRGB PNG of a linear image to an open file or a path (deterministic bytes)."""
     from PIL import Image
 
+    Image.fromarray(to_srgb8(img, exposure), "RGB").save(fh_or_path, format="PNG", optimize=False)
+
+
+def save_npy(path, img: np.ndarray) -> None:
+    """Write the linear float32 image as ``.npy``."""
+    with open(path, "wb") as fh:
+        np.save(fh, np.asarray(img, dtype=np.float32))
+
+
+def write_png(path, img: np.ndarray, exposure: float = 1.0) -> Path:
+    """Atomically write the tone-mapped sRGB PNG of a linear image (deterministic bytes)."""
     from data_schema.atomic import atomic_path
 
     path = Path(path)
     with atomic_path(path) as tmp:
-        Image.fromarray(to_srgb8(img, exposure), "RGB").save(tmp, format="PNG", optimize=False)
+        save_png(tmp, img, exposure)
     return path
 
 
@@ -50,9 +61,19 @@ def write_npy(path, img: np.ndarray) -> Path:
 
     path = Path(path)
     with atomic_path(path) as tmp:
-        with open(tmp, "wb") as fh:
-            np.save(fh, np.asarray(img, dtype=np.float32))
+        save_npy(tmp, img)
     return path
+
+
+def write_png_and_npy(png: Path, img: np.ndarray, exposure: float = 1.0) -> Path:
+    """The PNG and its linear image (``.npy`` next to it) as a pair: both appear, or neither does."""
+    from data_schema.atomic import atomic_files
+
+    png = Path(png)
+    with atomic_files([png.with_suffix(".npy"), png]) as (tmp_npy, tmp_png):
+        save_npy(tmp_npy, img)
+        save_png(tmp_png, img, exposure)
+    return png
 
 
 @functools.lru_cache(maxsize=1)
@@ -94,7 +115,8 @@ def render_stimulus(scene, renderer: str, params: dict | None, width: int, heigh
     one-line ValueError before anything is written.
     """
     from .registry import check_resolution, get, render, resolve_params
-    from .scene import check_gaze, resolve
+    from .catalog import resolve
+    from .scene import check_gaze
 
     sc = resolve(scene)
     full = resolve_params(renderer, params)

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
+import signal
 import sys
 from pathlib import Path
 
@@ -28,6 +30,8 @@ COMMAND_MODULES = (
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, not usage + message
+        # "argument --seed: --seed=-1 is out of range ..." says the option twice: keep the second.
+        message = re.sub(r"^argument (\S+): (?=\1=)", "", message)
         raise CLIError(f"{self.prog}: {message}")
 
 
@@ -112,6 +116,9 @@ def cmd_demo(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from data_schema.ranges import FOV_Y, argtype
+
+    fov_arg = argtype("--fov-y", FOV_Y)
     p = _Parser(prog="studyapp", description=(
         "Perceptual user studies of foveated rendering. Render stimuli with GT and foveated renderers "
         "(render, scenes, renderers), run studies from protocol files with PsychoPy or a simulated observer "
@@ -136,7 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "shading_points_on_screen, ...) instead of Markdown")
     t.add_argument("--out", metavar="DIR", help="also write table1.md, table1.csv, table1.json and "
                                                 "vafr_presets.csv into DIR")
-    t.add_argument("--fov-y", type=float, default=100.0, metavar="DEG",
+    t.add_argument("--fov-y", type=fov_arg, default=100.0, metavar="DEG",
                    help="vertical field of view in degrees, in (0, 180) (default: 100)")
     t.set_defaults(func=cmd_foveation_table)
     pl = fsub.add_parser("plots", help="PNG plots of shading rate vs eccentricity",
@@ -144,7 +151,7 @@ def build_parser() -> argparse.ArgumentParser:
                                      "eccentricity, with the acuity curve, reproducing seed 001 Figures 5, 8, "
                                      "9, 10 and 21.")
     pl.add_argument("--out", metavar="DIR", required=True, help="folder for the PNG files (created if needed)")
-    pl.add_argument("--fov-y", type=float, default=100.0, metavar="DEG",
+    pl.add_argument("--fov-y", type=fov_arg, default=100.0, metavar="DEG",
                     help="vertical field of view in degrees, in (0, 180) (default: 100)")
     pl.set_defaults(func=cmd_foveation_plots)
 
@@ -153,7 +160,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "a small rendered stimulus set, simulated participants running shipped "
                                    "protocols, and the analysis of their logs and of synthetic seed-sized logs.")
     d.add_argument("--out", metavar="DIR", default="demo_out", help="output folder (default: demo_out)")
-    d.add_argument("--fov-y", type=float, default=100.0, metavar="DEG",
+    d.add_argument("--fov-y", type=fov_arg, default=100.0, metavar="DEG",
                    help="vertical field of view in degrees, in (0, 180) (default: 100)")
     d.set_defaults(func=cmd_demo)
 
@@ -164,12 +171,20 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, handled like Ctrl-C: the command stops cleanly (a session is marked, nothing half-written)."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
+
+
 def main(argv=None) -> int:
     parser = build_parser()
+    if signal.getsignal(signal.SIGTERM) in (signal.SIG_DFL, None):
+        signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         args = parser.parse_args(argv)
-        if getattr(args, "fov_y", None) is not None and not 0.0 < args.fov_y < 180.0:
-            raise CLIError(f"--fov-y={args.fov_y:g} is out of range: allowed (0, 180)")
         return args.func(args)
     except (CLIError, ValueError) as exc:
         print(f"studyapp: error: {exc}", file=sys.stderr)
@@ -182,9 +197,10 @@ def main(argv=None) -> int:
     except OSError as exc:
         print(f"studyapp: error: {exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), file=sys.stderr)
         return EXIT_USAGE
-    except KeyboardInterrupt:
-        print("studyapp: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        what = "terminated" if isinstance(exc, Terminated) else "interrupted"
+        print(f"studyapp: {what} (committed answers are kept: continue a session with --resume)", file=sys.stderr)
+        return 143 if isinstance(exc, Terminated) else 130
 
 
 if __name__ == "__main__":

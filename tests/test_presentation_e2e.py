@@ -23,10 +23,12 @@ from PIL import Image
 sys.path.insert(0, str(Path(__file__).resolve().parent / "gui"))
 from xvfb import ROOT, Xvfb, missing_tools  # noqa: E402
 
-pytestmark = pytest.mark.skipif(
-    bool(missing_tools()), reason=f"GUI tests need {missing_tools()} (Debian: xvfb, xdotool)"
-)
-pytest.importorskip("psychopy")
+import psychopy  # noqa: E402,F401 - the GUI tests need it: a missing install is a failure, not a skip
+
+
+@pytest.fixture(autouse=True)
+def _gui_tools_installed():
+    assert not missing_tools(), f"GUI tests need {missing_tools()} (Debian: xvfb, xdotool; ./run installs them)"
 
 PROTOCOL = """\
 schema_version: 1

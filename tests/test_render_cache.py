@@ -58,7 +58,7 @@ def test_cache_invalidated_by_any_change(tmp_path, change):
     ({"gaze": (100, 10)}, "outside the display"),
     ({"width": 200000}, "width=200000 is out of range"),
     ({"width": 20000, "height": 20000}, "too large for memory"),
-    ({"scene": "missing.yaml"}, "does not exist"),
+    ({"scene": "missing.yaml"}, "no such scene file"),
 ])
 def test_bad_input_one_line_nothing_written(tmp_path, kwargs, match, monkeypatch):
     monkeypatch.setattr(registry, "_available_bytes", lambda: 4e9)  # same verdict on any machine

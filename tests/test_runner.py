@@ -29,7 +29,7 @@ def _sim(p, pid, seed=0, script=None):
 
 def _log(db):
     """Tidy rows without the session id (a resumed run has more sessions than an uninterrupted one)."""
-    return [{k: v for k, v in r.items() if k != "session"} for r in open_store(db, create=False).tidy_rows()]
+    return [{k: v for k, v in r.items() if k != "session"} for r in open_store(db).tidy_rows()]
 
 
 @pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
@@ -151,7 +151,7 @@ def test_full_disk_mid_session_is_one_line_and_resume_completes(tmp_path, monkey
     assert main(args) == 2
     err = capsys.readouterr().err
     errors = [line for line in err.splitlines() if line.startswith("studyapp: error:")]
-    assert len(errors) == 1 and "disk full: could not save the response to trial" in errors[0]
+    assert len(errors) == 1 and "no space left on device: could not save the response to trial" in errors[0]
     assert err.endswith(errors[0] + "\n")
     monkeypatch.setattr(S.Store, "commit_response", real_commit)
     with open_store(db) as st:
@@ -192,7 +192,7 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys):
 def test_missing_stimulus_file_of_a_folder_condition(tmp_path, capsys):
     folder = tmp_path / "lab"
     p = load_protocol(PROTOCOLS / "seed003_task2.yaml", check_renderers=False)
-    text, n = re.subn(r"CC3: \{renderer: sl_as[^}]*\}", f"CC3: {{folder: {folder}, quality: 0.6}}",
+    text, n = re.subn(r"CC3: \{renderer: sl_as[^}]*\}", "CC3: {folder: lab, quality: 0.6}",
                       (PROTOCOLS / "seed003_task2.yaml").read_text())
     assert n == 1
     f = tmp_path / "t2.yaml"
@@ -305,8 +305,9 @@ def test_resume_after_a_stop_behind_the_last_answer_closes_the_session(tmp_path,
     p = load_protocol(PROTOCOLS / "seed001_pilot.yaml", stimuli_dir=tmp_path / "n", check_renderers=False)
     db = tmp_path / "s.db"
     run_session(p, "P1", db, _sim(p, "P1"), allow_declared=True)
-    with open_store(db) as st:  # as if killed after the last commit, before the session was closed
-        st.conn.execute("UPDATE sessions SET status = 'running', ended_utc = NULL")
+    with open_store(db, "write") as st:  # as if killed after the last commit, before the session was closed
+        with st.transaction("reopen") as c:
+            S._update(c, "sessions", {"id": "P1-s1"}, {"status": "running", "ended_utc": None})
     s = run_session(p, "P1", db, _sim(p, "P1"), resume=True, allow_declared=True)
     assert (s.session, s.status, s.answered, s.planned) == ("P1-s1", "completed", 4, 4)
     with open_store(db) as st:

@@ -48,7 +48,7 @@ def _state(db, pid):
 
 
 def _tidy(db):
-    with open_store(db, create=False) as st:
+    with open_store(db) as st:
         return [{k: v for k, v in r.items() if k != "session"} for r in st.tidy_rows()]
 
 

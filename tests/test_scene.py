@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from renderers.procedural import BUILTIN, builtin
-from renderers.scene import Camera, Material, Scene, load_yaml, resolve
+from renderers.catalog import builtin, resolve
+from renderers.scene import Camera, Material, Scene, SceneError, load_yaml
 
 
 @pytest.mark.parametrize("name,lights", [("cornell", 18), ("temple", 31), ("street_night", 12),
@@ -25,8 +25,10 @@ def test_builtin_scenes(name, lights):
 
 
 def test_content_hash_changes_with_content():
+    from renderers.procedural import cornell
+
     a = builtin("cornell")
-    b = BUILTIN["cornell"]()
+    b = cornell()  # a fresh copy, not the cached built-in
     assert a.content_hash() == b.content_hash()
     b.materials[0] = Material("white", albedo=(0.7, 0.73, 0.73))
     b._hash = None
@@ -41,7 +43,8 @@ def _write_yaml(tmp_path, text):
 
 @pytest.fixture(scope="module")
 def mesh_file(tmp_path_factory):
-    pv = pytest.importorskip("pyvista")
+    import pyvista as pv
+
     d = tmp_path_factory.mktemp("mesh")
     pv.Plane(i_size=4, j_size=4, i_resolution=2, j_resolution=2, direction=(0, 1, 0)).save(str(d / "floor.ply"))
     pv.Cube(center=(0, 0.5, 1), x_length=1, y_length=1, z_length=1).save(str(d / "cube.stl"))
@@ -77,18 +80,20 @@ def test_yaml_scene_loads_and_renders(mesh_file):
 
 
 @pytest.mark.parametrize("change,match", [
-    (("cube.stl", "missing.stl"), r"meshes\[1\]\.file=.*does not exist"),
-    (("kind: glossy", "kind: shiny"), r"materials\.box\.kind"),  # via the material's name
-    (("fov_y: 50", "fov_y: 200"), r"camera\.fov_y"),
-    (("material: box", "material: wood"), r"meshes\[1\]\.material='wood'"),
-    (("intensity: [5, 5, 5]", "intensity: [5, 5]"), r"lights\[0\].*intensity"),
-    (("camera:", "camra:"), r"scene\.camra is unknown"),
-    (("width: 64", "width: -3"), r"display\.width"),
+    (("cube.stl", "missing.stl"), r"bad\.yaml:\d+: meshes\[1\]\.file: mesh file .*missing\.stl' does not exist"),
+    (("kind: glossy", "kind: shiny"), r"bad\.yaml:\d+: materials\.box\.kind: 'shiny' is not one of"),
+    (("fov_y: 50", "fov_y: 200"), r"bad\.yaml:\d+: camera\.fov_y: 200 must be less than 180"),
+    (("material: box", "material: wood"), r"bad\.yaml:\d+: meshes\[1\]\.material: 'wood' is not defined"),
+    (("intensity: [5, 5, 5]", "intensity: [5, 5]"), r"bad\.yaml:\d+: lights\[0\]\.intensity: needs at least 3"),
+    (("camera:", "camra:"), r"bad\.yaml:\d+: camra: unknown field"),
+    (("width: 64", "width: -3"), r"bad\.yaml:\d+: display\.width: -3 is below the minimum 1"),
+    (("type: point", "type: spot"), r"bad\.yaml:\d+: lights\[0\]\.type: 'spot' is not one of point, directional"),
+    (("fov_y: 50}", "fov_y: 50, focus: 2}"), r"bad\.yaml:\d+: camera\.focus: unknown field"),
 ])
-def test_yaml_errors_name_the_field(mesh_file, change, match):
+def test_yaml_errors_name_the_file_line_and_field(mesh_file, change, match):
     p = mesh_file / "bad.yaml"
     p.write_text(GOOD.replace(*change))
-    with pytest.raises(ValueError, match=match) as exc:
+    with pytest.raises(SceneError, match=match) as exc:
         load_yaml(p)
     assert "\n" not in str(exc.value)
 
@@ -96,10 +101,10 @@ def test_yaml_errors_name_the_field(mesh_file, change, match):
 def test_yaml_malformed_and_no_lights(mesh_file):
     p = mesh_file / "broken.yaml"
     p.write_text("meshes: [ {file: floor.ply\nlights: ]")
-    with pytest.raises(ValueError, match="malformed YAML at line"):
+    with pytest.raises(SceneError, match=r"broken\.yaml:2: malformed YAML"):
         load_yaml(p)
     p.write_text(GOOD.replace("  - {type: point, position: [0, 3, 0], intensity: [5, 5, 5]}\n", ""))
-    with pytest.raises(ValueError, match="no point, directional or emissive light"):
+    with pytest.raises(SceneError, match=r"broken\.yaml:\d+: lights: the scene has no point, directional or emissive"):
         load_yaml(p)
 
 

@@ -14,7 +14,7 @@ H = "a" * 64
 
 
 def _study(path, n=6, family="2afc"):
-    st = open_store(path)
+    st = open_store(path, "create")
     st.bind_protocol("p", "1.0", H, {"name": "p", "family": family,
                                       "analysis": {"dv": "chosen", "unit": "participant", "test": "thurstone"}})
     rows = [PlannedRow(i, "catch" if i == n - 1 else "trial", family, f"s{i % 2}", "hmd",
@@ -39,7 +39,7 @@ def test_responses_are_unique_and_survive_reopening(tmp_path):
     with pytest.raises(StoreError, match="could not save the response to trial 0 of participant 'P1'"):
         st.commit_response("P1", 0, sid, ["B"], chosen="y", rt_s=0.5, onset_s=2.0)
     st.close()
-    with open_store(db, create=False) as st2:
+    with open_store(db) as st2:
         rows = st2.conn.execute("SELECT idx, chosen, rt_s FROM responses").fetchall()
         assert rows == [(0, "x", 0.7)]
         assert st2.first_unanswered("P1") == 1
@@ -57,7 +57,7 @@ def test_different_protocol_is_refused(tmp_path):
     db = tmp_path / "s.db"
     st, _ = _study(db)
     st.close()
-    with open_store(db) as st2:
+    with open_store(db, "write") as st2:
         st2.bind_protocol("p", "1.0", H, {})  # same hash: fine
         with pytest.raises(StoreError) as info:
             st2.bind_protocol("p", "1.1", "c" * 64, {})
@@ -71,11 +71,11 @@ def test_foreign_file_and_missing_db(tmp_path):
     con.execute("CREATE TABLE t (x)")
     con.commit()
     con.close()
-    with pytest.raises(StoreError, match="not a studyapp study database"):
+    with pytest.raises(StoreError, match="another application"):
         open_store(other)
     junk = tmp_path / "junk.db"
     junk.write_bytes(b"hello, not sqlite at all" * 100)
-    with pytest.raises(StoreError, match="cannot open the study database"):
+    with pytest.raises(StoreError, match="not an SQLite file"):
         open_store(junk)
     with pytest.raises(StoreError, match="no such study database"):
         S.read_trials(tmp_path / "none.db")
@@ -90,7 +90,7 @@ def test_full_disk_rolls_back_and_keeps_what_was_recorded(tmp_path):
     with pytest.raises(StoreError) as info:
         for i in range(1, 400):
             st.commit_response("P1", i, sid, ["B"], chosen="y" * 500, rt_s=0.5)
-    assert "disk full" in str(info.value) and "\n" not in str(info.value)
+    assert "no space left on device" in str(info.value) and "\n" not in str(info.value)
     st.close()
     with open_store(db) as st2:
         n = st2.conn.execute("SELECT COUNT(*) FROM responses").fetchone()[0]
@@ -114,7 +114,7 @@ def test_enospc_from_the_os_is_reported_as_disk_full(tmp_path, monkeypatch):
             return self.conn.execute(sql, *a)
 
     st.conn = Boom(st.conn)
-    with pytest.raises(StoreError, match="disk full: could not save the response to trial 1"):
+    with pytest.raises(StoreError, match="no space left on device: could not save the response to trial 1"):
         st.commit_response("P1", 1, sid, ["A"], chosen="x")
     assert st.conn.conn.execute("SELECT COUNT(*) FROM responses").fetchone()[0] == 0
     st.conn.conn.close()

@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from renderers.scene import Material, Scene
+from renderers.procedural import MeshBuilder, cornell
+from renderers.scene import Camera, Material, Scene
 
 
 def grid_triangles(origin, du, dv, nu: int, nv: int, normal) -> tuple[np.ndarray, np.ndarray]:
@@ -42,7 +43,6 @@ def grid_triangles(origin, du, dv, nu: int, nv: int, normal) -> tuple[np.ndarray
 
 
 def cornell_many() -> Scene:
-    from renderers.procedural import cornell
 
     base = cornell()
     names = [m.name for m in base.materials]
@@ -78,8 +78,6 @@ def _octahedron(radius: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def study() -> Scene:
-    from renderers.procedural import MeshBuilder
-    from renderers.scene import Camera
 
     b = MeshBuilder()
     for m in (Material("wall", albedo=(0.7, 0.68, 0.62)),
@@ -111,8 +109,6 @@ def study() -> Scene:
 
 
 def yard() -> Scene:
-    from renderers.procedural import MeshBuilder
-    from renderers.scene import Camera
 
     b = MeshBuilder()
     for m in (Material("ground", albedo=(0.4, 0.38, 0.33), albedo2=(0.25, 0.24, 0.22), texture="checker",
@@ -208,7 +204,6 @@ def trace_vpls(scene: Scene, light_pos, light_intensity, n: int, seed: int = 0, 
 
 
 def sponza_vpl(n_vpl: int = 120_000) -> Scene:
-    from renderers.procedural import MeshBuilder
     from renderers.scene import Camera, PointLight
 
     b = MeshBuilder()

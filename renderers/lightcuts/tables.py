@@ -49,7 +49,7 @@ def lightcut_tables(scene, width: int, height: int, *, alphas=(0.025, 0.05, 0.1,
     """
     from analysis.quality import region_masks
     from renderers import registry
-    from renderers.scene import resolve
+    from renderers.catalog import resolve
 
     from .fpsm import check_alpha
     from .plugin import register_all

@@ -52,14 +52,9 @@ def load_plan(log: Path, plan_file: str | None):
     from analysis.plan import plan_from_mapping
 
     if plan_file:
-        import yaml
+        from data_schema.yamlfile import load_yaml
 
-        try:
-            data = yaml.safe_load(Path(plan_file).read_text(encoding="utf-8"))
-        except OSError as exc:
-            raise CLIError(f"--plan {plan_file}: {exc.strerror or exc}") from None
-        except yaml.YAMLError as exc:
-            raise CLIError(f"--plan {plan_file}: not valid YAML ({str(exc).splitlines()[0]})") from None
+        data = load_yaml(plan_file, "analysis plan").data
         if isinstance(data, dict) and "analysis" in data:
             data = data["analysis"]
         try:
@@ -77,6 +72,7 @@ def cmd_analyze(args) -> int:
     from analysis.io import read_log
     from analysis.report import report_json, write_report
     from analysis.study import analyze_log
+    from data_schema.atomic import atomic_dir, check_dir_target
 
     log = Path(args.log)
     plan = load_plan(log, args.plan)
@@ -85,11 +81,15 @@ def cmd_analyze(args) -> int:
         conditions = tuple(c.strip() for c in args.conditions.split(",") if c.strip())
     plan = plan.with_overrides(reference=args.reference, unit=args.unit, test=args.test, conditions=conditions,
                                paired=args.paired, n_boot=args.n_boot, seed=args.seed)
+    out = check_dir_target(args.out, marker="analysis.json")
     df = read_log(log)
     _progress(f"{len(df):,} trials read")
     result = analyze_log(df, plan, progress=_progress)
-    paths = write_report(result, args.out, title=f"Analysis of {log.name}", figures=not args.no_figures,
-                         progress=_progress)
+    # Into a temporary folder first: a full disk or Ctrl-C leaves no half-written report behind.
+    with atomic_dir(out, marker="analysis.json") as tmp:
+        paths = write_report(result, tmp, title=f"Analysis of {log.name}", figures=not args.no_figures,
+                             progress=_progress)
+    paths = [out / p.relative_to(tmp) for p in paths]
     end_status()
     if args.json:
         print(json.dumps(report_json(result), indent=2))

@@ -227,6 +227,14 @@ def cmd_quality(args) -> int:
     if not gt_path.exists():
         raise CLIError(f"--gt {gt_path}: no such file")
     gt_image = load_image(gt_path)
+    if gaze is not None:
+        from renderers.scene import check_gaze
+
+        h, w = gt_image.shape[:2]
+        try:
+            gaze = check_gaze(gaze, w, h)
+        except ValueError as exc:
+            raise CLIError(f"--gaze: {exc}") from None
     paths = collect_inputs(args.inputs, gt_path)
     out = Path(args.out) if args.out else None
     table, written = quality_table(paths, gt_image, fov_y=args.fov_y, gaze=gaze, fovea_deg=args.fovea_deg,

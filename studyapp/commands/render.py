@@ -90,19 +90,21 @@ class _Ticker:
 
 def cmd_render(args) -> int:
     from renderers.registry import render
-    from renderers.scene import resolve
-    from renderers.stimuli import write_npy, write_png
+    from renderers.catalog import resolve
+    from data_schema.atomic import check_target
+    from renderers.stimuli import write_png_and_npy
 
     out = Path(args.out)
     if out.suffix.lower() != ".png":
         raise CLIError(f"--out {args.out!r} is invalid: must end in .png")
+    for target in (out, out.with_suffix(".npy")):
+        check_target(target)
     params = parse_params(args.param)
     gaze = parse_gaze(args.gaze)
     scene = resolve(args.scene)
     with _Ticker(f"rendering {scene.name} with {args.renderer}"):
         img, stats = render(scene, args.renderer, params, args.width, args.height, gaze=gaze)
-    write_npy(out.with_suffix(".npy"), img)
-    write_png(out, img, scene.exposure)
+    write_png_and_npy(out, img, scene.exposure)
     if args.json:
         from renderers.stimuli import jsonable_stats
 
@@ -115,9 +117,9 @@ def cmd_render(args) -> int:
 
 
 def cmd_scenes(args) -> int:
-    from renderers.procedural import BUILTIN, builtin
+    from renderers.catalog import BUILTIN_SCENES, builtin
 
-    rows = [builtin(name).summary() for name in BUILTIN]
+    rows = [builtin(name).summary() for name in BUILTIN_SCENES]
     if args.json:
         print(json.dumps(rows, indent=2))
         return 0
@@ -142,7 +144,7 @@ def demo_step(out_dir: Path, progress=None) -> list[Path]:
     """Render the Cornell box at 320x240 with GT and the foveated renderers (a few seconds in total)."""
     from renderers.stimuli import render_stimulus
 
-    from data_schema.atomic import write_text
+    from data_schema.atomic import write_bytes, write_text
 
     out_dir = Path(out_dir)
     cache = out_dir / "cache"
@@ -158,11 +160,3 @@ def demo_step(out_dir: Path, progress=None) -> list[Path]:
         lines.append(f"| {name} | {target.name} |")
     written.append(write_text(out_dir / "stimuli.md", "\n".join(lines) + "\n"))
     return written
-
-
-def write_bytes(path: Path, data: bytes) -> Path:
-    from data_schema.atomic import atomic_path
-
-    with atomic_path(path) as tmp:
-        tmp.write_bytes(data)
-    return path

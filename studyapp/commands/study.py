@@ -105,10 +105,6 @@ def cmd_run(args) -> int:
     from studyapp.runner.session import run_session
     from studyapp.runner.stimuli import missing_stimuli, prepare
 
-    if not 0.0 < args.scale <= 1.0:
-        raise CLIError(f"--scale={args.scale:g} is out of range: allowed (0, 1]")
-    if args.seed is not None and args.seed < 0:
-        raise CLIError(f"--seed={args.seed} is out of range: must be >= 0")
     notes: list[str] = []  # printed once the session has started (errors stay one line)
     p = _protocol(args.protocol, args.stimuli, check_renderers=not args.simulate)
     db = Path(args.db) if args.db else Path(f"{p.name}.db")
@@ -127,7 +123,7 @@ def cmd_run(args) -> int:
         if renderable and usable:
             print(f"{len(missing)} stimulus set(s) missing: preparing them first", file=sys.stderr)
             prepare(p, scale=args.scale, progress=ProgressBar("frames"))
-    if args.seed is None and args.resume:
+    if args.seed is None and args.resume and db.exists():
         from data_schema.store import open_store
         with open_store(db) as st:
             row = st.participant(args.participant)
@@ -160,7 +156,7 @@ def cmd_sessions(args) -> int:
     from data_schema.store import open_store
 
     db = Path(args.db)
-    with open_store(db, create=False) as st:
+    with open_store(db) as st:
         meta = st.meta()
         sessions = st.sessions()
         prog = st.progress()
@@ -184,7 +180,9 @@ def cmd_sessions(args) -> int:
 
 def cmd_export(args) -> int:
     from data_schema import store
+    from data_schema.atomic import check_target
 
+    check_target(args.out, inputs=[args.db])
     fn = {"csv": store.export_csv, "parquet": store.export_parquet, "pwcmp": store.export_pwcmp}[args.format]
     out = fn(args.db, args.out)
     print(out)
@@ -193,6 +191,8 @@ def cmd_export(args) -> int:
 
 # -- registration -------------------------------------------------------------------------------------------
 def register(subparsers, parser_class) -> None:
+    from data_schema.ranges import SCALE, SEED, argtype
+
     v = subparsers.add_parser("validate", help="check a study protocol (schema, references, schedule)",
                               description="Check a protocol YAML file against data_schema/protocol.schema.json "
                                           "and its cross-references; print its design and schedule size.")
@@ -203,7 +203,7 @@ def register(subparsers, parser_class) -> None:
                                description="Build every stimulus of a protocol through the renderer registry "
                                            "and the stimulus cache, with a progress bar and the time left.")
     pr.add_argument("protocol", metavar="PROTOCOL")
-    pr.add_argument("--scale", type=float, default=1.0, metavar="F",
+    pr.add_argument("--scale", type=argtype("--scale", SCALE), default=1.0, metavar="F",
                     help="shrink the resolution by F in (0, 1] for dry runs (default: 1)")
     pr.add_argument("--stimuli", metavar="DIR", help="stimulus folder (default: the protocol's stimuli_dir)")
     pr.add_argument("--cache", metavar="DIR", help="renderer cache folder (default: next to the stimuli)")
@@ -218,8 +218,9 @@ def register(subparsers, parser_class) -> None:
     r.add_argument("--db", metavar="FILE", help="study database (default: <protocol name>.db)")
     r.add_argument("--simulate", action="store_true", help="simulated observer, no window")
     r.add_argument("--resume", action="store_true", help="continue at the participant's first unanswered trial")
-    r.add_argument("--seed", type=int, metavar="N", help="schedule seed (default: 0; stored per participant)")
-    r.add_argument("--scale", type=float, default=1.0, metavar="F",
+    r.add_argument("--seed", type=argtype("--seed", SEED), metavar="N",
+                   help="schedule seed (default: 0; stored per participant)")
+    r.add_argument("--scale", type=argtype("--scale", SCALE), default=1.0, metavar="F",
                    help="use the stimulus set prepared with --scale F (default: 1)")
     r.add_argument("--stimuli", metavar="DIR", help="stimulus folder (default: the protocol's stimuli_dir)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")

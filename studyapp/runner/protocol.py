@@ -140,6 +140,15 @@ class Protocol:
         """Condition the simulated observer compares against (simulation.ground_truth, else reference/catch)."""
         return self.simulation.get("ground_truth") or self.reference or (self.catch or {}).get("good")
 
+    def scene_ref(self, scene: str) -> str:
+        """What the renderers resolve for ``scene``: a built-in name, or the scene file next to the protocol."""
+        from renderers.catalog import BUILTIN_SCENES, scene_file
+
+        if scene in BUILTIN_SCENES:
+            return scene
+        path = scene_file(scene, self.path.resolve().parent)
+        return str(path) if path is not None else scene
+
     def describe(self) -> str:
         n = len(self.design_conditions)
         return (f"{self.name} {self.version}: {self.family}, {len(self.scenes)} scene(s), {n} condition(s), "
@@ -194,11 +203,37 @@ def _conditions(doc: LoadedYAML, data: dict, base: Path, check_renderers: bool) 
         if derive and data["conditions"][derive["from"]].get("derive"):
             raise doc.error(where + ("derive", "from"), "cannot derive from a derived condition")
         out[name] = Condition(name=name, renderer=spec.get("renderer"), params=dict(spec.get("params", {})),
-                              folder=(base / spec["folder"]) if "folder" in spec else None,
+                              folder=_inside(doc, base, where + ("folder",), spec["folder"]) if "folder" in spec
+                              else None,
                               derive_from=derive.get("from"), blur_sigma_px=float(derive.get("blur_sigma_px", 0)),
                               noise=float(derive.get("noise", 0)), label=spec.get("label", name),
                               quality=spec.get("quality"), role=spec.get("role", "main"))
     return out
+
+
+def _inside(doc: LoadedYAML, base: Path, field: tuple, relative: str) -> Path:
+    """``base / relative``, refused when it leaves the protocol's folder (``..``, an absolute path): a protocol
+    file never makes studyapp read or write elsewhere; a folder elsewhere is given on the command line."""
+    target = (base / relative).resolve()
+    if Path(relative).is_absolute() or not target.is_relative_to(base):
+        raise doc.error(field, f"{relative!r} is outside the protocol's folder {base}: give a folder inside it, "
+                        "or the folder on the command line (--stimuli DIR)")
+    return target
+
+
+def _check_scenes(doc: LoadedYAML, data: dict, base: Path) -> None:
+    """Every scene a renderer condition renders must be a built-in scene or a scene file next to the protocol."""
+    try:
+        from renderers.catalog import BUILTIN_SCENES, scene_exists
+    except ImportError:  # an analysis-only install: scenes are checked where they are rendered
+        return
+    names = [(("scenes", i), s) for i, s in enumerate(data["scenes"])]
+    if data.get("practice"):
+        names.append((("practice", "scene"), data["practice"]["scene"]))
+    for where, name in names:
+        if not scene_exists(name, base):
+            raise doc.error(where, f"unknown scene {name!r}: neither a built-in scene ({', '.join(BUILTIN_SCENES)}) "
+                            f"nor a scene file {name}.yaml next to the protocol")
 
 
 def _check_condition(doc, conditions, field_path, name, allow_roles=("main", "catch", "practice")):
@@ -286,6 +321,9 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Proto
     if "escape" in answer_keys or "escape" in switch_keys:
         raise doc.error(("keys",), "escape is reserved for pausing the session")
 
+    if check_renderers and any(c.renderer for c in conditions.values()):
+        _check_scenes(doc, data, base)
+
     practice = data.get("practice")
     if practice:
         for i, c in enumerate(practice["conditions"]):
@@ -320,8 +358,8 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Proto
 
     fix = data.get("fixation", {"x": 0.5, "y": 0.5})
     timing = data.get("timing", {})
-    sdir = Path(stimuli_dir) if stimuli_dir is not None else base / data.get("stimuli_dir",
-                                                                                f"stimuli/{data['name']}")
+    sdir = Path(stimuli_dir) if stimuli_dir is not None else _inside(
+        doc, base, ("stimuli_dir",), data.get("stimuli_dir", f"stimuli/{data['name']}"))
     return Protocol(
         path=path, data=data, name=data["name"], version=data["version"], family=family,
         question=data["question"], instructions=data.get("instructions", ""), block=data.get("block", ""),

@@ -15,6 +15,7 @@ Order of events (what survives a crash at any point):
 
 from __future__ import annotations
 
+import contextlib
 import platform
 import re
 import sqlite3
@@ -23,7 +24,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from data_schema.store import PlannedRow, Store, StoreError, open_store
+from data_schema.store import PlannedRow, Store, StoreError, open_store, remove_database
 from studyapp.presentation.base import DisplaySettings, Stimulus, TrialDisplay, TrialResult
 
 from .protocol import Protocol
@@ -146,16 +147,17 @@ def run_session(protocol: Protocol, participant: str, db_path, presenter_factory
                          "'_', '.' or '-' (no names or e-mail addresses)")
     db_path = Path(db_path)
     created = not db_path.exists()
-    store = open_store(db_path)
+    if created and resume:
+        raise StoreError(f"{db_path}: no such study database: nothing to resume")
+    store = open_store(db_path, "create" if created else "write")
     try:
         return _run(store, protocol, participant, presenter_factory, seed, resume, scale, stimuli_root,
                     allow_declared, on_started, progress)
     finally:
         empty = created and not store.meta()
         store.close()
-        if empty:  # a refused first run leaves no database behind
-            for suffix in ("", "-wal", "-shm"):
-                Path(str(db_path) + suffix).unlink(missing_ok=True)
+        if empty:  # a refused first run (or Ctrl-C before the first trial) leaves no database behind
+            remove_database(db_path)
 
 
 def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_root, allow_declared, on_started,
@@ -168,6 +170,8 @@ def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_r
                          "planned trials answered): use --resume to continue, or another --participant")
     if resume and not existing:
         raise StoreError(f"{store.path}: participant {pid!r} has no session to resume")
+    if existing:
+        store.check_not_running(pid)  # a second --resume while the first still runs (checked again at start)
     if existing:
         if seed is not None and seed != existing["seed"]:
             raise StoreError(f"{store.path}: participant {pid!r} was scheduled with --seed {existing['seed']}, "
@@ -210,7 +214,14 @@ def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_r
                                   resumed_from=previous)
         if on_started:
             on_started(sid)
-        status = _loop(store, protocol, pid, sid, presenter, stimuli, disp, resume, progress)
+        try:
+            status = _loop(store, protocol, pid, sid, presenter, stimuli, disp, resume, progress)
+        except BaseException as exc:  # Ctrl-C, SIGTERM, a full disk: committed answers stay; the session says so
+            with contextlib.suppress(StoreError):
+                store.event(sid, "interrupted", "Ctrl-C or SIGTERM" if isinstance(exc, KeyboardInterrupt)
+                            else str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__)
+                store.end_session(sid, "interrupted")
+            raise
     finally:
         presenter.close()
     return _summary(store, protocol, pid, sid, status)

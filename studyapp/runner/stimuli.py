@@ -129,10 +129,10 @@ def camera_at(protocol: Protocol, frame: int) -> dict | None:
 def frame_camera(protocol: Protocol, scene: str, frame: int) -> dict | None:
     """The renderer's camera of ``frame``, with the previous frame's camera under ``previous`` (frames after
     the first of a moving sequence), so renderers that use screen-space velocity see the camera motion."""
-    cam = absolute_camera(scene, camera_at(protocol, frame))
+    cam = absolute_camera(protocol.scene_ref(scene), camera_at(protocol, frame))
     if cam is None or frame == 0:
         return cam
-    prev = absolute_camera(scene, camera_at(protocol, frame - 1))
+    prev = absolute_camera(protocol.scene_ref(scene), camera_at(protocol, frame - 1))
     if prev is None or prev == cam:
         return cam
     return {**cam, "previous": prev}
@@ -146,7 +146,7 @@ def absolute_camera(scene: str, camera: dict | None) -> dict | None:
     """
     if not camera or not ({"yaw_deg", "pitch_deg"} & set(camera)):
         return camera
-    from renderers.scene import resolve
+    from renderers.catalog import resolve
 
     cam = resolve(scene).camera
     f, r, u = cam.basis()
@@ -277,8 +277,8 @@ def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, ca
                     done += 1
                     continue
                 t1 = time.perf_counter()
-                png = render(need.scene, cond.renderer, dict(cond.params), disp.width_px, disp.height_px, gaze,
-                             camera=frame_camera(protocol, need.scene, i), cache_dir=cache)
+                png = render(protocol.scene_ref(need.scene), cond.renderer, dict(cond.params), disp.width_px,
+                             disp.height_px, gaze, camera=frame_camera(protocol, need.scene, i), cache_dir=cache)
                 dst.parent.mkdir(parents=True, exist_ok=True)
                 with atomic_path(dst) as tmp:
                     shutil.copyfile(png, tmp)
