@@ -132,6 +132,8 @@ def atomic_dir(path, marker: str):
         shutil.rmtree(tmp, ignore_errors=True)
         if isinstance(exc, OSError):
             raise _write_error(path, exc) from None
+        if isinstance(exc, UserError) and str(tmp) in str(exc):  # name the target, never the temporary folder
+            raise UserError(str(exc).replace(str(tmp), str(path))) from None
         raise
 
 

@@ -43,13 +43,14 @@ import math
 import os
 import socket
 import sqlite3
+import tempfile
 import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
-from .atomic import atomic_path, write_text
+from .atomic import atomic_path, current_umask, write_text
 from .errors import UserError
 from .trial_log import ALL_COLUMNS
 
@@ -220,8 +221,11 @@ class Store:
     def __enter__(self) -> Store:  # noqa: PYI034 - a final class
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, exc_type, exc, tb) -> None:
         self.close()
+        if self.readonly and isinstance(exc, sqlite3.DatabaseError):  # a damaged page met while reading
+            with damage_is_refused(self.path):
+                raise exc
 
     def close(self) -> None:
         with contextlib.suppress(sqlite3.Error):
@@ -307,6 +311,10 @@ class Store:
         rows = self.conn.execute("SELECT idx, kind, family, scene, block, conditions, expected, break_before "
                                  "FROM planned_trials WHERE participant = ? ORDER BY idx", (pid,)).fetchall()
         return [PlannedRow(r[0], r[1], r[2], r[3], r[4], tuple(json.loads(r[5])), r[6], bool(r[7])) for r in rows]
+
+    def has_answers(self) -> bool:
+        """Whether any participant has answered anything (a database without answers holds no one's data)."""
+        return self.conn.execute("SELECT 1 FROM responses LIMIT 1").fetchone() is not None
 
     def answered(self, pid: str) -> set[int]:
         return {r[0] for r in self.conn.execute("SELECT idx FROM responses WHERE participant = ?", (pid,))}
@@ -527,13 +535,26 @@ def _check_tables(path: Path, conn: sqlite3.Connection) -> None:
                          "it was left untouched")
 
 
+@contextlib.contextmanager
+def damage_is_refused(path: Path):
+    """Turn SQLite's "malformed" errors while reading ``path`` into the one-line damaged-database refusal."""
+    try:
+        yield
+    except sqlite3.DatabaseError as exc:
+        if isinstance(exc, (sqlite3.OperationalError, sqlite3.IntegrityError)) and "malformed" not in str(exc):
+            raise StoreError(f"{path}: cannot read the study database: {str(exc).splitlines()[0]}") from None
+        raise _damaged(path, str(exc).splitlines()[0]) from None
+
+
 def verify(path: Path, conn: sqlite3.Connection) -> None:
     """Refuse a damaged database: SQLite's ``quick_check`` and foreign keys, every row's checksum, and the
     stored row counts of every participant (a row that vanished from a damaged page is noticed too)."""
     try:
-        bad = [r[0] for r in conn.execute("PRAGMA quick_check(3)").fetchall() if r[0] != "ok"]
+        # integrity_check, not quick_check: it also checks that every index agrees with its table, so a
+        # damaged index cannot hide rows from the lookups below.
+        bad = [r[0] for r in conn.execute("PRAGMA integrity_check(3)").fetchall() if r[0] != "ok"]
         if bad:
-            raise _damaged(path, bad[0].replace("\n", "; ").replace("*** in database main *** ; ", "")[:160])
+            raise _damaged(path, bad[0].replace("*** in database main ***", "").strip().replace("\n", "; ")[:160])
         fk = conn.execute("PRAGMA foreign_key_check").fetchone()
         if fk:
             raise _damaged(path, f"a row of {fk[0]} refers to a missing row of {fk[2]}")
@@ -581,17 +602,18 @@ def open_store(path, mode: str = "read") -> Store:
         raise StoreError(f"{path}: no such study database")
     _header(path)
     wal = Path(str(path) + "-wal")
-    if not (wal.exists() and wal.stat().st_size > 0):
-        # Recognised without creating anything: immutable = no locks, no -shm/-wal files.
-        with contextlib.closing(_connect_immutable(path)) as probe:
-            _check_tables(path, probe)
-    conn = _connect_ro(path)
-    try:
-        _check_tables(path, conn)
-        verify(path, conn)
-    except BaseException:
-        conn.close()
-        raise
+    with damage_is_refused(path):
+        if not (wal.exists() and wal.stat().st_size > 0):
+            # Recognised without creating anything: immutable = no locks, no -shm/-wal files.
+            with contextlib.closing(_connect_immutable(path)) as probe:
+                _check_tables(path, probe)
+        conn = _connect_ro(path)
+        try:
+            _check_tables(path, conn)
+            verify(path, conn)
+        except BaseException:
+            conn.close()
+            raise
     if mode == "read":
         conn.execute("PRAGMA query_only = ON")
         return Store(path, conn, readonly=True)
@@ -624,35 +646,50 @@ def _connect_rw(path: Path) -> sqlite3.Connection:
 
 
 def _create(path: Path) -> Store:
-    """A new, empty study database at ``path``, which must not exist (claimed with O_EXCL: no race)."""
-    if path.is_dir():
-        raise StoreError(f"{path}: is a folder, not a study database")
+    """A new study database at ``path``, which must not exist.
+
+    The file is built completely under a temporary name (marker, format, every table) and then linked to
+    ``path`` (``link`` fails if ``path`` exists: no race with another process), so a crash or a kill at any
+    moment leaves either no database or a complete empty one, never a file that is refused later.
+    """
+    if path.exists() or path.is_symlink():
+        raise StoreError(f"{path}: already exists: only a new path becomes a new study database")
+    tmp = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666)
+        fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".creating", dir=path.parent)
         os.close(fd)
-    except FileExistsError:
-        raise StoreError(f"{path}: already exists: only a new path becomes a new study database") from None
-    except OSError as exc:
-        if _is_full(exc):
-            raise StoreError(f"{path}: no space left on device: cannot create the study database") from None
-        raise StoreError(f"{path}: cannot create the study database: {exc.strerror or exc}") from None
-    try:
-        conn = sqlite3.connect(str(path), isolation_level=None, timeout=10.0)
-        # The marker goes into the file header before the switch to WAL, so it is on disk from the start.
+        tmp = Path(name)
+        conn = sqlite3.connect(str(tmp), isolation_level=None)
+        conn.execute("PRAGMA journal_mode=DELETE")
+        conn.execute("PRAGMA synchronous=FULL")
         conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
         conn.execute(f"PRAGMA user_version = {STORE_FORMAT}")
+        conn.executescript("BEGIN;" + SCHEMA + "COMMIT;")
         conn.close()
-        conn = _connect_rw(path)
-        conn.executescript(SCHEMA)
-    except BaseException as exc:
-        remove_database(path)
-        if isinstance(exc, (sqlite3.Error, OSError)):
-            if _is_full(exc):
-                raise StoreError(f"{path}: no space left on device: cannot create the study database") from None
-            raise StoreError(f"{path}: cannot create the study database: {str(exc).splitlines()[0]}") from None
-        raise
-    return Store(path, conn, readonly=False)
+        os.chmod(tmp, 0o666 & ~current_umask())
+        os.link(tmp, path)
+    except FileExistsError:
+        raise StoreError(f"{path}: already exists: only a new path becomes a new study database") from None
+    except (sqlite3.Error, OSError) as exc:
+        if _is_full(exc):
+            raise StoreError(f"{path}: no space left on device: cannot create the study database") from None
+        reason = getattr(exc, "strerror", None) or str(exc).splitlines()[0]
+        raise StoreError(f"{path}: cannot create the study database: {reason}") from None
+    finally:
+        if tmp is not None:
+            remove_database(tmp)
+    _fsync_dir(path.parent)
+    return Store(path, _connect_rw(path), readonly=False)
+
+
+def _fsync_dir(folder: Path) -> None:
+    with contextlib.suppress(OSError):
+        fd = os.open(folder, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
 
 
 def remove_database(path) -> None:

@@ -91,7 +91,15 @@ def _check_limits(text: str, path: Path, error_class: type) -> None:
             raise error_class(f"{path}:{line}: too many YAML nodes (more than {MAX_NODES:,} after expanding "
                               "aliases): refusing the file")
 
-    for ev in yaml.parse(text, Loader=_EventLoader):
+    try:
+        events = list(_events(text))
+    except yaml.YAMLError as exc:  # libyaml stops at its own depth limit (1000): say it as we do
+        if "nesting depth" in str(exc):
+            mark = getattr(exc, "problem_mark", None)
+            raise error_class(f"{path}:{mark.line + 1 if mark else 1}: nested deeper than {MAX_DEPTH} levels: "
+                              "refusing the file") from None
+        raise
+    for ev in events:
         line = ev.start_mark.line + 1 if ev.start_mark is not None else 1
         if isinstance(ev, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
             if len(stack) >= MAX_DEPTH:
@@ -110,6 +118,19 @@ def _check_limits(text: str, path: Path, error_class: type) -> None:
                 sizes[ev.anchor] = 1
         elif isinstance(ev, yaml.AliasEvent):
             add(sizes.get(ev.anchor, 1), line)
+
+
+def _events(text: str):
+    """The parse events, stopping at the first one past MAX_DEPTH (no need to parse the rest)."""
+    depth = 0
+    for ev in yaml.parse(text, Loader=_EventLoader):
+        yield ev
+        if isinstance(ev, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+            depth += 1
+            if depth > MAX_DEPTH:
+                return
+        elif isinstance(ev, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+            depth -= 1
 
 
 def _walk(node, path: tuple, lines: dict, file: Path, error_class: type) -> None:

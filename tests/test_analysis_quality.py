@@ -317,12 +317,14 @@ def test_cli_quality_json_and_npy(tmp_path, stimuli, monkeypatch, capsys):
     _folder, gt, _ = stimuli
     np.save(tmp_path / "gt.npy", gt / 255.0)
     np.save(tmp_path / "half.npy", gt / 510.0)
-    argv = ["quality", "--gt", str(tmp_path / "gt.npy"), "--fov-y", "90", "--gaze=-1000,1000", "--json",
+    argv = ["quality", "--gt", str(tmp_path / "gt.npy"), "--fov-y", "90", "--gaze=0,24", "--json",
             str(tmp_path / "half.npy")]
     assert _main(monkeypatch, argv) == 0
     records = json.loads(capsys.readouterr().out)
     assert [r["region"] for r in records] == ["fovea", "periphery", "all"]
-    assert records[0]["n_pixels"] == 0 and records[0]["mse"] is None and "no pixels" in records[0]["note"]
+    assert 0 < records[0]["n_pixels"] < 24 * 32  # the fovea around the bottom-left corner
+    argv[5] = "--gaze=-1000,1000"  # a gaze outside the image is refused, as `render` refuses it
+    assert _main(monkeypatch, argv) == 2
     assert records[2]["mse"] == pytest.approx(float(np.mean((gt / 510.0) ** 2)), rel=1e-12)
     assert records[2]["n_pixels"] == 24 * 32
 

@@ -41,9 +41,9 @@ display: {{width_px: 320, height_px: 240, width_cm: 30.0, distance_cm: 60.0, ref
 fixation: {{x: 0.5, y: 0.5}}
 scenes: [room]
 conditions:
-  GT: {{folder: {root}/GT}}
-  LOW: {{folder: {root}/LOW}}
-  MID: {{folder: {root}/MID}}
+  GT: {{folder: GT}}
+  LOW: {{folder: LOW}}
+  MID: {{folder: MID}}
 stimulus: {{kind: image}}
 timing: {{black_s: 0.2}}
 design: {{conditions: [GT, LOW, MID], repetitions: 1, scene_order: fixed, trial_order: blocked}}
@@ -208,8 +208,8 @@ display: {{width_px: 320, height_px: 240, width_cm: 30.0, distance_cm: 60.0, ref
 fixation: {{x: 0.25, y: 0.5}}
 scenes: [room]
 conditions:
-  GT: {{folder: {root}/GT}}
-  LOW: {{folder: {root}/LOW}}
+  GT: {{folder: GT}}
+  LOW: {{folder: LOW}}
 stimulus: {{kind: sequence, duration_s: 0.6, fps: 5}}
 timing: {{black_s: 0.2}}
 design: {{conditions: [GT, LOW], repetitions: 1, scene_order: fixed, trial_order: blocked,

@@ -49,18 +49,20 @@ def _progress(msg: str) -> None:
 
 def load_plan(log: Path, plan_file: str | None):
     """The analysis plan: --plan file, else the database's protocol plan, else the defaults."""
-    from analysis.plan import plan_from_mapping
-
     if plan_file:
         from data_schema.yamlfile import load_yaml
 
-        data = load_yaml(plan_file, "analysis plan").data
+        data = load_yaml(plan_file, "analysis plan").data  # before importing the statistics (~2 s)
+        from analysis.plan import plan_from_mapping
+
         if isinstance(data, dict) and "analysis" in data:
             data = data["analysis"]
         try:
             return plan_from_mapping(data)
         except ValueError as exc:
             raise CLIError(f"--plan {plan_file}: {exc}") from None
+    from analysis.plan import plan_from_mapping
+
     if log.suffix.lower() in (".db", ".sqlite", ".sqlite3"):
         from data_schema.store import read_analysis_plan
 
@@ -69,13 +71,14 @@ def load_plan(log: Path, plan_file: str | None):
 
 
 def cmd_analyze(args) -> int:
-    from analysis.io import read_log
-    from analysis.report import report_json, write_report
-    from analysis.study import analyze_log
     from data_schema.atomic import atomic_dir, check_dir_target
 
     log = Path(args.log)
     plan = load_plan(log, args.plan)
+    from analysis.io import read_log
+    from analysis.report import report_json, write_report
+    from analysis.study import analyze_log
+
     conditions = None
     if args.conditions is not None:
         conditions = tuple(c.strip() for c in args.conditions.split(",") if c.strip())

@@ -154,9 +154,9 @@ def run_session(protocol: Protocol, participant: str, db_path, presenter_factory
         return _run(store, protocol, participant, presenter_factory, seed, resume, scale, stimuli_root,
                     allow_declared, on_started, progress)
     finally:
-        empty = created and not store.meta()
+        empty = created and not store.has_answers()
         store.close()
-        if empty:  # a refused first run (or Ctrl-C before the first trial) leaves no database behind
+        if empty:  # a refused first run (or Ctrl-C before the first answer) leaves no database behind
             remove_database(db_path)
 
 
