@@ -11,8 +11,8 @@ set by the eccentricity of every pixel centre seen from the gaze point (seed 001
 
 with pixel ``(i, j)`` centred at ``(i + 0.5, j + 0.5)``, ``y`` growing downwards and the gaze
 ``(x0, y0)`` in the same continuous pixel coordinates (default: the display centre). This is
-the same convention as :class:`renderers.foveation.geometry.DisplayGeometry`; it is repeated
-here in plain NumPy so that ``import analysis`` loads neither numba nor the renderers.
+the convention of :class:`data_schema.geometry.ViewingGeometry`, which computes it (the one home of the
+viewing geometry; it needs only NumPy, so ``import analysis`` loads neither numba nor the renderers).
 
 Light on purpose: scikit-image and matplotlib are imported inside the functions that need them.
 """
@@ -136,8 +136,12 @@ def _check_pair(image: Any, reference: Any, data_range: Any) -> tuple[np.ndarray
 
 
 # --- geometry -----------------------------------------------------------------------------------------------
-def _c_r(height: int, fov_y_deg: float) -> float:
-    return 2.0 * math.tan(math.radians(fov_y_deg) / 2.0) / height
+def _geometry(width: int, height: int, fov_y_deg: float, gaze: Any = None):
+    from data_schema.geometry import ViewingGeometry
+
+    w, h = _whole("width", width), _whole("height", height)
+    fov = _open_interval("fov_y_deg", fov_y_deg, 0.0, 180.0)
+    return ViewingGeometry.create(w, h, fov, _gaze_xy(gaze, w, h))
 
 
 def eccentricity_map(width: int, height: int, fov_y_deg: float, gaze: Any = None) -> np.ndarray:
@@ -169,17 +173,10 @@ def eccentricity_map(width: int, height: int, fov_y_deg: float, gaze: Any = None
 
     Notes
     -----
-    The gaze is taken to lie on the optical axis, as in the seed, so ``e`` depends on the
-    distance from the gaze only. Equals ``DisplayGeometry.eccentricity`` of the same
-    distances (tested).
+    :meth:`data_schema.geometry.ViewingGeometry.eccentricity_map`: the gaze is taken to lie on the optical
+    axis, as in the seed, so ``e`` depends on the distance from the gaze only.
     """
-    w, h = _whole("width", width), _whole("height", height)
-    fov = _open_interval("fov_y_deg", fov_y_deg, 0.0, 180.0)
-    gx, gy = _gaze_xy(gaze, w, h)
-    dx = np.arange(w, dtype=np.float64) + 0.5 - gx
-    dy = np.arange(h, dtype=np.float64) + 0.5 - gy
-    r = np.hypot(dx[None, :], dy[:, None])
-    return np.degrees(np.arctan(_c_r(h, fov) * r))
+    return _geometry(width, height, fov_y_deg, gaze).eccentricity_map()
 
 
 def fovea_radius_px(height: int, fov_y_deg: float, fovea_deg: float = 5.0) -> float:
@@ -199,10 +196,8 @@ def fovea_radius_px(height: int, fov_y_deg: float, fovea_deg: float = 5.0) -> fl
     float
         Distance from the gaze at which the eccentricity equals ``fovea_deg``.
     """
-    h = _whole("height", height)
-    fov = _open_interval("fov_y_deg", fov_y_deg, 0.0, 180.0)
     ef = _open_interval("fovea_deg", fovea_deg, 0.0, 90.0)
-    return math.tan(math.radians(ef)) / _c_r(h, fov)
+    return float(_geometry(1, height, fov_y_deg).radius(ef))
 
 
 def region_masks(width: int, height: int, fov_y_deg: float, gaze: Any = None, fovea_deg: float = 5.0

@@ -65,6 +65,7 @@ def _occluder(seed: int = 1):
 
 def run(repeats: int) -> list[str]:
     from renderers.lightcuts.foveated import foveated_lightcuts
+    from data_schema.geometry import ViewingGeometry
     from renderers.lightcuts.fpsm import eccentricity_map
     from renderers.lightcuts.sampling import stochastic_lightcuts
     from renderers.lightcuts.tree import build_light_tree
@@ -83,7 +84,7 @@ def run(repeats: int) -> list[str]:
     small, small_lr = _gbuffer(64, 40), _gbuffer(8, 5)
     stochastic_lightcuts(tree, small, 4, occluded=occ)
     for mr in (True, False):
-        foveated_lightcuts(tree, small, small_lr, eccentricity_map(64, 40, 90.0), np.zeros((40, 64, 2)), 0.1,
+        foveated_lightcuts(tree, small, small_lr, eccentricity_map(ViewingGeometry.create(64, 40, 90.0)), np.zeros((40, 64, 2)), 0.1,
                            48, occluded=occ, multires=mr)
     sample_rows = []
     for budget, (bw, bh) in ((8, (w, h)), (48, (w // 2, h // 2))):
@@ -100,7 +101,7 @@ def run(repeats: int) -> list[str]:
             f"| SL, {budget} nodes/pixel | {bw}×{bh}, 110k lights | {t_free:.2f} s without shadows "
             f"({n_s / t_free / 1e6:.2f} M samples/s) | {t_occ:.2f} s with {res.shadow_rays / 1e6:.1f} M shadow rays |")
     gl = _gbuffer(w // 8, h // 8)
-    ecc = eccentricity_map(w, h, 90.0)
+    ecc = eccentricity_map(ViewingGeometry.create(w, h, 90.0))
     vel = np.zeros((h, w, 2))
     fov_rows = []
     for multires in (True, False):
@@ -122,10 +123,8 @@ def run(repeats: int) -> list[str]:
 def scene_rows(repeats: int) -> list[str]:
     """``cornell_many`` (111,858 mesh lights) through the renderer plug-ins at 1280×720 (issue 6 item 8)."""
     from renderers import registry
-    from renderers.lightcuts.plugin import register_all
     from renderers.lightcuts.scenes import cornell_many
 
-    register_all()
     sc = cornell_many()
     registry.render(sc, "fsl", {}, 64, 36)  # compile
     rows = []

@@ -47,9 +47,9 @@ FOVEA_DEG = 5.0
 
 
 def eccentricity_rows(W, H, fov, y0, y1):
-    from renderers.foveation import DisplayGeometry
+    from data_schema.geometry import ViewingGeometry
 
-    d = DisplayGeometry.create(W, H, fov)
+    d = ViewingGeometry.create(W, H, fov)
     x = np.arange(W) + 0.5
     y = np.arange(y0, y1)[:, None] + 0.5
     return d.eccentricity(np.hypot(x[None, :] - W / 2, y - H / 2))
@@ -83,9 +83,9 @@ def errors(img, gt, fov):
         out[f"mse_{k}"] = mse
         out[f"psnr_{k}"] = math.inf if mse == 0 else 10 * math.log10(1.0 / mse)
     luma = lambda a: srgb(a) @ np.array([0.2126, 0.7152, 0.0722], np.float32)  # noqa: E731
-    from renderers.foveation import DisplayGeometry
+    from data_schema.geometry import ViewingGeometry
 
-    r5 = float(DisplayGeometry.create(W, H, fov).radius(FOVEA_DEG))
+    r5 = float(ViewingGeometry.create(W, H, fov).radius(FOVEA_DEG))
     c = int(min(r5, W / 2, H / 2))
     fy, fx = slice(H // 2 - c, H // 2 + c), slice(W // 2 - c, W // 2 + c)
     s_map = structural_similarity(luma(img[fy, fx]), luma(gt[fy, fx]), data_range=1.0, full=True)[1]

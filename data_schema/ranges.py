@@ -98,3 +98,8 @@ def argtype(option: str, rng: Range):
 SEED = Range(0, INT64_MAX, integer=True)
 SCALE = Range(0.0, 1.0, low_open=True)
 FOV_Y = Range(0.0, 180.0, low_open=True, high_open=True)
+
+
+def check_range(name: str, value, low=None, high=None, *, low_open: bool = True, high_open: bool = True) -> float:
+    """A float in ``(low, high)`` (ends open unless said otherwise), e.g. a mapping parameter."""
+    return Range(low, high, low_open, high_open).check(name, value)

@@ -82,22 +82,6 @@ def wrap_pad(lp, n, pad, out):
                 out[jj, c, ch] = lp[j, c, ch]
 
 
-@njit(cache=True, parallel=True)
-def eccentricity_bands(gx, gy, c_r, x0, y0, edges, out):
-    """Band index of each pixel of a tile: number of ``edges`` (degrees) below its eccentricity (Eq 3)."""
-    th, tw = out.shape
-    for j in prange(th):
-        dy = y0 + j + 0.5 - gy
-        for i in range(tw):
-            dx = x0 + i + 0.5 - gx
-            e = math.degrees(math.atan(c_r * math.sqrt(dx * dx + dy * dy)))
-            b = 0
-            for q in range(edges.size):
-                if e >= edges[q]:
-                    b += 1
-            out[j, i] = b
-
-
 @njit(cache=True, inline="always")
 def fast_angle(dx, dy):
     """``atan2(dy, dx)`` in ``[0, 2 pi)`` by a minimax polynomial (|error| < 1.2e-5 rad)."""

@@ -204,16 +204,16 @@ def lp_filter(lp: np.ndarray, n: np.ndarray, kind: str, exposure: float = 1.0) -
     return np.ascontiguousarray(blur(padded, 1.0, 1)[pad:pad + lp.shape[0]])
 
 
-def foveal_gaussian(img: np.ndarray, gaze, c_r: float, y0: int = 0, rows: tuple[int, int] | None = None):
+def foveal_gaussian(img: np.ndarray, geometry, y0: int = 0, rows: tuple[int, int] | None = None):
     """LMFR's post anti-aliasing: each pixel takes the Gaussian of its eccentricity band (seed 001 §7).
 
     ``img`` is a screen tile whose row 0 is screen row ``y0``, including up to ``max(FOVEAL_RADII)`` halo rows;
-    ``rows`` (default: all) are the tile rows to return. Eccentricity follows seed 001 Eq 3,
-    ``e = atan(c_r r)``.
+    ``rows`` (default: all) are the tile rows to return. Eccentricity is the viewing geometry's (seed 001
+    Eq 3, :meth:`data_schema.geometry.ViewingGeometry.eccentricity_map`).
     """
     r0, r1 = rows if rows is not None else (0, img.shape[0])
-    band = np.empty((r1 - r0, img.shape[1]), dtype=np.int64)
-    _lp.eccentricity_bands(float(gaze[0]), float(gaze[1]), c_r, 0.0, float(y0 + r0), FOVEAL_BANDS_DEG, band)
+    ecc = geometry.eccentricity_map(slice(y0 + r0, y0 + r1))
+    band = np.searchsorted(np.asarray(FOVEAL_BANDS_DEG), ecc, side="right")  # edges at or below e
     out = img[r0:r1].copy()
     for b in range(1, len(FOVEAL_SIGMAS)):
         sel = band == b

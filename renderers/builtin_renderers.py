@@ -12,8 +12,8 @@ from __future__ import annotations
 import math
 
 from . import pipeline as pl
-from .foveation import PRESETS, make_mapping
-from .registry import Param, RendererPlugin, register
+from .foveation import PRESETS, mapping_for
+from .plugin_types import Param, RendererPlugin
 
 COMMON = {
     "shadows": Param(bool, True, help="cast shadow rays"),
@@ -54,13 +54,12 @@ def run_foveated(method: str):
     def run(ctx):
         p = ctx.params
         t = ctx.tracer
-        mapping = make_mapping(method, ctx.width, ctx.height, ctx.camera.fov_y, ctx.gaze,
-                               **_mapping_params(method, p))
+        mapping = mapping_for(method, ctx.geometry, **_mapping_params(method, p))
         layout = pl.LPLayout(mapping)
         ctx.extra["lp_shape"] = [layout.w, layout.h]
         ctx.extra["lp_pixels"] = int(layout.mask.sum())
         ctx.extra["finite_checked"] = True  # finish() checks the LP buffers
-        exposure = ctx.scene.exposure
+        exposure = ctx.exposure  # FXAA's luma only: the image stays unexposed
         eyes = _eyes(ctx)
         images = []
         if p["stereo"] == "rep":
@@ -79,8 +78,8 @@ def run_foveated(method: str):
     return run
 
 
-GT = register(RendererPlugin("gt", "ground truth: one ray per pixel, every pixel shaded", dict(COMMON), run_gt))
-VAFR = register(RendererPlugin(
+GT = RendererPlugin("gt", "ground truth: one ray per pixel, every pixel shaded", dict(COMMON), run_gt)
+VAFR = RendererPlugin(
     "vafr", "visual-acuity-consistent foveated rendering (seed 001): constant LP buffer, FXAA in the LP buffer",
     {**COMMON, **FOVEATED,
      "stereo": Param(str, "mono", choices=("mono", "dup", "rep"), help="mono, dup (both eyes) or rep "
@@ -88,21 +87,21 @@ VAFR = register(RendererPlugin(
      "fxaa": Param(bool, True, help="FXAA 3.11 (preset 12) in the LP buffer"),
      "preset": Param(str, "default", choices=tuple(PRESETS), help="acuity curve"),
      "e_max": Param(float, 60.0, 0.0, 90.0, low_open=True, high_open=True, help="largest eccentricity (deg)")},
-    run_foveated("vafr"), bytes_per_pixel=40.0))
+    run_foveated("vafr"), bytes_per_pixel=40.0)
 _AA = {"aa": Param(bool, True, help="LMFR anti-aliasing: 3x3 Gaussian in the LP buffer + foveal Gaussian")}
-LMFR = register(RendererPlugin(
+LMFR = RendererPlugin(
     "lmfr", "kernel log-polar foveated rendering (Meng et al.), u = w z^alpha",
     {**COMMON, **FOVEATED, **_AA,
      "delta": Param(float, 1.8, 1.0, 16.0, low_open=True, help="LP buffer = screen / delta per axis"),
      "alpha": Param(float, 4.0, 0.0, 16.0, low_open=True, help="kernel exponent")},
-    run_foveated("lmfr"), bytes_per_pixel=40.0))
-LAFR = register(RendererPlugin(
+    run_foveated("lmfr"), bytes_per_pixel=40.0)
+LAFR = RendererPlugin(
     "lafr", "locomotion-aware foveated rendering (Shi et al.), two-part kernel",
     {**COMMON, **FOVEATED, **_AA,
      "delta": Param(float, 1.8, 1.0, 16.0, low_open=True, help="LP buffer = screen / delta per axis"),
      "alpha": Param(float, 0.85, 0.0, 1.0, low_open=True, high_open=True, help="foveal kernel parameter"),
      "beta": Param(float, 0.7, 0.0, 10.0, low_open=True, help="peripheral kernel parameter"),
      "a": Param(float, 0.25, 0.0, 1.0, low_open=True, high_open=True, help="LMFR exponent in LaFR convention")},
-    run_foveated("lafr"), bytes_per_pixel=40.0))
+    run_foveated("lafr"), bytes_per_pixel=40.0)
 
 

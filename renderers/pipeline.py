@@ -135,7 +135,7 @@ def _inverse_map(tracer, layout: LPLayout, lp, aa_post: bool, width: int, height
                               disp.gaze_x, disp.gaze_y, layout.Lr, layout.n, layout.w_eff, float(a0), tile)
         t0 = c.add_time("inverse_map", t0)
         if aa_post:
-            img[y0:y1] = foveal_gaussian(tile, disp.gaze, disp.c_r, a0, rows=(y0 - a0, y1 - a0))
+            img[y0:y1] = foveal_gaussian(tile, disp, a0, rows=(y0 - a0, y1 - a0))
             c.add_time("antialias", t0)
     return img
 

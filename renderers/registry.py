@@ -1,150 +1,80 @@
-"""Renderer plug-ins: named renderers with declarative parameter specs, and :func:`render`.
+"""Renderer plug-ins: one registration route (the ``studyapp.renderers`` entry-point group), and :func:`render`.
 
-A plug-in is a :class:`RendererPlugin` — a name, a description, a ``{name: Param}`` table (type, default,
-range or choices) and a ``run(ctx) -> image`` function. Built-in plug-ins are registered here; another package
-adds one without touching this code through the entry-point group ``studyapp.renderers`` (the entry point
-loads a :class:`RendererPlugin`, or a callable returning one)::
+Every renderer, the built-in ones included, is an entry point of the group ``studyapp.renderers`` naming a
+:class:`~renderers.plugin_types.RendererPlugin` (or a callable returning one); another package adds one the
+same way, without touching this code::
 
     [project.entry-points."studyapp.renderers"]
     my_renderer = "my_package.module:PLUGIN"
+
+A plug-in's presets (e.g. ``sl_e``, ``sl_f``, ``sl_p`` of ``sl``) are listed as renderers of their own. The
+plug-in types live in :mod:`renderers.plugin_types`; the output contract is stated there and checked here.
 """
 
 from __future__ import annotations
 
-import math
-import os
+import importlib
 import resource
 import time
-from dataclasses import asdict, dataclass, field
-from typing import Any, Callable
+from dataclasses import asdict
 
 import numpy as np
 
+from data_schema.errors import UserError
+from data_schema.geometry import ViewingGeometry, check_gaze
+
+from .plugin_types import Param, RenderContext, RendererPlugin
+
+__all__ = ["ENTRY_POINT_GROUP", "Param", "RenderContext", "RendererPlugin", "available", "get", "render",
+           "resolve_params", "check_resolution", "BACKENDS"]
+
 ENTRY_POINT_GROUP = "studyapp.renderers"
+BACKENDS = ("cpu", "gpu")
 #: Largest side accepted (pixels) and the share of the available memory a render may plan to use.
 MAX_SIDE = 32768
 MEMORY_SHARE = 0.5
 
-
-@dataclass(frozen=True)
-class Param:
-    """One renderer parameter: ``type`` (bool, int, float, str), ``default``, range ``[low, high]`` (open ends
-    with ``low_open``/``high_open``) or ``choices``."""
-
-    type: type
-    default: Any
-    low: float | None = None
-    high: float | None = None
-    choices: tuple | None = None
-    low_open: bool = False
-    high_open: bool = False
-    help: str = ""
-
-    def allowed(self) -> str:
-        if self.choices:
-            return ", ".join(map(str, self.choices))
-        if self.type is bool:
-            return "true, false"
-        lo = "(-inf" if self.low is None else ("(" if self.low_open else "[") + f"{self.low:g}"
-        hi = "inf)" if self.high is None else f"{self.high:g}" + (")" if self.high_open else "]")
-        return f"{lo}, {hi}"
-
-    def coerce(self, where: str, value):
-        """``value`` (possibly a string from the command line) as this parameter's type, checked."""
-        bad = ValueError(f"{where}={value!r} is invalid: allowed {self.allowed()}")
-        if self.type is bool:
-            if isinstance(value, str):
-                v = value.strip().lower()
-                if v not in ("1", "0", "true", "false", "yes", "no", "on", "off"):
-                    raise bad
-                value = v in ("1", "true", "yes", "on")
-            elif not isinstance(value, (bool, np.bool_)):
-                raise bad
-            return bool(value)
-        if self.type in (int, float):
-            try:
-                x = float(value)
-            except (TypeError, ValueError):
-                raise bad from None
-            if isinstance(value, bool) or not math.isfinite(x) or (self.type is int and not x.is_integer()):
-                raise bad
-            if self.low is not None and (x <= self.low if self.low_open else x < self.low):
-                raise ValueError(f"{where}={value!r} is out of range: allowed {self.allowed()}")
-            if self.high is not None and (x >= self.high if self.high_open else x > self.high):
-                raise ValueError(f"{where}={value!r} is out of range: allowed {self.allowed()}")
-            return int(x) if self.type is int else x
-        value = str(value)
-        if self.choices and value not in self.choices:
-            raise bad
-        return value
+_PLUGINS: dict[str, RendererPlugin] | None = None
 
 
-@dataclass(frozen=True)
-class RendererPlugin:
-    name: str
-    description: str
-    params: dict[str, Param]
-    run: Callable[["RenderContext"], np.ndarray]
-    #: Rough bytes per screen pixel this renderer holds at once (for the memory check).
-    bytes_per_pixel: float = 16.0
-
-
-@dataclass
-class RenderContext:
-    """What a plug-in's ``run`` receives; it adds counters to ``tracer`` and extras to ``extra``."""
-
-    scene: Any
-    camera: Any
-    width: int
-    height: int
-    gaze: tuple[float, float]
-    params: dict
-    tracer: Any
-    extra: dict = field(default_factory=dict)
-    previous_camera: Any = None  # the previous frame's camera (screen-space velocity), or None
-
-
-_REGISTRY: dict[str, RendererPlugin] = {}
-_entry_points_loaded = False
-
-
-def register(plugin: RendererPlugin) -> RendererPlugin:
-    """Add ``plugin`` to the registry (a name may be registered once)."""
-    if not isinstance(plugin, RendererPlugin):
-        raise ValueError(f"renderer plug-in {plugin!r} is invalid: must be a RendererPlugin")
-    if plugin.name in _REGISTRY and _REGISTRY[plugin.name] is not plugin:
-        raise ValueError(f"renderer {plugin.name!r} is already registered")
-    _REGISTRY[plugin.name] = plugin
-    return plugin
-
-
-def _load_entry_points():
-    global _entry_points_loaded
-    if _entry_points_loaded:
-        return
-    _entry_points_loaded = True
+def _entry_points():
     from importlib.metadata import entry_points
 
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
-        if ep.name in _REGISTRY:
-            continue
-        obj = ep.load()
-        register(obj if isinstance(obj, RendererPlugin) else obj())
+    return entry_points(group=ENTRY_POINT_GROUP)
 
 
 def available() -> dict[str, RendererPlugin]:
-    """All renderers: built-in and those of the ``studyapp.renderers`` entry-point group."""
-    from . import builtin_renderers  # noqa: F401  (registers the built-in plug-ins)
-
-    _load_entry_points()
-    return dict(_REGISTRY)
+    """Every renderer of the ``studyapp.renderers`` entry-point group, presets included, by name."""
+    global _PLUGINS
+    if _PLUGINS is None:
+        plugins: dict[str, RendererPlugin] = {}
+        for ep in _entry_points():
+            obj = ep.load()
+            plugin = obj if isinstance(obj, RendererPlugin) else obj()
+            if not isinstance(plugin, RendererPlugin) or plugin.name != ep.name:
+                raise UserError(f"entry point {ep.name} = {ep.value} of {ENTRY_POINT_GROUP} is not the "
+                                f"RendererPlugin {ep.name!r}")
+            for name in (plugin.name, *plugin.presets):
+                if name in plugins:
+                    raise UserError(f"renderer {name!r} is registered twice in {ENTRY_POINT_GROUP}")
+                plugins[name] = plugin if name == plugin.name else plugin.preset(name)
+        _PLUGINS = plugins
+    return dict(_PLUGINS)
 
 
 def get(name: str) -> RendererPlugin:
     plugins = available()
     if name not in plugins:
-        raise ValueError(f"renderer={name!r} is unknown: allowed {', '.join(sorted(plugins))}")
+        raise UserError(f"renderer={name!r} is unknown: allowed {', '.join(sorted(plugins))}")
     return plugins[name]
+
+
+def _load(ref):
+    """A callable, or the function a ``"module:function"`` reference names."""
+    if callable(ref):
+        return ref
+    module, _, attr = ref.partition(":")
+    return getattr(importlib.import_module(module), attr)
 
 
 def resolve_params(name: str, params: dict | None) -> dict:
@@ -153,8 +83,8 @@ def resolve_params(name: str, params: dict | None) -> dict:
     params = dict(params or {})
     unknown = sorted(set(params) - set(plugin.params))
     if unknown:
-        raise ValueError(f"renderer {name!r} has no parameter {unknown[0]!r}: allowed "
-                         f"{', '.join(plugin.params) or 'none'}")
+        raise UserError(f"renderer {name!r} has no parameter {unknown[0]!r}: allowed "
+                        f"{', '.join(plugin.params) or 'none'}")
     return {k: spec.coerce(f"{name}.{k}", params.get(k, spec.default)) for k, spec in plugin.params.items()}
 
 
@@ -173,11 +103,11 @@ def check_resolution(width, height, bytes_per_pixel: float = 16.0) -> tuple[int,
     """Validate the resolution and refuse renders that would not fit in memory (one-line ValueError)."""
     for k, v in (("width", width), ("height", height)):
         if isinstance(v, bool) or not float(v).is_integer() or not 1 <= v <= MAX_SIDE:
-            raise ValueError(f"{k}={v!r} is out of range: allowed whole pixels in [1, {MAX_SIDE}]")
+            raise UserError(f"{k}={v!r} is out of range: allowed whole pixels in [1, {MAX_SIDE}]")
     need = float(width) * float(height) * bytes_per_pixel + 3e8
     avail = _available_bytes() * MEMORY_SHARE
     if need > avail:
-        raise ValueError(f"resolution {int(width)}x{int(height)} is too large for memory: needs about "
+        raise UserError(f"resolution {int(width)}x{int(height)} is too large for memory: needs about "
                          f"{need / 1e9:.1f} GB, {avail / 1e9:.1f} GB available")
     return int(width), int(height)
 
@@ -203,28 +133,32 @@ def _peak_mb() -> float:
 
 
 def render(scene, renderer: str, params: dict | None, width: int, height: int,
-           gaze: tuple[float, float] | None = None, camera: dict | None = None):
-    """Render ``scene`` with ``renderer``: ``(image (H, W, 3) float32 linear RGB, stats)``.
+           gaze: tuple[float, float] | None = None, camera: dict | None = None, backend: str = "cpu"):
+    """Render ``scene`` with ``renderer``: ``(image (H, W, 3) float32 linear unexposed RGB, stats)``.
 
     Parameters
     ----------
     scene : str, Path or Scene
         A built-in scene name, a YAML scene file or a :class:`~renderers.scene.Scene`.
     renderer : str
-        A registered renderer (``gt``, ``vafr``, ``lmfr``, ``lafr`` or a plug-in).
+        A registered renderer (``studyapp renderers`` lists them).
     params : dict
         Renderer parameters (strings are converted; unknown names are rejected).
     width, height : int
         Resolution in pixels.
     gaze : (x, y), optional
-        Gaze point in pixels, inside the display; default the scene display's gaze or the centre.
+        Gaze point in pixels, inside the image; default the scene display's gaze or the centre.
     camera : dict, optional
-        Overrides of the scene camera: ``position``, ``look_at``, ``up``, ``fov_y``, and ``previous`` (the
-        overrides of the previous frame's camera, for renderers that use screen-space velocity).
+        Overrides of the scene camera: ``position``, ``look_at``, ``up``, ``fov_y`` (a study's stimuli get the
+        protocol display's vertical visual angle here), and ``previous`` (the overrides of the previous frame's
+        camera, for renderers that use screen-space velocity).
+    backend : {"cpu", "gpu"}
+        The CPU renderers, or the plug-in's GPU version (OpenGL compute, :mod:`renderers.gpu`).
 
     Returns
     -------
     image : ndarray (H, W, 3) float32
+        Linear, unexposed radiance (the output contract of :mod:`renderers.plugin_types`).
     stats : dict
         ``shading_points``, ``rays_primary``, ``rays_shadow``, ``seconds`` {visibility, shading, antialias,
         inverse_map, total} (``total`` is the frame: everything after the scene and its BVH are ready, which
@@ -233,10 +167,10 @@ def render(scene, renderer: str, params: dict | None, width: int, height: int,
         ``glossy_evaluations``, ``lights_culled``, and renderer extras (``lp_shape``, ``reshaded_share``...).
     """
     from .catalog import resolve
-    from .scene import check_gaze
-    from .tracer import Tracer
 
     t_start = time.perf_counter()
+    if backend not in BACKENDS:
+        raise UserError(f"backend={backend!r} is invalid: allowed {', '.join(BACKENDS)}")
     plugin = get(renderer)
     full = resolve_params(renderer, params)
     width, height = check_resolution(width, height, plugin.bytes_per_pixel)
@@ -245,22 +179,47 @@ def render(scene, renderer: str, params: dict | None, width: int, height: int,
     if gaze is None:
         gaze = sc.display.gaze if (sc.display.gaze is not None and sc.display.width == width
                                    and sc.display.height == height) else (width / 2.0, height / 2.0)
-    gaze = check_gaze(gaze, width, height)
-    reset = _reset_peak()
-    tracer = Tracer(sc, shadows=bool(full.get("shadows", True)), light_cull=float(full.get("light_cull", 0.0)))
+    geometry = ViewingGeometry.create(width, height, cam.fov_y, check_gaze(gaze, width, height))
+    if backend == "gpu":
+        if plugin.gpu is None:
+            raise UserError(f"renderer {renderer!r} has no GPU version: use --backend cpu")
+        run = _load(plugin.gpu)
+        reset = _reset_peak()
+        tracer = _load("renderers.gpu:device_scene")(sc, full)
+    else:
+        from .tracer import Tracer
+
+        run = _load(plugin.run)
+        reset = _reset_peak()
+        tracer = Tracer(sc, shadows=bool(full.get("shadows", True)), light_cull=float(full.get("light_cull", 0.0)))
     # Scene loading and the BVH build (once per scene) are setup, not part of the frame time.
     setup = time.perf_counter() - t_start
     t_start = time.perf_counter()
-    ctx = RenderContext(sc, cam, width, height, gaze, full, tracer, previous_camera=sc.camera.previous(camera))
-    img = plugin.run(ctx)
+    ctx = RenderContext(sc, cam, geometry, full, tracer, exposure=sc.exposure,
+                        previous_camera=sc.camera.previous(camera))
+    img = run(ctx)
     c = tracer.counters
     c.seconds["total"] = time.perf_counter() - t_start
     stats = {k: v for k, v in asdict(c).items() if k != "seconds"}
     stats["seconds"] = {k: round(float(v), 6) for k, v in c.seconds.items()}
     stats["setup_seconds"] = round(setup, 6)
-    stats.update(renderer=renderer, params=full, width=width, height=height, gaze=list(gaze),
-                 scene=sc.name, lights=sc.light_count(), peak_mb=round(_peak_mb(), 1),
+    stats.update(renderer=renderer, backend=backend, params=full, width=width, height=height, gaze=list(gaze),
+                 fov_y_deg=geometry.fov_y_deg, scene=sc.name, lights=sc.light_count(), peak_mb=round(_peak_mb(), 1),
                  peak_mb_is_per_render=reset, **ctx.extra)
-    if not ctx.extra.pop("finite_checked", False) and not np.isfinite(img).all():
-        raise ValueError(f"renderer {renderer!r} produced non-finite pixels")
+    check_output(renderer, img, width, height, finite_checked=bool(ctx.extra.pop("finite_checked", False)))
+    stats.pop("finite_checked", None)
     return img, stats
+
+
+def check_output(renderer: str, img, width: int, height: int, finite_checked: bool = False) -> None:
+    """The output contract (:mod:`renderers.plugin_types`): float32 ``(height, width, 3)``, finite, >= 0.
+
+    A violation is a bug in the plug-in, reported as such (not as the user's error)."""
+    if not isinstance(img, np.ndarray) or img.dtype != np.float32 or img.shape != (height, width, 3):
+        got = f"{getattr(img, 'dtype', type(img).__name__)} {getattr(img, 'shape', '')}"
+        raise RuntimeError(f"renderer {renderer!r} broke the output contract: returned {got}, not float32 "
+                           f"({height}, {width}, 3)")
+    if not finite_checked and not np.isfinite(img).all():
+        raise RuntimeError(f"renderer {renderer!r} produced non-finite pixels")
+    if float(img.min(initial=0.0)) < 0.0:
+        raise RuntimeError(f"renderer {renderer!r} produced negative radiance")

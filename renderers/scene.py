@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from data_schema.errors import UserError
+from data_schema.geometry import check_gaze
 from data_schema.yamlfile import YAMLFileError
 
 TEXTURES = ("none", "checker", "brick", "noise")
@@ -210,18 +211,6 @@ class Display:
         object.__setattr__(self, "ipd", _num("display.ipd", self.ipd, 0, None))
         if self.gaze is not None:
             object.__setattr__(self, "gaze", tuple(check_gaze(self.gaze, self.width, self.height)))
-
-
-def check_gaze(gaze, width: int, height: int) -> tuple[float, float]:
-    """Validate a gaze point in pixels: two finite numbers inside ``[0, width] x [0, height]``."""
-    try:
-        gx, gy = (float(g) for g in gaze)
-    except (TypeError, ValueError):
-        raise ValueError(f"gaze={gaze!r} is invalid: must be a pair X,Y of pixel coordinates") from None
-    if not (math.isfinite(gx) and math.isfinite(gy) and 0 <= gx <= width and 0 <= gy <= height):
-        raise ValueError(f"gaze=({gx:g}, {gy:g}) is outside the display: allowed x in [0, {width}], "
-                         f"y in [0, {height}]")
-    return gx, gy
 
 
 @dataclass(eq=False)

@@ -116,7 +116,7 @@ def render_stimulus(scene, renderer: str, params: dict | None, width: int, heigh
     """
     from .registry import check_resolution, get, render, resolve_params
     from .catalog import resolve
-    from .scene import check_gaze
+    from data_schema.geometry import check_gaze
 
     sc = resolve(scene)
     full = resolve_params(renderer, params)

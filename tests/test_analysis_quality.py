@@ -34,9 +34,9 @@ def _row(df, region):
 @given(w=st.integers(1, 40), h=st.integers(1, 40), fov=st.floats(1.0, 170.0),
        gx=st.floats(-100.0, 140.0), gy=st.floats(-100.0, 140.0))
 def test_eccentricity_matches_display_geometry(w, h, fov, gx, gy):
-    from renderers.foveation.geometry import DisplayGeometry
+    from data_schema.geometry import ViewingGeometry
 
-    g = DisplayGeometry.create(w, h, fov, (gx, gy))
+    g = ViewingGeometry.create(w, h, fov, (gx, gy))
     x, y = g.pixel_centres()
     expected = g.eccentricity(np.hypot(x - gx, y - gy))
     got = eccentricity_map(w, h, fov, (gx, gy))

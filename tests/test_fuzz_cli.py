@@ -15,7 +15,6 @@ import io
 import math
 from pathlib import Path
 
-import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -126,22 +125,12 @@ SCENE = {
 }
 
 
-@pytest.fixture(scope="module")
-def meshes(tmp_path_factory):
-    import pyvista as pv
-
-    d = tmp_path_factory.mktemp("meshes")
-    pv.Plane(i_size=4, j_size=4, i_resolution=2, j_resolution=2, direction=(0, 1, 0)).save(str(d / "floor.ply"))
-    pv.Cube(center=(0, 0.5, 1), x_length=1, y_length=1, z_length=1).save(str(d / "cube.stl"))
-    return d
-
-
 @FUZZ(60)
 @given(data=st.data())
-def test_fuzzed_scene_files(tmp_path_factory, meshes, capsys, data):
+def test_fuzzed_scene_files(tmp_path_factory, mesh_file, capsys, data):
     folder = tmp_path_factory.mktemp("scene")
     for m in ("floor.ply", "cube.stl"):
-        (folder / m).write_bytes((meshes / m).read_bytes())
+        (folder / m).write_bytes((mesh_file / m).read_bytes())
     f = folder / "s.yaml"
     f.write_text(_dump(_mutate(SCENE, data), data), encoding="utf-8")
     renderer = data.draw(st.sampled_from(["gt", "vafr", "lafr"]))

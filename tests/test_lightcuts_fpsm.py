@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+from data_schema.geometry import ViewingGeometry
 from renderers.lightcuts import fpsm as F
 
 H, W = 16, 24
@@ -32,7 +33,7 @@ kinds = st.sampled_from(["flat", "black", "saturated", "noise"])
 @given(kn=kinds, ka=kinds, kv=kinds, kl=kinds, seed=st.integers(0, 2**31), alpha=st.floats(1e-6, 1 - 1e-6),
        gx=st.floats(-10, 40), gy=st.floats(-10, 30), fov=st.floats(10, 120))
 def test_fpsm_finite_and_in_unit_interval(kn, ka, kv, kl, seed, alpha, gx, gy, fov):
-    ecc = F.eccentricity_map(W, H, fov, (gx, gy))
+    ecc = F.eccentricity_map(ViewingGeometry.create(W, H, fov, (gx, gy)))
     low = np.abs(_buf(3, kl, seed + 3))[: H // 8 + 1, : W // 8 + 1]
     m = F.build_fpsm(ecc, _buf(3, kn, seed), _buf(3, ka, seed + 1), _buf(2, kv, seed + 2), low, alpha)
     for name in ("fb_f", "fb_st", "fb_l", "map"):
@@ -120,7 +121,7 @@ def test_screen_velocity_of_a_camera_translation():
 
 def test_fovea_gets_full_budget_and_flat_periphery_least():
     # 96 x 64 pixels, 40° vertical field: the fovea (4°) is ~6 px wide, the corners are at ~33° (floor 0.02)
-    ecc = F.eccentricity_map(96, 64, 40.0)
+    ecc = F.eccentricity_map(ViewingGeometry.create(96, 64, 40.0))
     n = np.zeros((64, 96, 3))
     n[..., 2] = 1
     m = F.build_fpsm(ecc, n, np.full(n.shape, 0.5), np.zeros((64, 96, 2)), np.full((8, 12, 3), 0.2), 0.1)

@@ -4,11 +4,10 @@ import numpy as np
 import pytest
 
 from renderers import registry
-from renderers.lightcuts.plugin import register_all, scene_light_tree, split_triangles
+from renderers.lightcuts.plugin import scene_light_tree, split_triangles
 from renderers.procedural import MeshBuilder
 from renderers.scene import Camera, Material
 
-register_all()
 
 
 def _diffuse_scene(glossy=False):

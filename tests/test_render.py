@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 
 from renderers import render
 from renderers.antialias import fxaa
-from renderers.foveation import DisplayGeometry
-from renderers.registry import Param, RendererPlugin, available, register, resolve_params
+from data_schema.geometry import ViewingGeometry
+from renderers.registry import Param, RendererPlugin, available, resolve_params
 from renderers.scene import Camera, Display, Material, PointLight, Scene
 
 
@@ -149,7 +149,7 @@ def plane_scene() -> Scene:
 
 
 def _band_psnr(img, gt, W, H, fov, bands):
-    d = DisplayGeometry.create(W, H, fov)
+    d = ViewingGeometry.create(W, H, fov)
     X, Y = d.pixel_centres()
     e = d.eccentricity(np.hypot(X - W / 2, Y - H / 2))
     out = []
@@ -242,7 +242,19 @@ def test_fxaa_smooths_a_staircase_edge():
     assert not (changed & ~edge).any()
 
 
-def test_registry_params_and_plugins():
+def _with_entry_points(monkeypatch, *plugins):
+    """The registry as if ``plugins`` were installed in the 'studyapp.renderers' entry-point group too."""
+    from types import SimpleNamespace
+
+    from renderers import registry
+
+    real = list(registry._entry_points())
+    extra = [SimpleNamespace(name=p.name, value=f"test:{p.name}", load=lambda p=p: (lambda: p)) for p in plugins]
+    monkeypatch.setattr(registry, "_entry_points", lambda: real + extra)
+    monkeypatch.setattr(registry, "_PLUGINS", None)
+
+
+def test_registry_params_and_plugins(monkeypatch):
     p = resolve_params("lafr", {"delta": "2.2", "aa": "false"})
     assert p["delta"] == 2.2 and p["aa"] is False and p["beta"] == 0.7
     with pytest.raises(ValueError, match="delta"):
@@ -255,34 +267,39 @@ def test_registry_params_and_plugins():
         calls.append(ctx.params["level"])
         return np.full((ctx.height, ctx.width, 3), ctx.params["level"], np.float32)
 
-    if "flat_test" not in available():
-        register(RendererPlugin("flat_test", "constant image", {"level": Param(float, 0.5, 0.0, 1.0)}, run))
+    _with_entry_points(monkeypatch, RendererPlugin("flat_test", "constant image",
+                                                   {"level": Param(float, 0.5, 0.0, 1.0)}, run))
     img, st = render(tiny_scene(), "flat_test", {"level": "0.25"}, 8, 6)
     assert img.shape == (6, 8, 3) and float(img[0, 0, 0]) == 0.25 and calls == [0.25]
     assert set(st["seconds"]) >= {"visibility", "shading", "antialias", "inverse_map", "total"}
 
 
-def test_entry_point_plugins_are_loaded(monkeypatch):
-    """A package adds a renderer through the 'studyapp.renderers' entry-point group."""
-    import importlib.metadata
-    from types import SimpleNamespace
+def test_one_registration_route_entry_points_only(monkeypatch):
+    """Every renderer, built-in ones included, comes from the 'studyapp.renderers' entry-point group; a
+    package adds one the same way; presets are listed as renderers of their own."""
+    from importlib.metadata import entry_points
 
-    from renderers import registry
-
+    names = {ep.name for ep in entry_points(group="studyapp.renderers")}
+    assert names == {"gt", "vafr", "lmfr", "lafr", "fsl", "sl", "sl_as", "sl_gt"}
+    assert set(available()) == names | {"sl_e", "sl_f", "sl_p"}
+    assert available()["sl_e"].preset_of == "sl" and available()["sl_e"].run is available()["sl"].run
     plugin = RendererPlugin("ep_flat", "entry-point test", {"v": Param(float, 0.75, 0.0, 1.0)},
                             lambda ctx: np.full((ctx.height, ctx.width, 3), ctx.params["v"], np.float32))
-    groups = []
-
-    def fake_entry_points(group):
-        groups.append(group)
-        return [SimpleNamespace(name="ep_flat", load=lambda: (lambda: plugin))]
-
-    monkeypatch.setattr(importlib.metadata, "entry_points", fake_entry_points)
-    monkeypatch.setattr(registry, "_entry_points_loaded", False)
-    monkeypatch.setattr(registry, "_REGISTRY", dict(registry._REGISTRY))
-    assert "ep_flat" in available() and groups == ["studyapp.renderers"]
+    _with_entry_points(monkeypatch, plugin)
+    assert "ep_flat" in available()
     img, _ = render(tiny_scene(), "ep_flat", {}, 4, 3)
     assert float(img.max()) == 0.75
+
+
+def test_a_broken_output_contract_is_a_bug_not_a_user_error(monkeypatch):
+    bad = RendererPlugin("bad64", "float64 output", {}, lambda ctx: np.zeros((ctx.height, ctx.width, 3)))
+    neg = RendererPlugin("neg", "negative radiance", {},
+                         lambda ctx: np.full((ctx.height, ctx.width, 3), -1.0, np.float32))
+    _with_entry_points(monkeypatch, bad, neg)
+    with pytest.raises(RuntimeError, match="broke the output contract"):
+        render(tiny_scene(), "bad64", {}, 4, 3)
+    with pytest.raises(RuntimeError, match="negative radiance"):
+        render(tiny_scene(), "neg", {}, 4, 3)
 
 
 @settings(max_examples=20)
@@ -335,3 +352,31 @@ def test_grid_warping_fills_between_samples(monkeypatch):
         out[warp] = (st["reshaded_pixels"], 10 * math.log10(1 / mse))
     assert 0 < out[True][0] < out[False][0] / 3
     assert out[True][1] > 40.0 and out[False][1] > 40.0
+
+
+FAST = {"gt": {}, "vafr": {"fxaa": False}, "lmfr": {}, "lafr": {}, "fsl": {"max_lspp": 4, "max_rspp": 2},
+        "sl": {"lspp": 2, "rspp": 2}, "sl_e": {"lspp": 2, "rspp": 2}, "sl_f": {"lspp": 2, "rspp": 2},
+        "sl_p": {"lspp": 2, "rspp": 2}, "sl_as": {"max_lspp": 4, "max_rspp": 2},
+        "sl_gt": {"lspp": 4, "rspp": 2, "max_lspp": 4}}
+
+
+@pytest.mark.parametrize("name", sorted(FAST))
+def test_every_renderer_returns_unexposed_radiance_and_the_png_applies_exposure_once(name, tmp_path):
+    """The output contract (renderers/plugin_types.py) for every registered renderer, exposure != 1."""
+    import dataclasses
+
+    from renderers.stimuli import render_stimulus, to_srgb8
+
+    assert set(FAST) == set(available())  # every registered renderer is covered
+    base = tiny_scene()
+    bright = dataclasses.replace(base, exposure=3.0)
+    img1, _ = render(base, name, FAST[name], 24, 18)
+    img3, _ = render(bright, name, FAST[name], 24, 18)
+    np.testing.assert_array_equal(img1, img3)  # the renderer does not apply the exposure
+    png = render_stimulus(bright, name, FAST[name], 24, 18, cache_dir=tmp_path)
+    from PIL import Image
+
+    with Image.open(png) as im:
+        got = np.asarray(im.convert("RGB"))
+    np.testing.assert_array_equal(got, to_srgb8(np.load(png.with_suffix(".npy")), 3.0))  # applied once
+    np.testing.assert_array_equal(np.load(png.with_suffix(".npy")), img3)

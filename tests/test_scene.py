@@ -41,16 +41,6 @@ def _write_yaml(tmp_path, text):
     return p
 
 
-@pytest.fixture(scope="module")
-def mesh_file(tmp_path_factory):
-    import pyvista as pv
-
-    d = tmp_path_factory.mktemp("mesh")
-    pv.Plane(i_size=4, j_size=4, i_resolution=2, j_resolution=2, direction=(0, 1, 0)).save(str(d / "floor.ply"))
-    pv.Cube(center=(0, 0.5, 1), x_length=1, y_length=1, z_length=1).save(str(d / "cube.stl"))
-    return d
-
-
 GOOD = """
 name: yaml_test
 materials:

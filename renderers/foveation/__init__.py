@@ -12,7 +12,8 @@ import inspect
 
 from .acuity import DEFAULT_PIVOTS, AcuityMapping
 from .base import FoveationMapping
-from .geometry import DisplayGeometry
+from data_schema.errors import UserError
+from data_schema.geometry import ViewingGeometry
 from .kernel import LAFR_FOVEAL_BOUNDARY_DEG, LaFRMapping, LMFRMapping
 from .reference import acuity_curve, guenter_step
 from .vafr import PRESETS, SEED_PRESET_REDUCTION, VaFRMapping
@@ -41,18 +42,22 @@ def make_mapping(method: str, width: int, height: int, fov_y_deg: float, gaze=No
     ValueError
         Naming the invalid parameter and its allowed range.
     """
+    return mapping_for(method, ViewingGeometry.create(width, height, fov_y_deg, gaze), **params)
+
+
+def mapping_for(method: str, geometry: ViewingGeometry, **params) -> FoveationMapping:
+    """The mapping ``method`` for an image of the given viewing geometry (see :func:`make_mapping`)."""
     try:
         cls = MAPPINGS[str(method).lower()]
     except KeyError:
-        raise ValueError(f"method={method!r} is invalid: allowed {', '.join(MAPPINGS)}") from None
+        raise UserError(f"method={method!r} is invalid: allowed {', '.join(MAPPINGS)}") from None
     allowed = [p for p in inspect.signature(cls.__init__).parameters if p not in ("self", "display")]
     unknown = sorted(set(params) - set(allowed))
     if unknown:
-        raise ValueError(f"{method}: unknown parameter {unknown[0]!r}: allowed {', '.join(allowed)}")
-    display = DisplayGeometry.create(width, height, fov_y_deg, gaze)
-    return cls(display, **params)
+        raise UserError(f"{method}: unknown parameter {unknown[0]!r}: allowed {', '.join(allowed)}")
+    return cls(geometry, **params)
 
 
-__all__ = ["make_mapping", "MAPPINGS", "FoveationMapping", "DisplayGeometry", "VaFRMapping", "LMFRMapping",
+__all__ = ["make_mapping", "mapping_for", "MAPPINGS", "FoveationMapping", "VaFRMapping", "LMFRMapping",
            "LaFRMapping", "AcuityMapping", "DEFAULT_PIVOTS", "PRESETS", "SEED_PRESET_REDUCTION",
            "LAFR_FOVEAL_BOUNDARY_DEG", "acuity_curve", "guenter_step"]

@@ -32,7 +32,8 @@ import numpy as np
 from scipy.optimize import brentq
 
 from . import _kernels as K
-from .geometry import DEG_PER_RAD, RAD_PER_DEG, check_range
+from data_schema.geometry import DEG_PER_RAD, RAD_PER_DEG
+from data_schema.ranges import check_range
 
 #: Seed 001 §3.3: f(0°)=40, f(10°)=10, f(20°)=6, f(30°)=5, f(60°)=4 cpd.
 DEFAULT_PIVOTS: tuple[tuple[float, float], ...] = ((0.0, 40.0), (10.0, 10.0), (20.0, 6.0), (30.0, 5.0),

@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from . import _kernels as K
-from .geometry import DisplayGeometry
+from data_schema.geometry import ViewingGeometry
 
 TWO_PI = 2.0 * math.pi
 #: LP pixels inverted per block when counting the on-screen ones: bounds temporary memory.
@@ -30,7 +30,7 @@ class FoveationMapping(abc.ABC):
 
     method: str = ""
 
-    def __init__(self, display: DisplayGeometry):
+    def __init__(self, display: ViewingGeometry):
         self.display = display
 
     # -- to implement -------------------------------------------------------------------------------------------

@@ -23,7 +23,8 @@ import numpy as np
 
 from . import _kernels as K
 from .base import FoveationMapping
-from .geometry import RAD_PER_DEG, DisplayGeometry, check_range
+from data_schema.geometry import RAD_PER_DEG, ViewingGeometry
+from data_schema.ranges import check_range
 
 #: LaFR's foveal boundary (seed 001 Eq 15, Fig 6).
 LAFR_FOVEAL_BOUNDARY_DEG = 4.89
@@ -32,7 +33,7 @@ LAFR_FOVEAL_BOUNDARY_DEG = 4.89
 class _KernelMapping(FoveationMapping):
     """Shared parts of LMFR and LaFR: the LP buffer, ``z(r)`` and the tangential rate."""
 
-    def __init__(self, display: DisplayGeometry, delta: float):
+    def __init__(self, display: ViewingGeometry, delta: float):
         super().__init__(display)
         self.delta = check_range("delta", delta, 1.0, None)
         self.lp_width = max(1, int(round(display.width / self.delta)))
@@ -86,7 +87,7 @@ class LMFRMapping(_KernelMapping):
     method = "lmfr"
     _kernel = K.LMFR
 
-    def __init__(self, display: DisplayGeometry, *, delta: float = 1.8, alpha: float = 4.0):
+    def __init__(self, display: ViewingGeometry, *, delta: float = 1.8, alpha: float = 4.0):
         super().__init__(display, delta)
         self.alpha = check_range("alpha", alpha, 0.0, None)
         self._P = np.array([self.lp_width, self.lp_height, self.Lp, self.alpha], dtype=np.float64)
@@ -138,7 +139,7 @@ class LaFRMapping(_KernelMapping):
     method = "lafr"
     _kernel = K.LAFR
 
-    def __init__(self, display: DisplayGeometry, *, delta: float = 1.8, alpha: float = 0.85, beta: float = 0.7,
+    def __init__(self, display: ViewingGeometry, *, delta: float = 1.8, alpha: float = 0.85, beta: float = 0.7,
                  a: float = 0.25, foveal_boundary_deg: float = LAFR_FOVEAL_BOUNDARY_DEG):
         super().__init__(display, delta)
         self.alpha = check_range("alpha", alpha, 0.0, 1.0)
@@ -197,7 +198,7 @@ class LaFRMapping(_KernelMapping):
         return self.lp_width * self.du_dz(self.z_of_e(e_deg)) * self.dz_de(e_deg)
 
 
-def seed_radial_rate_lmfr(display: DisplayGeometry, e_deg, *, delta: float = 1.8, alpha: float = 4.0):
+def seed_radial_rate_lmfr(display: ViewingGeometry, e_deg, *, delta: float = 1.8, alpha: float = 4.0):
     """Seed 001 Eq 16 exactly as printed (``z = ln(tan e / c_r) / ln L``), for comparison plots; e > 0."""
     e = np.asarray(e_deg, dtype=np.float64)
     w = display.width / delta

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .acuity import DEFAULT_PIVOTS, AcuityMapping
-from .geometry import check_range
+from data_schema.ranges import check_range
 
 
 def acuity_curve(e_deg, pivots=DEFAULT_PIVOTS):

@@ -35,7 +35,8 @@ from scipy.optimize import minimize_scalar
 from .acuity import DEFAULT_PIVOTS, AcuityMapping
 from . import _kernels as K
 from .base import FoveationMapping
-from .geometry import DisplayGeometry, check_range
+from data_schema.geometry import ViewingGeometry
+from data_schema.ranges import check_range
 
 #: Seed 001 §3.3 / Fig 3 acuity curves; "auto" caps at the display's own radial Nyquist rate.
 PRESETS: dict[str, dict] = {
@@ -53,7 +54,7 @@ class VaFRMapping(FoveationMapping):
 
     Parameters
     ----------
-    display : DisplayGeometry
+    display : ViewingGeometry
     pivots : sequence of (eccentricity_deg, cpd), optional
         Acuity pivots (Eq 12); default f(0)=40, f(10)=10, f(20)=6, f(30)=5, f(60)=4 cpd.
     e_max : float, optional
@@ -69,7 +70,7 @@ class VaFRMapping(FoveationMapping):
     method = "vafr"
     _kernel = K.VAFR
 
-    def __init__(self, display: DisplayGeometry, *, pivots=None, e_max: float | None = None,
+    def __init__(self, display: ViewingGeometry, *, pivots=None, e_max: float | None = None,
                  preset: str = "default", cap_cpd: float | None = None,
                  tangential_factor: float | Callable = 1.0):
         super().__init__(display)

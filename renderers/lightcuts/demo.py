@@ -28,10 +28,8 @@ def demo_step(out_dir: Path, progress=None, width: int = 320, height: int = 180)
     """Render ``cornell_many`` (111,858 lights) with ``fsl`` (α = 0.1, seed 0); write the image and the FPSM."""
     from renderers import registry
 
-    from .plugin import register_all
     from .scenes import cornell_many
 
-    register_all()
     out_dir = Path(out_dir)
     if progress:
         progress("lightcuts: cornell_many fsl")

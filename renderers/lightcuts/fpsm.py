@@ -56,13 +56,10 @@ def acuity_map(eccentricity_rad) -> np.ndarray:
     return np.clip(1.1715 - 2.45 * e, ACUITY_FLOOR, 1.0)
 
 
-def eccentricity_map(width: int, height: int, fov_y_deg: float, gaze=None) -> np.ndarray:
-    """Eccentricity (radians) of every pixel centre for a pinhole display with the gaze on the optical axis."""
-    from renderers.foveation.geometry import DisplayGeometry
-
-    g = DisplayGeometry.create(width, height, fov_y_deg, gaze)
-    x, y = g.pixel_centres()
-    return np.radians(g.eccentricity(np.hypot(x - g.gaze_x, y - g.gaze_y)))
+def eccentricity_map(geometry) -> np.ndarray:
+    """Eccentricity in radians (Eq 2's unit) of every pixel centre of a
+    :class:`~data_schema.geometry.ViewingGeometry`."""
+    return np.radians(geometry.eccentricity_map())
 
 
 def gradient_feature(buffer) -> np.ndarray:

@@ -23,7 +23,6 @@ The velocity buffer is zero (one frame, no previous camera in the render context
 
 from __future__ import annotations
 
-import functools
 import math
 import time
 
@@ -31,6 +30,7 @@ import numpy as np
 from numba import njit, prange
 
 from renderers._shade import texture_weight
+from renderers.plugin_types import Param, RendererPlugin
 
 from .foveated import foveated_lightcuts
 from .fpsm import acuity_map, eccentricity_map, light_budget, screen_velocity, spatiotemporal_feature
@@ -201,7 +201,7 @@ def _finish(ctx, hits: Hits, diffuse: np.ndarray, rspp, seed: int, lspp_bounce: 
     ctx.extra["directional_lights_ignored"] = len(ctx.scene.directional_lights)
     ctx.extra["diffuse_image"] = (hits.base + diffuse.reshape(-1, 3)).reshape(h, w, 3).astype(np.float32)
     ctx.extra["glossy_mask"] = hits.glossy.reshape(h, w).copy()
-    return (img.reshape(h, w, 3) * ctx.scene.exposure).astype(np.float32)
+    return img.reshape(h, w, 3).astype(np.float32)  # linear, unexposed (the renderer output contract)
 
 
 def _sl(ctx, budget, seed: int):
@@ -252,7 +252,7 @@ def _velocity(ctx, hits) -> np.ndarray:
 
 
 def _eccentricity(ctx):
-    return eccentricity_map(ctx.width, ctx.height, ctx.camera.fov_y, ctx.gaze)
+    return eccentricity_map(ctx.geometry)
 
 
 def run_sl_as(ctx):
@@ -303,51 +303,31 @@ def run_sl_gt(ctx):
     return _finish(ctx, hits, acc / passes, int(p["rspp"]), p["seed"], lspp_bounce=4)
 
 
-def plugins():
-    """The six plug-ins as ``RendererPlugin`` objects (registered by ``register_all``)."""
-    from renderers.registry import Param, RendererPlugin
+_SEED = {"seed": Param(int, 0, 0, 2 ** 31 - 1, help="random stream")}
+_MAXES = {"max_lspp": Param(int, 48, 1, 4096, help="MAX_lspp (seed 003: 48)"),
+          "max_rspp": Param(int, 48, 0, 4096, help="MAX_rspp (seed 003: 48)")}
+_BPP = 200.0  # full-frame float64 buffers; the per-sample arrays are tiled
 
-    seed = {"seed": Param(int, 0, 0, 2 ** 31 - 1, help="random stream")}
-    maxes = {"max_lspp": Param(int, 48, 1, 4096, help="MAX_lspp (seed 003: 48)"),
-             "max_rspp": Param(int, 48, 0, 4096, help="MAX_rspp (seed 003: 48)")}
-    uniform = {"lspp": Param(int, 8, 1, 4096, help="light samples (cut nodes) per pixel"),
-               "rspp": Param(int, 8, 0, 4096, help="glossy rays per glossy pixel"), **seed}
-    bpp = 200.0  # full-frame float64 buffers; the per-sample arrays are tiled
-    return [
-        RendererPlugin("fsl", "foveated stochastic lightcuts (seed 003): FPSM budgets, multi-resolution selection",
-                       {"alpha": Param(float, 0.1, 0.0, 1.0, low_open=True, high_open=True,
-                                       help="maximum imperceptibility threshold"), **maxes,
-                        "multires": Param(bool, True, help="multi-resolution light-sample selection"), **seed},
-                       run_fsl, bytes_per_pixel=bpp),
-        RendererPlugin("sl_e", "stochastic lightcuts, uniform counts (equal time to fsl)", dict(uniform),
-                       run_sl_uniform, bytes_per_pixel=bpp),
-        RendererPlugin("sl_f", "stochastic lightcuts, uniform counts (equal foveal MSE to fsl)", dict(uniform),
-                       run_sl_uniform, bytes_per_pixel=bpp),
-        RendererPlugin("sl_p", "stochastic lightcuts, uniform counts (equal peripheral MSE to fsl)",
-                       dict(uniform), run_sl_uniform, bytes_per_pixel=bpp),
-        RendererPlugin("sl_as", "stochastic lightcuts driven by Stengel's adaptive foveated sampling map",
-                       {**maxes, **seed}, run_sl_as, bytes_per_pixel=bpp),
-        RendererPlugin("sl_gt", "ground truth: 2048 light samples + 2048 glossy rays per pixel, progressive",
-                       {"lspp": Param(int, 2048, 1, 1 << 20, help="light samples per pixel"),
-                        "rspp": Param(int, 2048, 0, 1 << 20, help="glossy rays per glossy pixel"),
-                        "max_lspp": Param(int, 48, 1, 4096, help="nodes per pass"), **seed},
-                       run_sl_gt, bytes_per_pixel=bpp),
-    ]
-
-
-def register_all():
-    """Register the six plug-ins in ``renderers.registry`` (idempotent)."""
-    from renderers.registry import _REGISTRY, register
-
-    for p in plugins():
-        if p.name not in _REGISTRY:
-            register(p)
-
-
-def _plugin(name: str):
-    return next(p for p in plugins() if p.name == name)
-
-
-# Entry points of the ``studyapp.renderers`` group (pyproject.toml): one factory per plug-in.
-fsl_plugin, sl_e_plugin, sl_f_plugin, sl_p_plugin, sl_as_plugin, sl_gt_plugin = (
-    functools.partial(_plugin, name) for name in ("fsl", "sl_e", "sl_f", "sl_p", "sl_as", "sl_gt"))
+FSL = RendererPlugin(
+    "fsl", "foveated stochastic lightcuts (seed 003): FPSM budgets, multi-resolution selection",
+    {"alpha": Param(float, 0.1, 0.0, 1.0, low_open=True, high_open=True, help="maximum imperceptibility threshold"),
+     **_MAXES, "multires": Param(bool, True, help="multi-resolution light-sample selection"), **_SEED},
+    run_fsl, bytes_per_pixel=_BPP)
+#: Uniform counts; the presets differ only in how seed 003's tables choose the counts for a comparison with
+#: fsl: equal time (sl_e), equal foveal MSE (sl_f), equal peripheral MSE (sl_p).
+SL = RendererPlugin(
+    "sl", "stochastic lightcuts, uniform light and glossy samples per pixel",
+    {"lspp": Param(int, 8, 1, 4096, help="light samples (cut nodes) per pixel"),
+     "rspp": Param(int, 8, 0, 4096, help="glossy rays per glossy pixel"), **_SEED},
+    run_sl_uniform, bytes_per_pixel=_BPP,
+    presets={"sl_e": ("stochastic lightcuts, uniform counts (equal time to fsl)", {}),
+             "sl_f": ("stochastic lightcuts, uniform counts (equal foveal MSE to fsl)", {}),
+             "sl_p": ("stochastic lightcuts, uniform counts (equal peripheral MSE to fsl)", {})})
+SL_AS = RendererPlugin("sl_as", "stochastic lightcuts driven by Stengel's adaptive foveated sampling map",
+                       {**_MAXES, **_SEED}, run_sl_as, bytes_per_pixel=_BPP)
+SL_GT = RendererPlugin(
+    "sl_gt", "ground truth: 2048 light samples + 2048 glossy rays per pixel, progressive",
+    {"lspp": Param(int, 2048, 1, 1 << 20, help="light samples per pixel"),
+     "rspp": Param(int, 2048, 0, 1 << 20, help="glossy rays per glossy pixel"),
+     "max_lspp": Param(int, 48, 1, 4096, help="nodes per pass"), **_SEED},
+    run_sl_gt, bytes_per_pixel=_BPP)

@@ -52,9 +52,6 @@ def lightcut_tables(scene, width: int, height: int, *, alphas=(0.025, 0.05, 0.1,
     from renderers.catalog import resolve
 
     from .fpsm import check_alpha
-    from .plugin import register_all
-
-    register_all()
     for a in (alpha, *alphas):
         check_alpha(a)
     sc = resolve(scene)

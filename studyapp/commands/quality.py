@@ -228,7 +228,7 @@ def cmd_quality(args) -> int:
         raise CLIError(f"--gt {gt_path}: no such file")
     gt_image = load_image(gt_path)
     if gaze is not None:
-        from renderers.scene import check_gaze
+        from data_schema.geometry import check_gaze
 
         h, w = gt_image.shape[:2]
         try:
