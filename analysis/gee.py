@@ -169,8 +169,10 @@ def _fit(y: np.ndarray, exog: np.ndarray, groups: np.ndarray, maxiter: int, ctol
     from statsmodels.tools.sm_exceptions import ConvergenceWarning
 
     model = GEE(y, exog, groups=groups, family=families.Binomial(), cov_struct=cov_struct.Exchangeable())
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ConvergenceWarning)  # reported through `converged` instead
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        # a fit that breaks down is reported through `converged` (the row's note), not as warnings on stderr
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        warnings.simplefilter("ignore", RuntimeWarning)
         res = model.fit(maxiter=maxiter, ctol=ctol, ddof_scale=0)
     alpha = float(np.asarray(model.cov_struct.dep_params).ravel()[0])
     ok = bool(res.converged) and np.all(np.isfinite(res.params)) and np.all(np.isfinite(res.bse))

@@ -89,7 +89,8 @@ def write_report(res: StudyAnalysis, out_dir, title: str = "Study analysis", fig
     fam_counts = ", ".join(f"{_FAMILY_TITLE[f]}: {res.n_trials[f]:,} trials from {res.n_participants[f]} "
                            "participants" for f in res.families)
     md += [f"Log: {fam_counts}.", "", "Plan: " + ", ".join(
-        f"{k}={v}" for k, v in res.plan.to_dict().items() if k not in ("labels",) and v not in (None, {})), ""]
+        f"{k}={' '.join(map(str, v)) if isinstance(v, list) else v}" for k, v in res.plan.to_dict().items()
+        if k not in ("labels",) and v not in (None, {})), ""]
     md += [f"- {n}" for n in res.notes] + [""]
 
     def emit(name: str, table: Table | None, tidy: pd.DataFrame | None) -> None:

@@ -490,7 +490,8 @@ def _unit_note(fam: str, plan: AnalysisPlan, dv: str, reference: str) -> str:
             "participant_block": "one value per participant, block and condition",
             "participant_scene": "one value per participant, scene and condition",
             "trial": "every trial is one observation"}[plan.unit]
-    what = {"votes": "votes (times chosen, first or second choice)", "chosen": "times chosen first",
+    what = {"votes": "votes (times chosen, first or second choice)",
+            "chosen": "times chosen" if fam == "2afc" else "times chosen first",
             "response": "mean score (1 = yes/acceptable)"}[dv]
     if plan.unit == "trial":
         what = {"votes": "chosen (1/0) each time a condition was shown",
