@@ -91,7 +91,7 @@ def logistic_gee(
     with Pearson residuals :math:`r` and :math:`\\hat\\phi = \\sum r^2 / N`. The coefficients and standard
     errors agree with R's ``geepack::geeglm(y ~ condition, id = participant, family = binomial,
     corstr = "exchangeable")`` (data sorted by participant; ``control = geese.control(epsilon = 1e-10)``) to
-    1e-6 (tests/test_analysis_gee.py).
+    4e-15 (tests/test_analysis_gee.py; the issue asks 1e-6).
 
     **Undefined rows** (NaN with a ``note``, the others are still fitted): a condition whose answers are all 0
     or all 1 has an infinite log odds (separation) and is left out of the fit; with ``intercept=True`` the same
