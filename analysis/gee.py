@@ -90,7 +90,7 @@ def logistic_gee(
     default, :math:`\\hat\\alpha = \\sum_i \\sum_{j<k} r_{ij} r_{ik} / (\\hat\\phi \\sum_i n_i(n_i - 1)/2)`
     with Pearson residuals :math:`r` and :math:`\\hat\\phi = \\sum r^2 / N`. The coefficients and standard
     errors agree with R's ``geepack::geeglm(y ~ condition, id = participant, family = binomial,
-    corstr = "exchangeable")`` (data sorted by participant; ``control = geese.control(epsilon = 1e-10)``) to
+    corstr = "exchangeable")`` (data sorted by participant; ``control = geese.control(epsilon = 1e-12)``) to
     4e-15 (tests/test_analysis_gee.py; the issue asks 1e-6).
 
     **Undefined rows** (NaN with a ``note``, the others are still fitted): a condition whose answers are all 0
