@@ -2,6 +2,11 @@
 
 NaN policy: independent samples drop their NaN observations; paired samples drop every
 pair in which either value is NaN. A NaN effect size is never labelled.
+
+Undefined effect sizes follow R's formula (and pingouin): a zero (pooled) SD gives
+d = NaN when the means are equal (two identical constant groups) and +-inf when they
+differ; too few observations for an SD give NaN. :func:`d_with_reason` returns the reason
+with the value, and the summary table reports such rows as "n/a" with that reason.
 """
 
 from __future__ import annotations
@@ -14,7 +19,13 @@ import pandas as pd
 
 from ._validation import as_float_1d, drop_nan
 
-__all__ = ["cohens_d", "hedges_g", "effect_size_label", "bootstrap_ci_d", "BootstrapCI", "SAWILOWSKY_BINS"]
+__all__ = ["cohens_d", "hedges_g", "effect_size_label", "bootstrap_ci_d", "BootstrapCI", "SAWILOWSKY_BINS",
+           "d_with_reason"]
+
+#: Reasons :func:`d_with_reason` gives for an undefined d (the summary table's label).
+UNDEFINED_ZERO_SD = "undefined (zero SD)"
+UNDEFINED_NO_DF = "undefined (n1 + n2 - 2 = 0: no SD)"
+UNDEFINED_FEW_PAIRS = "undefined (fewer than 2 complete pairs)"
 
 #: Lower edges of the Sawilowsky (2009) bins on |d| and their labels. |d| < 0.2 is
 #: "very small" (this includes Sawilowsky's 0.01 level and anything below it).
@@ -40,10 +51,6 @@ def _mean_var(a: np.ndarray) -> tuple[float, float]:
 def _independent(x: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:
     xa = drop_nan(as_float_1d(x, "x"))
     ya = drop_nan(as_float_1d(y, "y"))
-    if xa.size + ya.size - 2 < 1:
-        raise ValueError(
-            f"need n1 + n2 - 2 >= 1 non-NaN observations for a pooled SD, got n1={xa.size}, n2={ya.size}"
-        )
     if xa.size == 0 or ya.size == 0:
         raise ValueError(f"both samples need observations, got n1={xa.size}, n2={ya.size}")
     if not (np.all(np.isfinite(xa)) and np.all(np.isfinite(ya))):
@@ -58,21 +65,39 @@ def _paired_diff(x: Any, y: Any) -> np.ndarray:
         raise ValueError(f"paired samples must have equal length, got {xa.size} and {ya.size}")
     ok = ~(np.isnan(xa) | np.isnan(ya))
     diff = xa[ok] - ya[ok]
-    if diff.size < 2:
-        raise ValueError(f"need at least 2 complete pairs for a paired d, got {diff.size}")
     if not np.all(np.isfinite(diff)):
         raise ValueError("x and y must be finite (apart from NaN, which is dropped pairwise)")
     return diff
 
 
-def _d_from_moments(mean_diff: float, sd: float) -> float:
-    if sd == 0.0:
-        if mean_diff == 0.0:
-            return 0.0
-        raise ValueError(
-            "zero pooled standard deviation with different means: Cohen's d is undefined (infinite)"
-        )
-    return mean_diff / sd
+def _d_from_moments(mean_diff: float, sd: float) -> tuple[float, str | None]:
+    if sd == 0.0:  # R: 0/0 = NaN for equal means, +-Inf otherwise
+        return (float("nan") if mean_diff == 0.0 else float(np.copysign(np.inf, mean_diff))), UNDEFINED_ZERO_SD
+    return mean_diff / sd, None
+
+
+def d_with_reason(x: Any, y: Any, paired: bool = False) -> tuple[float, str | None]:
+    """Cohen's d as :func:`cohens_d`, with the reason it is undefined (``None`` when it is defined).
+
+    Returns
+    -------
+    d : float
+        As :func:`cohens_d`: NaN or +-inf when undefined.
+    reason : str or None
+        ``"undefined (zero SD)"`` (zero pooled SD, or constant paired differences),
+        ``"undefined (n1 + n2 - 2 = 0: no SD)"`` (one observation per group), or
+        ``"undefined (fewer than 2 complete pairs)"`` (paired); ``None`` if d is a finite number.
+    """
+    if paired:
+        diff = _paired_diff(x, y)
+        if diff.size < 2:
+            return float("nan"), UNDEFINED_FEW_PAIRS
+        mean_diff, var_diff = _mean_var(diff)
+        return _d_from_moments(mean_diff, float(np.sqrt(var_diff)))
+    xa, ya = _independent(x, y)
+    if xa.size + ya.size < 3:
+        return float("nan"), UNDEFINED_NO_DF
+    return _pooled_d(xa, ya)
 
 
 def cohens_d(x: Any, y: Any, paired: bool = False) -> float:
@@ -90,14 +115,12 @@ def cohens_d(x: Any, y: Any, paired: bool = False) -> float:
     Returns
     -------
     float
-        d, positive when ``x`` has the larger mean.
+        d, positive when ``x`` has the larger mean; NaN or +-inf when undefined (below).
 
     Raises
     ------
     ValueError
-        Independent: ``n1 + n2 - 2 < 1`` or an empty sample. Paired: unequal lengths or
-        fewer than 2 complete pairs. Both: infinite values, or a zero (pooled) SD with
-        different means (d would be +-inf).
+        Independent: an empty sample. Paired: unequal lengths. Both: infinite values.
 
     Notes
     -----
@@ -111,8 +134,13 @@ def cohens_d(x: Any, y: Any, paired: bool = False) -> float:
     with ddof = 1 variances (a sample of size 1 contributes 0 to the numerator).
     Paired samples, with :math:`D = x - y`: :math:`d_z = \\bar D / s_D` (ddof = 1).
 
-    Zero SD: if the (pooled) SD is exactly 0 and the means are equal (all values equal),
-    d = 0.0; if the means differ a ValueError is raised rather than returning +-inf.
+    **Undefined d** (the values R's formula and pingouin give; :func:`d_with_reason` also
+    returns the reason):
+
+    * zero (pooled) SD and equal means, e.g. two identical constant groups: NaN (0/0);
+    * zero (pooled) SD and different means: +-inf;
+    * one observation in each group (``n1 + n2 - 2 = 0``), or fewer than 2 complete pairs
+      (paired): NaN.
 
     References
     ----------
@@ -121,14 +149,10 @@ def cohens_d(x: Any, y: Any, paired: bool = False) -> float:
     Lakens, D. (2013). Calculating and reporting effect sizes to facilitate cumulative
     science. *Frontiers in Psychology*, 4, 863 (:math:`d_z`).
     """
-    if paired:
-        mean_diff, var_diff = _mean_var(_paired_diff(x, y))
-        return _d_from_moments(mean_diff, float(np.sqrt(var_diff)))
-    xa, ya = _independent(x, y)
-    return _pooled_d(xa, ya)
+    return d_with_reason(x, y, paired)[0]
 
 
-def _pooled_d(xa: np.ndarray, ya: np.ndarray) -> float:
+def _pooled_d(xa: np.ndarray, ya: np.ndarray) -> tuple[float, str | None]:
     n1, n2 = xa.size, ya.size
     m1, v1 = _mean_var(xa) if n1 > 1 else (float(xa[0]), 0.0)
     m2, v2 = _mean_var(ya) if n2 > 1 else (float(ya[0]), 0.0)
@@ -153,7 +177,7 @@ def hedges_g(x: Any, y: Any) -> float:
     Raises
     ------
     ValueError
-        As :func:`cohens_d` with ``paired=False``.
+        As :func:`cohens_d` with ``paired=False`` (an undefined d gives NaN or +-inf here too).
 
     References
     ----------
@@ -162,7 +186,7 @@ def hedges_g(x: Any, y: Any) -> float:
     Hedges, L. V. & Olkin, I. (1985). *Statistical Methods for Meta-Analysis*, p. 81.
     """
     xa, ya = _independent(x, y)
-    d = _pooled_d(xa, ya)
+    d = d_with_reason(xa, ya)[0]
     return d * (1.0 - 3.0 / (4.0 * (xa.size + ya.size) - 9.0))
 
 
@@ -326,8 +350,8 @@ def bootstrap_ci_d(
     Raises
     ------
     ValueError
-        Bad ``n_boot``/``ci``/``seed``, or whenever :func:`cohens_d` of the original data
-        raises.
+        Bad ``n_boot``/``ci``/``seed``, whenever :func:`cohens_d` of the original data
+        raises, or when that d is undefined (see :func:`d_with_reason`).
 
     Notes
     -----
@@ -350,13 +374,14 @@ def bootstrap_ci_d(
         raise ValueError(f"seed must be an integer or None, got {seed!r}")
     rng = np.random.default_rng(seed)
     n_boot = int(n_boot)
+    d0, reason = d_with_reason(x, y, paired)
+    if reason is not None:
+        raise ValueError(f"Cohen's d of the data is {reason}: no bootstrap interval")
     if paired:
         diff = _paired_diff(x, y)
-        d0 = cohens_d(diff, np.zeros_like(diff), paired=True)
         sizes = (diff.size,)
     else:
         xa, ya = _independent(x, y)
-        d0 = _pooled_d(xa, ya)
         sizes = (xa.size, ya.size)
     # Resample in chunks of about 2**20 values to bound memory; the chunking depends only
     # on the sample sizes, so results are reproducible from the seed.

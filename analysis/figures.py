@@ -69,11 +69,13 @@ def votes_figure(votes: pd.DataFrame, order: list[str], path: Path, title: str,
 
 
 def scale_figure(scale: pd.DataFrame, path: Path, title: str, labels: dict | None = None) -> Path:
-    """Points with bootstrap intervals; JOD if present, else Plackett-Luce log-strength."""
+    """Points with bootstrap intervals; JOD if present, else Bradley-Terry, else Plackett-Luce log-strength."""
     plt = _plt()
     labels = labels or {}
-    col, lo, hi, unit = (("jod", "jod_ci_low", "jod_ci_high", "JOD (1 JOD = 75 % preference)")
-                         if "jod" in scale.columns else ("score", "ci_low", "ci_high", "Plackett-Luce score"))
+    col, lo, hi, unit = next(spec for spec in (
+        ("jod", "jod_ci_low", "jod_ci_high", "JOD (1 JOD = 75 % preference)"),
+        ("bt", "bt_ci_low", "bt_ci_high", "Bradley-Terry log-strength"),
+        ("score", "ci_low", "ci_high", "Plackett-Luce score")) if spec[0] in scale.columns)
     fig, ax = plt.subplots(figsize=(5.5, 3.2))
     y = scale[col].to_numpy(float)
     x = np.arange(len(scale))

@@ -10,36 +10,42 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
-__all__ = ["TESTS", "UNITS", "AnalysisPlan", "plan_from_mapping"]
+from .vocabulary import DEFAULT_PRIOR, DEFAULT_TESTS, DVS, PRIORS, TESTS, UNITS
 
-#: Unit of analysis: the rows the tests compare. ``participant`` aggregates every participant's trials into
-#: one value per condition (votes, or mean score); ``participant_block`` and ``participant_scene`` keep one
-#: value per participant and block (e.g. headset) or scene; ``trial`` uses the trials themselves (as seed 003
-#: Tables 5-6 do: their SDs are those of 0/1 scores).
-UNITS = ("participant", "participant_block", "participant_scene", "trial")
-#: ``kruskal_holm``: Kruskal-Wallis on every pair of conditions, Holm across the pairs (seed 001 Tables 2-3),
-#: plus the summary against the reference; ``mann_whitney``: only each condition against the reference
-#: (seed 003 Tables 5-6; the two-sample Kruskal-Wallis equals this test).
-TESTS = ("kruskal_holm", "mann_whitney")
-DV = ("votes", "response")
+__all__ = ["DVS", "PRIORS", "TESTS", "UNITS", "AnalysisPlan", "plan_from_mapping"]
+
+
+#: Test names of earlier versions: refused, with the names that now say what they meant.
+_RENAMED = {"kruskal_holm": "pairwise_kruskal, kruskal_dunn", "mann_whitney": "summary_table"}
+
+
+def _allowed(field_name: str, value: Any, names) -> None:
+    if not isinstance(value, str) or value not in names:
+        hint = f" (renamed: use {_RENAMED[value]})" if field_name == "test" and value in _RENAMED else ""
+        raise ValueError(f"analysis plan: {field_name}={value!r} is invalid{hint}: allowed {', '.join(names)}")
 
 
 @dataclass(frozen=True)
 class AnalysisPlan:
-    """What to compute. See :data:`UNITS` and :data:`TESTS`.
+    """What to compute; every name comes from :mod:`analysis.vocabulary`.
 
     Attributes
     ----------
-    dv : {"votes", "response"} or None
-        Dependent variable; default per trial family: ``votes`` (times chosen) for 2AFC and preference
-        trials, ``response`` (1 = yes / acceptable) for yes/no trials.
+    dv : {"votes", "chosen", "response"} or None
+        Dependent variable (:data:`~analysis.vocabulary.DVS`); default per trial family: ``votes`` (times
+        chosen, first or second choice) for 2AFC and preference trials, ``response`` (1 = yes / acceptable)
+        for yes/no trials. ``chosen`` counts first choices only (the same as ``votes`` for 2AFC).
     unit : str
-        Unit of analysis (default ``participant``).
+        Unit of analysis (:data:`~analysis.vocabulary.UNITS`, default ``participant``).
     reference : str or None
-        Reference condition of the summary table (default: the first condition in ``conditions`` order)
-        and the zero of the JOD scale.
-    test : str
-        ``kruskal_holm`` (default) or ``mann_whitney``.
+        Reference condition of the summary table and the GEE (default: the first condition in
+        ``conditions`` order) and the zero of the scales.
+    tests : tuple of str
+        What to report (:data:`~analysis.vocabulary.TESTS`), in this order; default every seed-style table
+        (:data:`~analysis.vocabulary.DEFAULT_TESTS`). The votes table and the Kruskal-Wallis omnibus test are
+        always reported.
+    prior : {"none", "weak", "pwcmp"}
+        Prior of the paired-comparison scales (:data:`~analysis.vocabulary.PRIORS`, default ``weak``).
     paired : bool
         Cohen's d as paired :math:`d_z` over participants (needs ``unit='participant'``); default False:
         the pooled-SD d of independent groups, as both seeds report.
@@ -58,7 +64,8 @@ class AnalysisPlan:
     dv: str | None = None
     unit: str = "participant"
     reference: str | None = None
-    test: str = "kruskal_holm"
+    tests: tuple[str, ...] = DEFAULT_TESTS
+    prior: str = DEFAULT_PRIOR
     paired: bool = False
     conditions: tuple[str, ...] | None = None
     alpha: float = 0.05
@@ -68,12 +75,18 @@ class AnalysisPlan:
     labels: Mapping[str, str] = field(default_factory=dict)  # condition -> display name (tables, plots)
 
     def __post_init__(self):
-        if self.dv is not None and self.dv not in DV:
-            raise ValueError(f"analysis plan: dv={self.dv!r} is invalid: allowed {', '.join(DV)}")
-        if self.unit not in UNITS:
-            raise ValueError(f"analysis plan: unit={self.unit!r} is invalid: allowed {', '.join(UNITS)}")
-        if self.test not in TESTS:
-            raise ValueError(f"analysis plan: test={self.test!r} is invalid: allowed {', '.join(TESTS)}")
+        if self.dv is not None:
+            _allowed("dv", self.dv, DVS)
+        _allowed("unit", self.unit, UNITS)
+        _allowed("prior", self.prior, PRIORS)
+        tests = (self.tests,) if isinstance(self.tests, str) else self.tests
+        if not isinstance(tests, (list, tuple)) or not tests:
+            raise ValueError(f"analysis plan: test must name one or more of {', '.join(TESTS)}")
+        for t in tests:
+            _allowed("test", t, TESTS)
+        if len(set(tests)) != len(tests):
+            raise ValueError("analysis plan: test lists a test twice")
+        object.__setattr__(self, "tests", tuple(tests))
         if not isinstance(self.paired, bool):
             raise ValueError(f"analysis plan: paired must be true or false, got {self.paired!r}")
         if self.paired and self.unit != "participant":
@@ -105,6 +118,7 @@ class AnalysisPlan:
 
     def to_dict(self) -> dict:
         d = asdict(self)
+        d["tests"] = list(self.tests)
         d["conditions"] = list(self.conditions) if self.conditions else None
         d["labels"] = dict(sorted(self.labels.items()))
         return d
@@ -113,18 +127,17 @@ class AnalysisPlan:
 #: Keys a study database adds to its plan for information (see data_schema.store.read_analysis_plan).
 _INFORMATIONAL = ("family", "protocol")
 _ALIASES = {"unit_of_analysis": "unit", "dependent_variable": "dv", "reference_condition": "reference",
-            "order": "conditions", "bootstrap": "n_boot"}
+            "order": "conditions", "bootstrap": "n_boot", "test": "tests"}
 
 
 def plan_from_mapping(data: Mapping[str, Any] | None) -> AnalysisPlan:
-    """Build a plan from a protocol's ``analysis:`` block (unknown keys are an error).
+    """Build a plan from a protocol's ``analysis:`` block (unknown keys and values are errors).
 
-    Accepts the field names of :class:`AnalysisPlan` and the aliases ``unit_of_analysis``,
-    ``dependent_variable``, ``reference_condition``, ``order`` and ``bootstrap``, and the protocol schema's
-    vocabulary (data_schema/protocol.schema.json): ``dv: chosen`` (= votes); ``test: summary_table``
-    (= mann_whitney: each condition against the reference); ``pairwise_kruskal``, ``kruskal_dunn``,
-    ``thurstone``, ``bradley_terry``, ``plackett_luce`` (= kruskal_holm, which reports all of them);
-    ``by: [scene, block]`` (per-scene tables on; ``[]`` off). ``family`` and ``protocol`` are ignored.
+    Accepts the field names of :class:`AnalysisPlan`, the protocol schema's ``test`` (one name or a list: the
+    ``tests`` field) and ``by: [scene, block]`` (per-scene tables on; ``[]`` off), and the field aliases
+    ``unit_of_analysis``, ``dependent_variable``, ``reference_condition``, ``order`` and ``bootstrap``.
+    Values must be names of :mod:`analysis.vocabulary`, exactly: no value stands for another. ``family`` and
+    ``protocol`` (added by a study database) are ignored.
     """
     if data is None:
         return AnalysisPlan()
@@ -144,16 +157,6 @@ def plan_from_mapping(data: Mapping[str, Any] | None) -> AnalysisPlan:
         if name not in known:
             raise ValueError(f"analysis plan: unknown field {key!r}: allowed {', '.join(sorted(known))}")
         kw[name] = value
-    if isinstance(kw.get("test"), str):
-        t = kw["test"].strip().lower().replace("-", "_").replace(" ", "_")
-        kw["test"] = {"kruskal": "kruskal_holm", "pairwise_kruskal": "kruskal_holm", "kruskal_dunn": "kruskal_holm",
-                      "thurstone": "kruskal_holm", "bradley_terry": "kruskal_holm", "plackett_luce": "kruskal_holm",
-                      "summary_table": "mann_whitney", "kruskal_wallis": "kruskal_holm",
-                      "kruskal_wallis+holm": "kruskal_holm", "kruskal_wallis_holm": "kruskal_holm",
-                      "mannwhitney": "mann_whitney", "wilcoxon": "mann_whitney"}.get(t, t)
-    if isinstance(kw.get("dv"), str):
-        kw["dv"] = {"preference": "votes", "chosen": "votes", "score": "response", "scores": "response",
-                    "choice": "votes"}.get(kw["dv"], kw["dv"])
     if "conditions" in kw and kw["conditions"] is not None:
         if isinstance(kw["conditions"], str) or not hasattr(kw["conditions"], "__iter__"):
             raise ValueError("analysis plan: conditions must be a list of condition names")

@@ -23,6 +23,7 @@ import pandas as pd
 from .study import ALL, StudyAnalysis
 from .tables import (
     Table,
+    gee_table,
     omnibus_table,
     pairwise_p_table,
     scale_table,
@@ -88,7 +89,8 @@ def write_report(res: StudyAnalysis, out_dir, title: str = "Study analysis", fig
     fam_counts = ", ".join(f"{_FAMILY_TITLE[f]}: {res.n_trials[f]:,} trials from {res.n_participants[f]} "
                            "participants" for f in res.families)
     md += [f"Log: {fam_counts}.", "", "Plan: " + ", ".join(
-        f"{k}={v}" for k, v in res.plan.to_dict().items() if k not in ("labels",) and v not in (None, {})), ""]
+        f"{k}={' '.join(map(str, v)) if isinstance(v, list) else v}" for k, v in res.plan.to_dict().items()
+        if k not in ("labels",) and v not in (None, {})), ""]
     md += [f"- {n}" for n in res.notes] + [""]
 
     def emit(name: str, table: Table | None, tidy: pd.DataFrame | None) -> None:
@@ -116,16 +118,17 @@ def write_report(res: StudyAnalysis, out_dir, title: str = "Study analysis", fig
                 md += [f"![votes]({p.relative_to(out).as_posix()})", ""]
         emit(f"{fam}_omnibus", omnibus_table(t[f"{fam}_omnibus"], f"Kruskal-Wallis over all conditions ({fam})"),
              t[f"{fam}_omnibus"])
-        if f"{fam}_pairwise" in t:
-            pw = t[f"{fam}_pairwise"]
-            written.append(write_text(tdir / f"{fam}_pairwise.csv", to_csv(pw)))
-            written.append(write_text(tdir / f"{fam}_dunn.csv", to_csv(t[f"{fam}_dunn"])))
+        for name, what in (("pairwise", "Kruskal-Wallis test for pairwise comparisons"),
+                           ("dunn", "Dunn's test after Kruskal-Wallis")):
+            if f"{fam}_{name}" not in t:
+                continue
+            pw = t[f"{fam}_{name}"]
+            written.append(write_text(tdir / f"{fam}_{name}.csv", to_csv(pw)))
             for (block, scene), grp in pw.groupby(["block", "scene"], sort=False):
                 present = [c for c in order if c in set(grp["A"]) | set(grp["B"])]
                 suffix = "" if (block, scene) == (ALL, ALL) else "_" + _slug(block if scene == ALL else scene)
-                cap = (f"Kruskal-Wallis test for pairwise comparisons, Holm-adjusted p ({fam}, "
-                       f"{_group_title(block, scene)})")
-                emit(f"{fam}_pairwise_matrix{suffix}", pairwise_p_table(grp, present, cap, labels), None)
+                cap = f"{what}, Holm-adjusted p ({fam}, {_group_title(block, scene)})"
+                emit(f"{fam}_{name}_matrix{suffix}", pairwise_p_table(grp, present, cap, labels), None)
         if f"{fam}_summary" in t:
             sm = t[f"{fam}_summary"]
             written.append(write_text(tdir / f"{fam}_summary.csv", to_csv(sm)))
@@ -141,17 +144,30 @@ def write_report(res: StudyAnalysis, out_dir, title: str = "Study analysis", fig
                 p = fdir / "yes_no_scores.png"
                 written.append(scores_figure(t["yes_no_units"], order, p, "Mean score per condition", labels))
                 md += [f"![scores]({p.relative_to(out).as_posix()})", ""]
+        if f"{fam}_gee" in t:
+            g = t[f"{fam}_gee"]
+            what = ("odds of a yes against" if fam == "yes_no" else
+                    "odds of choosing each condition over")
+            cap = (f"Logistic GEE ({fam}): {what} {labels.get(reference, reference)}, 95 % Wald intervals "
+                   "(participants as clusters, exchangeable working correlation, robust SEs)")
+            emit(f"{fam}_gee", gee_table(g, cap, labels), g)
         scale_name = f"{fam}_scale"
         if scale_name in t:
             sc = t[scale_name]
-            what = "Thurstone Case V (JOD) and Bradley-Terry" if fam == "2afc" else "Plackett-Luce"
+            if fam == "2afc":
+                what = " and ".join(n for c, n in (("jod", "Thurstone Case V (JOD)"), ("bt", "Bradley-Terry"))
+                                    if c in sc.columns)
+            else:
+                what = "Plackett-Luce"
             ci = f", {res.plan.n_boot} bootstrap replicates over participants" if res.plan.n_boot else ""
-            emit(scale_name, scale_table(sc, f"{what} scores, reference {reference} = 0{ci}", labels), sc)
+            prior = f", prior {res.plan.prior}" if fam == "2afc" and "jod" in sc.columns else ""
+            emit(scale_name, scale_table(sc, f"{what} scores, reference {reference} = 0{prior}{ci}", labels), sc)
             if figures:
                 from .figures import scale_figure
 
                 p = fdir / f"{fam}_scale.png"
-                fig_title = "Thurstone Case V scale" if fam == "2afc" else "Plackett-Luce scale"
+                fig_title = ("Plackett-Luce scale" if fam != "2afc" else
+                             "Thurstone Case V scale" if "jod" in sc.columns else "Bradley-Terry scale")
                 if res.plan.n_boot:
                     fig_title += f" (95 % bootstrap intervals, {res.plan.n_boot} replicates)"
                 written.append(scale_figure(sc, p, fig_title, labels))

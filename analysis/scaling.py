@@ -11,21 +11,44 @@ Three maximum-a-posteriori (MAP) estimators, tidy DataFrame in and tidy DataFram
     Plackett-Luce log-strengths for top-k-of-N partial rankings (multinomial logit for
     k = 1).
 
-Regularisation (all three estimators)
+Priors (``prior=``)
     Unanimous or near-unanimous comparisons make the plain maximum-likelihood estimate
-    diverge. Every estimator therefore maximises the log-likelihood plus a weak Gaussian
-    prior on **every pairwise difference** of scores,
+    diverge, so the scores are maximum-a-posteriori estimates under one of three priors:
 
-    .. math:: \\log p(q) = -\\sum_{i<j} \\frac{(q_i - q_j)^2}{2\\,\\tau^2},
+    ``"weak"`` (the default, all three estimators)
+        A weak Gaussian prior on **every pairwise difference** of scores,
 
-    with ``tau = prior_sd`` (default 10 in the estimator's own units: 10 JOD for
-    :func:`thurstone_jod`, 10 logits for the others). The prior depends only on
-    differences, so the estimate does not depend on the choice of reference, and it is
-    weak enough that a 75/100 preference gives 1 JOD (ln 3 logits) to within 1e-3, yet
-    strong enough that a 20/0 preference stays finite (about 4.6 JOD). ``prior_sd=np.inf``
-    switches it off (pure MLE; may then diverge for unanimous data). pwcmp uses a
-    similar Gaussian prior on distances; a pseudo-count (add 0.5) was not used because
-    it biases non-unanimous data as well.
+        .. math:: \\log p(q) = -\\sum_{i<j} \\frac{(q_i - q_j)^2}{2\\,\\tau^2},
+
+        with ``tau = prior_sd`` (default 10 in the estimator's own units: 10 JOD for
+        :func:`thurstone_jod`, 10 logits for the others). It depends only on differences,
+        so the estimate does not depend on the choice of reference; it is weak enough that
+        a 75/100 preference gives 1 JOD (ln 3 logits) to within 1e-3, yet keeps a 20/0
+        preference finite (about 4.6 JOD). It is *not* pwcmp's prior: where several pairs
+        are unanimous, pwcmp's data-derived prior pulls the extreme conditions in much
+        harder (up to several JOD, see ``"pwcmp"``).
+    ``"pwcmp"`` (:func:`thurstone_jod` only)
+        pwcmp's data-derived prior, as ``pw_scale`` uses it by default (``'prior',
+        'gaussian'``): see :func:`thurstone_jod`. With it the JOD scale reproduces pwcmp's
+        output (differences to its published example: below 2e-6 JOD).
+    ``"none"``
+        Maximum likelihood. It exists only if every condition both won and lost against
+        the others in a chain of comparisons (the directed graph "i beat j at least once"
+        is strongly connected; Zermelo 1929, Ford 1957); otherwise a ``ValueError`` says
+        so. Bootstrap intervals are NaN when some replicate has no maximum-likelihood
+        estimate. Without a prior the Bradley-Terry scores are those of choix's ILSR.
+
+    Every fit is a Newton iteration with the exact Hessian, run until the gradient vanishes
+    to 1e-9 per comparison;
+    a fit that does not get there raises :class:`ConvergenceError` instead of returning
+    an unconverged estimate.
+
+Selection encoding (:func:`thurstone_jod`, :func:`bradley_terry`)
+    ``selection`` holds the *number* of the chosen condition: 1 when ``condition_1`` was
+    chosen, 2 when ``condition_2`` was, as :func:`data_schema.store.export_pwcmp` writes it;
+    an exported file scales without recoding. 0/1 codings are refused rather than guessed:
+    pwcmp's own 0/1 columns have meant both "1 = condition_1 chosen" (``is_A_selected``) and
+    "0 = condition_1 chosen" (``selection`` in its 2018-2022 examples).
 
 NaN policy: rows with a missing condition or selection (or a missing first choice /
 options set in :func:`plackett_luce`) are dropped. The comparison graph of the remaining
@@ -41,9 +64,15 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from scipy import optimize, special
+from scipy import special
 
-__all__ = ["JOD_SIGMA", "bradley_terry", "plackett_luce", "thurstone_jod"]
+from .vocabulary import PRIORS
+
+__all__ = ["JOD_SIGMA", "ConvergenceError", "bradley_terry", "plackett_luce", "thurstone_jod"]
+
+
+class ConvergenceError(ValueError):
+    """A scale whose fit did not converge (one line; never an unconverged estimate returned silently)."""
 
 #: Standard deviation of the Thurstone difference distribution in JOD units:
 #: ``Phi(1 / JOD_SIGMA) = 0.75``, i.e. 1 JOD is the difference that 75 % of observers see.
@@ -66,7 +95,9 @@ def _check_frame(data: Any, cols: Sequence[str]) -> pd.DataFrame:
     return data
 
 
-def _check_common(n_boot: Any, ci: Any, prior_sd: Any) -> tuple[int, float, float]:
+def _check_common(n_boot: Any, ci: Any, prior: Any, prior_sd: Any,
+                  allowed: Sequence[str] = ("none", "weak")) -> tuple[int, float, str, float]:
+    """Validate the shared arguments; return ``(n_boot, ci, prior, tau)`` (tau = inf without the weak prior)."""
     if isinstance(n_boot, bool) or not isinstance(n_boot, (int, np.integer)) or n_boot < 0:
         raise ValueError(f"n_boot must be a non-negative integer, got {n_boot!r}")
     try:
@@ -75,13 +106,18 @@ def _check_common(n_boot: Any, ci: Any, prior_sd: Any) -> tuple[int, float, floa
         raise ValueError(f"ci must be a number in (0, 1), got {ci!r}") from None
     if not 0.0 < ci_f < 1.0:
         raise ValueError(f"ci must be in (0, 1), got {ci!r}")
+    if prior not in allowed:
+        known = [p for p in PRIORS if p in allowed]
+        raise ValueError(f"prior={prior!r} is invalid here: allowed {', '.join(known)}")
     try:
         tau = float(prior_sd)
     except (TypeError, ValueError):
         raise ValueError(f"prior_sd must be a positive number, got {prior_sd!r}") from None
     if not tau > 0.0:
         raise ValueError(f"prior_sd must be positive (np.inf for no prior), got {prior_sd!r}")
-    return int(n_boot), ci_f, tau
+    if prior == "weak" and np.isinf(tau):
+        prior = "none"
+    return int(n_boot), ci_f, prior, (tau if prior == "weak" else np.inf)
 
 
 def _sorted_labels(values: Any) -> list:
@@ -153,8 +189,63 @@ def _observer_codes(df: pd.DataFrame, observer: str | None) -> np.ndarray | None
 Objective = Callable[[np.ndarray], tuple[float, np.ndarray, np.ndarray]]
 
 
-def _map_fit(objective: Objective, k: int, ref: int, tau: float, x0: np.ndarray | None = None) -> np.ndarray:
-    """Minimise ``objective(q) + prior(q)`` over ``q`` with ``q[ref] = 0``; return full ``q``."""
+def _gtol(total_weight: float) -> float:
+    """Gradient tolerance of a converged fit: 1e-9 per comparison (the objective is a sum over comparisons)."""
+    return 1e-9 * (1.0 + float(total_weight))
+
+
+def _newton(fgh: Callable[..., tuple[float, np.ndarray, np.ndarray | None]], x0: np.ndarray, gtol: float,
+            max_iter: int = 200) -> tuple[np.ndarray, float]:
+    """Minimise by Newton's method with backtracking; return ``(x, max |gradient|)``.
+
+    Where the Hessian is not positive definite (pwcmp's prior is not convex) it is shifted by a multiple of the
+    identity until it is. A full step is taken when it decreases ``f`` (Armijo) or, once ``f`` no longer changes
+    beyond rounding, when it decreases the gradient; otherwise the step is halved. The loop ends when the
+    gradient is below ``1e-4 gtol`` or no step makes progress; the caller checks the gradient against ``gtol``.
+    """
+    x = np.asarray(x0, dtype=float).copy()
+    f, g, h = fgh(x)
+
+    def gmax(v: np.ndarray) -> float:
+        return float(np.max(np.abs(v))) if v.size else 0.0
+
+    for _ in range(max_iter):
+        if gmax(g) <= 1e-4 * gtol:  # well inside the tolerance: one Newton step past gtol costs little
+            break
+        shift = 0.0
+        while True:
+            try:
+                chol = np.linalg.cholesky(h + shift * np.eye(x.size))
+                break
+            except np.linalg.LinAlgError:
+                shift = max(2.0 * shift, 1e-8 * (1.0 + float(np.max(np.abs(np.diag(h))))))
+        step = -np.linalg.solve(chol.T, np.linalg.solve(chol, g))
+        slope = float(g @ step)
+        f_new, g_new, h_new = fgh(x + step)
+        at_rounding = abs(f_new - f) <= 1e-13 * (1.0 + abs(f))
+        if np.isfinite(f_new) and (f_new <= f + 1e-4 * slope or (at_rounding and gmax(g_new) < gmax(g))):
+            x, f, g, h = x + step, f_new, g_new, h_new
+            continue
+        t = 0.5
+        while t > 1e-12:
+            f_new = fgh(x + t * step, hess=False)[0]
+            if np.isfinite(f_new) and f_new <= f + 1e-4 * t * slope:
+                break
+            t *= 0.5
+        else:
+            break  # no step decreases f: at the floor of floating-point noise
+        x = x + t * step
+        f, g, h = fgh(x)
+    return x, gmax(g)
+
+
+def _map_fit(objective: Objective, k: int, ref: int, tau: float, total_weight: float,
+             x0: np.ndarray | None = None) -> np.ndarray:
+    """Minimise ``objective(q) + weak prior(q)`` over ``q`` with ``q[ref] = 0``; return full ``q``.
+
+    ``objective(q)`` returns ``(f, gradient, Hessian)``. Raises :class:`ConvergenceError` unless the gradient
+    ends below :func:`_gtol`.
+    """
     free = np.array([i for i in range(k) if i != ref])
     inv_t2 = 0.0 if np.isinf(tau) else 1.0 / tau**2
     prior_h = inv_t2 * (k * np.eye(k) - np.ones((k, k)))
@@ -164,26 +255,93 @@ def _map_fit(objective: Objective, k: int, ref: int, tau: float, x0: np.ndarray 
         q[free] = x
         return q
 
-    def fun(x: np.ndarray) -> tuple[float, np.ndarray]:
+    def fgh(x: np.ndarray, hess: bool = True):
         q = full(x)
-        f, g, _ = objective(q)
+        f, g, h = objective(q)
         s = q.sum()
         f = f + 0.5 * inv_t2 * (k * q @ q - s * s)
-        g = g + inv_t2 * (k * q - s)
-        return f, g[free]
-
-    def hess(x: np.ndarray) -> np.ndarray:
-        _, _, h = objective(full(x))
-        return (h + prior_h)[np.ix_(free, free)]
+        g = (g + inv_t2 * (k * q - s))[free]
+        if not hess:
+            return f, g, None
+        return f, g, (h + prior_h)[np.ix_(free, free)]
 
     start = np.zeros(k - 1) if x0 is None else np.asarray(x0, dtype=float)[free]
-    res = optimize.minimize(
-        fun, start, jac=True, hess=hess, method="trust-exact", options={"gtol": 1e-9, "maxiter": 500}
-    )
-    q = full(res.x)
-    if not np.all(np.isfinite(q)):  # pragma: no cover - the prior keeps the problem strictly convex
-        raise RuntimeError("scaling did not converge to finite scores")
+    x, gmax = _newton(fgh, start, _gtol(total_weight))
+    q = full(x)
+    if not (np.all(np.isfinite(q)) and gmax <= _gtol(total_weight)):
+        raise ConvergenceError(f"the scale's fit did not converge (largest gradient {gmax:.3g}, needed "
+                               f"{_gtol(total_weight):.3g})")
     return q
+
+
+def _strongly_connected(win: np.ndarray, lose: np.ndarray, k: int) -> bool:
+    """Is the directed graph ``win -> lose`` on ``k`` nodes strongly connected (every node reaches every node)?"""
+    adj = np.zeros((k, k), dtype=bool)
+    adj[win, lose] = True
+
+    def reach(a: np.ndarray) -> int:
+        seen = np.zeros(k, dtype=bool)
+        seen[0] = True
+        frontier = seen.copy()
+        while frontier.any():
+            nxt = a[frontier].any(axis=0) & ~seen
+            seen |= nxt
+            frontier = nxt
+        return int(seen.sum())
+
+    return reach(adj) == k and reach(adj.T) == k
+
+
+def _pwcmp_objective(counts: np.ndarray) -> Objective:
+    """pwcmp's ``pw_scale`` objective (default ``'prior', 'gaussian'``) for the ``k x k`` win-count matrix.
+
+    ``counts[i, j]`` = times i was chosen over j. Returns f, its gradient and its Hessian, all exact (the
+    formula is in :func:`thurstone_jod`). Everything is computed per ordered pair ``a`` on the distances
+    ``x_a = (q_i - q_j) / sigma`` and mapped back to ``q`` by the chain rule.
+    """
+    k = counts.shape[0]
+    d = np.asarray(counts, dtype=float)
+    n_ij = d + d.T
+    unanimous = (n_ij > 0) & ~((d > 0) & (d.T > 0))
+    k_adj = d.copy()  # pwcmp's D_wUA: unanimous answers moved to the closest non-unanimous split
+    k_adj[unanimous & (d == 0)] = 1.0
+    k_adj[unanimous & (d != 0)] -= 1.0
+    i, j = np.nonzero(n_ij > 0)  # every compared pair in both orientations, as pwcmp's nnz_d
+    d_a, d_t, n_b, k_b = d[i, j], d[j, i], n_ij[i, j], k_adj[i, j]
+    m_b = n_b - k_b
+    jac = np.zeros((i.size, k))  # d x / d q, times sigma
+    jac[np.arange(i.size), i] = 1.0
+    jac[np.arange(i.size), j] -= 1.0
+    sigma = JOD_SIGMA
+
+    def objective(q: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        x = (q[i] - q[j]) / sigma
+        lp, lm = special.log_ndtr(x), special.log_ndtr(-x)
+        log_phi = -0.5 * x * x - _LOG_SQRT_2PI
+        r, s = np.exp(log_phi - lp), np.exp(log_phi - lm)  # phi/Phi(x), phi/Phi(-x)
+        lp2, lm2 = -r * (x + r), -s * (s - x)  # second derivatives of log Phi(x), log Phi(-x)
+        # w[a, b]: pair b's (adjusted) answers at pair a's distance, normalised over a; prior[a] = sum_b w[a, b]
+        big_l = lp[:, None] * k_b[None, :] + lm[:, None] * m_b[None, :]
+        w = np.exp(big_l - special.logsumexp(big_l, axis=0)[None, :])
+        prior = w.sum(axis=1)
+        f = -float(np.sum(d_a * lp + d_t * lm)) - float(np.sum(np.log(prior + 0.1)))
+        u = 1.0 / (prior + 0.1)
+        v = u @ w
+        dl = r[:, None] * k_b[None, :] - s[:, None] * m_b[None, :]  # d L[a, b] / d x_a
+        t = w * dl
+        p_row = t.sum(axis=1)
+        grad_x = -(d_a * r - d_t * s) - np.sum(t * (u[:, None] - v[None, :]), axis=1)
+        # Hessian in x: likelihood (diagonal) + prior (dense); M = d prior / d x
+        dll = lp2[:, None] * k_b[None, :] + lm2[:, None] * m_b[None, :]
+        m_mat = np.diag(p_row) - w @ t.T
+        diag = -(d_a * lp2 + d_t * lm2) - np.sum(w * (dl * dl + dll) * (u[:, None] - v[None, :]), axis=1)
+        h_x = ((t * (u[:, None] - v[None, :])) @ t.T + (u * u * p_row)[:, None] * m_mat
+               - (t @ w.T) @ ((u * u)[:, None] * m_mat) + (t @ t.T) * u[None, :] - (t * v[None, :]) @ t.T)
+        h_x = 0.5 * (h_x + h_x.T)
+        h_x[np.diag_indices_from(h_x)] += diag
+        return f, jac.T @ grad_x / sigma, jac.T @ h_x @ jac / sigma**2
+
+    return objective
 
 
 def _pairwise_objective(win: np.ndarray, lose: np.ndarray, w: np.ndarray, k: int, model: str) -> Objective:
@@ -214,13 +372,16 @@ def _pairwise_objective(win: np.ndarray, lose: np.ndarray, w: np.ndarray, k: int
     return objective
 
 
-def _batched_pairwise_fit(counts: np.ndarray, ref: int, tau: float, model: str, q0: np.ndarray) -> np.ndarray:
+def _batched_pairwise_fit(counts: np.ndarray, ref: int, tau: float, model: str,
+                          q0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """MAP scores of many replicates at once: damped Newton on ``counts[b, i, j]`` (i beat j).
 
     The same objective as :func:`_pairwise_objective` plus the prior of :func:`_map_fit`, minimised for
     all ``B`` replicates together (batched Hessian solves), starting from ``q0``; used by the bootstrap,
-    where thousands of small fits would otherwise cost a scipy call each. The objective is strictly convex
-    (the prior), so Newton with step halving converges; the tolerance is 1e-10 on the step.
+    where thousands of small fits would otherwise cost a call each. With the weak prior the objective is
+    strictly convex, so Newton with step halving converges. Returns the scores and, per replicate, whether
+    the gradient ended below :func:`_gtol` (without a prior a replicate may have no maximum-likelihood
+    estimate).
     """
     b_n, k, _ = counts.shape
     sigma = JOD_SIGMA if model == "thurstone" else 1.0
@@ -256,6 +417,7 @@ def _batched_pairwise_fit(counts: np.ndarray, ref: int, tau: float, model: str, 
         return f, g, h
 
     f, g, h = terms(q, counts)
+    gtol = np.array([_gtol(c) for c in counts.sum(axis=(1, 2))])
     active = np.ones(b_n, dtype=bool)
     for _ in range(100):
         a = np.flatnonzero(active)
@@ -277,9 +439,10 @@ def _batched_pairwise_fit(counts: np.ndarray, ref: int, tau: float, model: str, 
         q[a] = q_new
         f_a, g_a, h_a = terms(q[a], counts[a])
         f[a], g[a], h[a] = f_a, g_a, h_a
-        done = np.max(np.abs(t[:, None] * step), axis=1) < 1e-10
-        active[a[done]] = False
-    return q
+        small_g = np.max(np.abs(g_a[:, free]), axis=1) <= gtol[a]
+        active[a[small_g | (np.max(np.abs(t[:, None] * step), axis=1) < 1e-13)]] = False
+    converged = np.max(np.abs(g[:, free]), axis=1) <= gtol
+    return q, converged & np.all(np.isfinite(q), axis=1)
 
 
 def _choice_objective(chosen: np.ndarray, mask: np.ndarray, w: np.ndarray, k: int) -> Objective:
@@ -341,6 +504,22 @@ def _bootstrap(
 # --------------------------------------------------------------------------------------
 
 
+def _selection_codes(sel: pd.Series, selection: str, cond_a: str, cond_b: str) -> np.ndarray:
+    """The ``selection`` column as 1 (``cond_a`` chosen) / 2 (``cond_b`` chosen), or a one-line ValueError."""
+    numeric = pd.api.types.is_numeric_dtype(sel) and not pd.api.types.is_bool_dtype(sel)
+    values = sel.to_numpy(dtype=float) if numeric else np.full(len(sel), np.nan)
+    bad = ~((values == 1.0) | (values == 2.0))
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        v = sel.iloc[i]
+        v = v.item() if isinstance(v, np.generic) else v
+        hint = (" (a 0/1 coding is ambiguous: pwcmp's is_A_selected has 1 = condition_1 chosen, its older "
+                "selection column 0 = condition_1 chosen; recode to 1/2)") if v in (0, 1, True, False) else ""
+        raise ValueError(f"column {selection!r} must hold 1 ({cond_a} chosen) or 2 ({cond_b} chosen), as "
+                         f"studyapp's pwcmp export writes; row {sel.index[i]!r} has {v!r}{hint}")
+    return values
+
+
 def _pairwise(
     data: Any,
     cond_a: str,
@@ -350,6 +529,7 @@ def _pairwise(
     n_boot: Any,
     ci: Any,
     seed: Any,
+    prior: Any,
     prior_sd: Any,
     observer: str | None,
     model: str,
@@ -357,19 +537,10 @@ def _pairwise(
     weight: str | None = None,
 ) -> pd.DataFrame:
     df = _check_frame(data, [cond_a, cond_b, selection] + ([weight] if weight else []))
-    n_boot_i, ci_f, tau = _check_common(n_boot, ci, prior_sd)
+    allowed = ("none", "weak", "pwcmp") if model == "thurstone" else ("none", "weak")
+    n_boot_i, ci_f, prior, tau = _check_common(n_boot, ci, prior, prior_sd, allowed)
     df = df.dropna(subset=[cond_a, cond_b, selection])
-    sel = df[selection]
-    try:
-        if isinstance(sel.dtype, pd.CategoricalDtype) or (
-            sel.dtype == object and sel.map(lambda v: isinstance(v, str)).any()
-        ):
-            raise TypeError
-        sel_v = sel.to_numpy(dtype=float)
-    except (TypeError, ValueError):
-        sel_v = np.array([np.nan])
-    if not np.all((sel_v == 0.0) | (sel_v == 1.0)):
-        raise ValueError(f"column {selection!r} must be binary (1 = {cond_a} chosen, 0 = {cond_b} chosen)")
+    sel_v = _selection_codes(df[selection], selection, cond_a, cond_b)
     a_vals = df[cond_a].to_numpy(dtype=object)
     b_vals = df[cond_b].to_numpy(dtype=object)
     if np.any(a_vals == b_vals):
@@ -387,21 +558,41 @@ def _pairwise(
     code_row = win_row * k + lose_row
     base_w = _row_weights(df, weight)
 
+    def has_mle(counts: np.ndarray) -> bool:
+        nz = np.flatnonzero(counts)
+        return _strongly_connected(nz // k, nz % k, k)
+
     def fit_weighted(w_rows: np.ndarray, x0: np.ndarray | None) -> np.ndarray:
         counts = np.bincount(code_row, w_rows * base_w, k * k)
+        if prior == "pwcmp":
+            return _map_fit(_pwcmp_objective(counts.reshape(k, k)), k, ref, np.inf, counts.sum(), None)
+        if prior == "none" and not has_mle(counts):
+            return np.full(k, np.nan)
         nz = np.flatnonzero(counts)
         obj = _pairwise_objective(nz // k, nz % k, counts[nz], k, model)
-        return _map_fit(obj, k, ref, tau, x0)
+        return _map_fit(obj, k, ref, tau, counts.sum(), x0)
 
     n = len(df)
+    if prior == "none" and not has_mle(np.bincount(code_row, base_w, k * k)):
+        raise ValueError("without a prior the maximum-likelihood scale does not exist: some conditions won "
+                         "(or lost) every comparison with the rest; use prior='weak' or 'pwcmp'")
     q = fit_weighted(np.ones(n), None)
     out = pd.DataFrame({"condition": labels, score_name: q})
     if n_boot_i > 0:
         clusters = _observer_codes(df, observer)
+        fit_many = None
+        if prior != "pwcmp":
 
-        def fit_many(w_reps: np.ndarray, x0: np.ndarray) -> np.ndarray:
-            counts = np.stack([np.bincount(code_row, w * base_w, k * k) for w in w_reps]).reshape(-1, k, k)
-            return _batched_pairwise_fit(counts, ref, tau, model, x0)
+            def fit_many(w_reps: np.ndarray, x0: np.ndarray) -> np.ndarray:
+                counts = np.stack([np.bincount(code_row, w * base_w, k * k) for w in w_reps])
+                ok = np.array([prior != "none" or has_mle(c) for c in counts])
+                reps = np.full((len(w_reps), k), np.nan)
+                if ok.any():
+                    fitted, converged = _batched_pairwise_fit(counts[ok].reshape(-1, k, k), ref, tau, model, x0)
+                    if not converged.all():
+                        raise ConvergenceError(f"{int((~converged).sum())} bootstrap fit(s) did not converge")
+                    reps[ok] = fitted
+                return reps
 
         lo, hi = _bootstrap(fit_weighted, n, clusters, q, n_boot_i, ci_f, seed, fit_many=fit_many)
         out["ci_low"] = lo
@@ -420,6 +611,7 @@ def thurstone_jod(
     ci: float = 0.95,
     seed: Any = 0,
     *,
+    prior: str = "weak",
     prior_sd: float = 10.0,
     observer: str | None = "observer",
     weight: str | None = None,
@@ -433,9 +625,10 @@ def thurstone_jod(
     cond_a, cond_b : str
         Columns naming the two conditions shown in the trial.
     selection : str
-        Column with the outcome: ``1`` (or ``True``) if ``cond_a`` was chosen, ``0`` (or
-        ``False``) if ``cond_b`` was chosen. Any other value raises ``ValueError``; the
-        chosen condition's *name* is deliberately not accepted (recode it first).
+        Column with the outcome: ``1`` if ``cond_a`` was chosen, ``2`` if ``cond_b`` was
+        (the layout :func:`data_schema.store.export_pwcmp` writes: ``observer, session, scene,
+        condition_1, condition_2, selection``). Any other value, 0/1 codings and the chosen
+        condition's *name* included, raises ``ValueError`` (see the module docstring).
     reference : hashable, optional
         Condition fixed at 0 JOD. Default: the first condition in sorted order.
     n_boot : int
@@ -445,8 +638,14 @@ def thurstone_jod(
         Confidence level of the interval, in (0, 1).
     seed : int or numpy.random.Generator seed
         Seed of the bootstrap; the same seed gives identical output.
+    prior : {"weak", "pwcmp", "none"}, keyword-only
+        ``"weak"`` (default): a Gaussian prior with SD ``prior_sd`` JOD on every pairwise
+        difference, which barely moves non-unanimous data; ``"pwcmp"``: pwcmp's data-derived
+        prior (Notes), which pulls unanimous pairs in much harder: with several unanimous
+        pairs the extreme conditions differ by up to several JOD between the two;
+        ``"none"``: maximum likelihood (module docstring).
     prior_sd : float, keyword-only
-        SD in JOD of the Gaussian prior on every pairwise difference (module docstring).
+        SD in JOD of the weak prior (``np.inf`` = no prior).
     observer : str or None, keyword-only
         If this column exists, the bootstrap resamples observers (all of an observer's rows
         together, the usual cluster bootstrap for repeated measures); otherwise, or with
@@ -471,26 +670,50 @@ def thurstone_jod(
 
     so a difference of 1 JOD means 75 % of observers prefer the better condition. The
     scores maximise :math:`\\sum n_{AB} \\log P(A \\succ B)` plus the log prior, with the
-    reference held at 0 (trust-region Newton with the exact Hessian).
+    reference held at 0 (Newton's method to a vanishing gradient, see the module docstring).
+
+    **pwcmp's prior** (``prior="pwcmp"``; ``pw_scale.m`` of pwcmp, default ``'gaussian'``
+    prior, as in its 2020-2025 versions). Over the ordered pairs :math:`a = (i, j)` that were
+    compared (both orientations, as pwcmp counts them), with :math:`P_a = \\Phi((q_i - q_j)/\\sigma)`,
+    :math:`n_a = n_{ij} + n_{ji}` and :math:`k_a` the count :math:`n_{ij}`, except that a
+    unanimous pair's 0 becomes 1 and its :math:`n` becomes :math:`n - 1` (pwcmp's ``D_wUA``),
+    the prior weight of pair :math:`a` is how well its distance explains every pair's
+    answers,
+
+    .. math:: \\pi_a = \\sum_b \\frac{P_a^{k_b} (1 - P_a)^{n_b - k_b}}
+                                   {\\sum_{a'} P_{a'}^{k_b} (1 - P_{a'})^{n_b - k_b}},
+
+    and the scores minimise
+
+    .. math:: -\\sum_a \\big[n_{ij} \\log P_a + n_{ji} \\log (1 - P_a)\\big]
+              - \\sum_a \\log(\\pi_a + 0.1)
+
+    (the likelihood term is pwcmp's: summed over both orientations, so each pair's
+    log-likelihood counts twice). pwcmp centres its scores (mean 0, or the first condition
+    at 0); only differences are defined, and here the reference is 0. The terms are
+    computed in log space, so large counts do not underflow as they can in ``pw_scale.m``.
+    On pwcmp's published example (``examples/ex3_tmo_cmp_scaled.csv`` of its 2022 commit
+    80ab538, 7 tone-mapping operators, 5 scenes and all scenes) the scores agree with pwcmp's
+    to 1.4e-6 JOD.
 
     References
     ----------
     Thurstone, L. L. (1927). A law of comparative judgment. *Psychological Review*, 34(4).
     Perez-Ortiz, M., & Mantiuk, R. K. (2017). A practical guide and software for analysing
-    pairwise comparison experiments. arXiv:1712.03686 (pwcmp).
+    pairwise comparison experiments. arXiv:1712.03686 (pwcmp; github.com/mantiuk/pwcmp).
 
     Examples
     --------
     >>> df = pd.DataFrame({"condition_1": ["a"] * 100, "condition_2": ["b"] * 100,
-    ...                    "selection": [1] * 75 + [0] * 25})
+    ...                    "selection": [1] * 75 + [2] * 25})
     >>> thurstone_jod(df, reference="b").round(2)
       condition  jod  n_comparisons
     0         a  1.0            100
     1         b  0.0            100
     """
     return _pairwise(
-        data, cond_a, cond_b, selection, reference, n_boot, ci, seed, prior_sd, observer, "thurstone", "jod",
-        weight,
+        data, cond_a, cond_b, selection, reference, n_boot, ci, seed, prior, prior_sd, observer, "thurstone",
+        "jod", weight,
     )
 
 
@@ -504,13 +727,16 @@ def bradley_terry(
     ci: float = 0.95,
     seed: Any = 0,
     *,
+    prior: str = "weak",
     prior_sd: float = 10.0,
     observer: str | None = "observer",
     weight: str | None = None,
 ) -> pd.DataFrame:
     """Bradley-Terry log-strengths of pairwise comparisons (logit scale).
 
-    Parameters are those of :func:`thurstone_jod`; ``prior_sd`` is in logits.
+    Parameters are those of :func:`thurstone_jod`; ``prior`` is ``"weak"`` (default, SD
+    ``prior_sd`` logits) or ``"none"`` (maximum likelihood: then the scores equal those of
+    choix's ``ilsr_pairwise``, Maystre & Grossglauser 2015, to 1e-8).
 
     Returns
     -------
@@ -534,8 +760,8 @@ def bradley_terry(
     Statistics*, 32(1), 384-406.
     """
     return _pairwise(
-        data, cond_a, cond_b, selection, reference, n_boot, ci, seed, prior_sd, observer, "logit", "score",
-        weight,
+        data, cond_a, cond_b, selection, reference, n_boot, ci, seed, prior, prior_sd, observer, "logit",
+        "score", weight,
     )
 
 
@@ -578,6 +804,7 @@ def plackett_luce(
     ci: float = 0.95,
     seed: Any = 0,
     *,
+    prior: str = "weak",
     prior_sd: float = 10.0,
     observer: str | None = "observer",
 ) -> pd.DataFrame:
@@ -595,8 +822,8 @@ def plackett_luce(
     options_col : str
         Column with the offered set: a list/tuple, or a ``'|'``-separated string (then the
         condition labels are strings; a non-string choice is matched by ``str``).
-    reference, n_boot, ci, seed, prior_sd, observer
-        As in :func:`thurstone_jod` (``prior_sd`` in logits).
+    reference, n_boot, ci, seed, prior, prior_sd, observer
+        As in :func:`bradley_terry` (``prior`` ``"weak"`` or ``"none"``, ``prior_sd`` in logits).
 
     Returns
     -------
@@ -630,7 +857,7 @@ def plackett_luce(
     if len(ranking_cols) == 0:
         raise ValueError("ranking_cols must name at least one column")
     df = _check_frame(data, [*ranking_cols, options_col])
-    n_boot_i, ci_f, tau = _check_common(n_boot, ci, prior_sd)
+    n_boot_i, ci_f, prior, tau = _check_common(n_boot, ci, prior, prior_sd)
     keep = [
         not _is_missing(f) and not (np.ndim(o) == 0 and _is_missing(o))
         for f, o in zip(df[ranking_cols[0]], df[options_col])
@@ -685,13 +912,27 @@ def plackett_luce(
     chosen = np.asarray(ev_chosen, dtype=np.intp)
     mask = np.asarray(ev_mask, dtype=bool).reshape(-1, k)
 
+    # "i was chosen while j was still available": the MLE exists iff this graph is strongly connected (Hunter 2004)
+    ev_i, ev_j = np.nonzero(mask)
+    ev_win, ev_lose = chosen[ev_i], ev_j
+    not_self = ev_win != ev_lose
+
+    def has_mle(w: np.ndarray) -> bool:
+        keep = not_self & (w[ev_i] > 0)
+        return _strongly_connected(ev_win[keep], ev_lose[keep], k)
+
     def fit_weighted(w_rows: np.ndarray, x0: np.ndarray | None) -> np.ndarray:
         w = w_rows[rows]
+        if prior == "none" and not has_mle(w):  # a bootstrap replicate without a maximum-likelihood estimate
+            return np.full(k, np.nan)
         use = w > 0
         obj = _choice_objective(chosen[use], mask[use], w[use], k)
-        return _map_fit(obj, k, ref, tau, x0)
+        return _map_fit(obj, k, ref, tau, w.sum(), x0)
 
     n = len(trials)
+    if prior == "none" and not has_mle(np.ones(len(rows))):
+        raise ValueError("without a prior the maximum-likelihood scale does not exist (some conditions were "
+                         "always or never chosen over the others); use prior='weak'")
     q = fit_weighted(np.ones(n), None)
     out = pd.DataFrame({"condition": labels, "score": q})
     if n_boot_i > 0:

@@ -31,7 +31,7 @@ from ._validation import (
     rank_sum_of_squares,
     split_groups,
 )
-from .effect_size import _mean_var, cohens_d, effect_size_label
+from .effect_size import _mean_var, d_with_reason, effect_size_label
 from .multicomp import adjust_pvalues, holm
 
 __all__ = [
@@ -43,6 +43,7 @@ __all__ = [
     "pairwise_kruskal",
     "pairwise_matrix",
     "format_p",
+    "format_p_cell",
     "summary_table",
     "holm",
     "adjust_pvalues",
@@ -99,6 +100,18 @@ class MannWhitneyResult:
     n_x: int
     n_y: int
     degenerate: bool
+
+
+#: ``note`` of a pair whose observations are all tied (its p-value is NaN and it is not counted by Holm).
+NOT_TESTABLE = "not testable (all observations tied)"
+#: ``note`` of a paired summary row whose condition shares no subject with the reference.
+NO_COMMON_SUBJECT = "not testable (no subject with data in both)"
+
+
+def _all_tied(x: np.ndarray, y: np.ndarray) -> bool:
+    """True if the NaN-free samples ``x`` and ``y`` hold one single value between them."""
+    lo = min(x.min(), y.min())
+    return bool(lo == max(x.max(), y.max()))
 
 
 def _chi2_sf(x: float, df: int) -> float:
@@ -275,8 +288,10 @@ def dunn(
     Returns
     -------
     DataFrame
-        One row per pair, columns ``A``, ``B``, ``z``, ``p_unc``, ``p_adj``. ``z > 0``
-        means A has the higher mean rank.
+        One row per pair, columns ``A``, ``B``, ``z``, ``p_unc``, ``p_adj``, ``note``. ``z > 0``
+        means A has the higher mean rank. A pair whose observations are all tied is not
+        testable: ``z``, ``p_unc`` and ``p_adj`` are NaN and ``note`` says so (``""``
+        otherwise).
 
     Raises
     ------
@@ -296,11 +311,15 @@ def dunn(
                               \\Big(\\frac{1}{n_i} + \\frac{1}{n_j}\\Big)}},
         \\qquad p_{ij} = 2\\,\\Phi(-|z_{ij}|)
 
-    i.e. tie-corrected and **two-sided**. ``p_adj`` adjusts these across all pairs.
-    Matches the ``Z``, ``P.unadj`` and ``P.adj`` columns of R's
-    ``FSA::dunnTest(dv ~ between, method = "holm")``. If every observation is tied the
-    statistic is 0/0; this function then reports ``z = 0.0`` and ``p = 1.0`` for every
-    pair (no evidence of a difference).
+    i.e. tie-corrected and **two-sided**. ``p_adj`` adjusts these across the testable
+    pairs. Matches the ``Z``, ``P.unadj`` and ``P.adj`` columns of R's
+    ``FSA::dunnTest(dv ~ between, method = "holm")`` whenever no pair is all tied.
+
+    **Untestable pairs.** If the two groups of a pair hold one and the same value (all
+    their observations tied; in particular when every observation is tied and the
+    statistic is 0/0), the pair gives no information about a difference. Its ``z`` and p
+    are NaN ("not testable"), and, as R's ``p.adjust`` does with ``NA``, it is left out of
+    the number of tests the adjustment counts.
 
     References
     ----------
@@ -313,12 +332,14 @@ def dunn(
     pairs = list(combinations(range(len(levels)), 2))
     ia = np.array([i for i, _ in pairs])
     ib = np.array([j for _, j in pairs])
+    tied = np.array([_all_tied(groups[i], groups[j]) for i, j in pairs], dtype=bool)
     if ss_total == 0.0:
-        z = np.zeros(len(pairs))
+        z = np.full(len(pairs), np.nan)
     else:
         s2 = ss_total / (n - 1.0)  # == N(N+1)/12 - sum(t^3 - t) / (12(N-1))
         z = (mean_ranks[ia] - mean_ranks[ib]) / np.sqrt(s2 * (1.0 / sizes[ia] + 1.0 / sizes[ib]))
-    p_unc = _two_sided_normal_p(z)
+        z[tied] = np.nan
+    p_unc = np.where(tied, np.nan, _two_sided_normal_p(z))
     return pd.DataFrame(
         {
             "A": [levels[i] for i in ia],
@@ -326,6 +347,7 @@ def dunn(
             "z": z.astype(np.float64),
             "p_unc": p_unc.astype(np.float64),
             "p_adj": adjust_pvalues(p_unc, p_adjust),
+            "note": np.where(tied, NOT_TESTABLE, "").astype(object),
         }
     )
 
@@ -360,7 +382,7 @@ def pairwise_kruskal(
     -------
     DataFrame
         One row per pair, columns ``A``, ``B``, ``H``, ``df``, ``p_unc``, ``p_adj``,
-        ``n_A``, ``n_B``.
+        ``n_A``, ``n_B``, ``note`` (``""``, or ``"not testable (all observations tied)"``).
 
     Raises
     ------
@@ -372,8 +394,14 @@ def pairwise_kruskal(
     Each pair is ranked on its own (unlike :func:`dunn`, which ranks all conditions
     together): ``H`` and ``p_unc`` are :func:`kruskal` of the two samples (df = 1,
     equal to a two-sided, tie-corrected Mann-Whitney test without continuity
-    correction), i.e. R's ``kruskal.test`` on the pair's subset. A pair whose
-    observations are all tied gets ``H = 0.0``, ``p_unc = 1.0`` (see :func:`kruskal`).
+    correction), i.e. R's ``kruskal.test`` on the pair's subset.
+
+    **Untestable pairs.** A pair whose observations are all tied has H = 0/0; R's
+    ``kruskal.test`` returns NaN for it. So does this function (``H``, ``p_unc`` and
+    ``p_adj`` NaN, ``note`` "not testable ..."), and the adjustment leaves the pair out of
+    its count of tests, as R's ``p.adjust`` leaves out ``NA``. Example (R 4.2.2): for
+    a = b = [1, 1, 1] and c = [2, 3, 4], a-c and b-c get Holm p = 0.073808 (two tests), a-b
+    NaN. (The omnibus :func:`kruskal` keeps its documented ``degenerate`` flag instead.)
 
     References
     ----------
@@ -384,8 +412,9 @@ def pairwise_kruskal(
     rows = []
     for i, j in combinations(range(len(levels)), 2):
         res = _kruskal_groups([groups[i], groups[j]])
-        rows.append((levels[i], levels[j], res.H, res.df, res.p, groups[i].size, groups[j].size))
-    out = pd.DataFrame(rows, columns=["A", "B", "H", "df", "p_unc", "n_A", "n_B"])
+        h, p, note = (np.nan, np.nan, NOT_TESTABLE) if res.degenerate else (res.H, res.p, "")
+        rows.append((levels[i], levels[j], h, res.df, p, groups[i].size, groups[j].size, note))
+    out = pd.DataFrame(rows, columns=["A", "B", "H", "df", "p_unc", "n_A", "n_B", "note"])
     out.insert(5, "p_adj", adjust_pvalues(out["p_unc"].to_numpy(), p_adjust))
     dtypes = {"H": np.float64, "df": np.int64, "p_unc": np.float64, "n_A": np.int64, "n_B": np.int64}
     return out.astype(dtypes)
@@ -403,11 +432,16 @@ def format_p(p: float, decimals: int = 3) -> str:
         raise ValueError(f"decimals must be a positive integer, got {decimals!r}")
     p = float(p)
     if np.isnan(p) or p < 0.0 or p > 1.0:
-        raise ValueError(f"p must be a number in [0, 1], got {p!r}")
+        raise ValueError(f"p must be a number in [0, 1], got {p!r} (see format_p_cell for untestable pairs)")
     threshold = 10.0 ** -int(decimals)
     if p < threshold:
         return f"<{threshold:.{decimals}f}"
     return f"{p:.{decimals}f}"
+
+
+def format_p_cell(p: float, decimals: int = 3) -> str:
+    """:func:`format_p` for a table cell: a NaN p (an untestable pair) prints as ``'not testable'``."""
+    return "not testable" if np.isnan(float(p)) else format_p(p, decimals)
 
 
 def pairwise_matrix(
@@ -435,7 +469,7 @@ def pairwise_matrix(
     DataFrame of str
         Index and columns ``order``; cell (r, c) for r before c holds the formatted
         p-value of the pair (in either orientation in ``result``); cells on and below the
-        diagonal hold ``'/'``.
+        diagonal hold ``'/'``; a NaN p-value (an untestable pair) prints ``'not testable'``.
 
     Raises
     ------
@@ -458,7 +492,7 @@ def pairwise_matrix(
         key = frozenset((order[r], order[c]))
         if key not in lookup:
             raise ValueError(f"pair ({order[r]!r}, {order[c]!r}) is missing from result")
-        cells[r][c] = format_p(lookup[key], decimals)
+        cells[r][c] = format_p_cell(lookup[key], decimals)
     return pd.DataFrame(cells, index=pd.Index(order), columns=pd.Index(order), dtype=object)
 
 
@@ -499,7 +533,7 @@ def summary_table(
     -------
     DataFrame
         One row per non-reference condition, columns ``condition``, ``n``, ``mean``,
-        ``std``, ``n_ref``, ``mean_ref``, ``std_ref``, ``p``, ``d``, ``label``.
+        ``std``, ``n_ref``, ``mean_ref``, ``std_ref``, ``p``, ``d``, ``label``, ``note``.
         ``std`` uses ddof = 1 (NaN for a single observation). ``p`` is always the
         two-sided, tie-corrected Mann-Whitney test (= Kruskal-Wallis on the two groups),
         as in the papers, also when ``paired=True``. ``d`` is Cohen's d of condition
@@ -508,9 +542,20 @@ def summary_table(
     Raises
     ------
     ValueError
-        Bad columns, unknown reference, a condition without data, duplicate
-        (subject, condition) rows when paired, or an undefined Cohen's d (zero pooled SD
-        with different means; the message names the condition).
+        Bad columns, unknown reference, a condition without data, or duplicate
+        (subject, condition) rows when paired.
+
+    Notes
+    -----
+    Degenerate rows never abort the table:
+
+    * **undefined d** (zero pooled SD, one observation per group, fewer than two pairs):
+      ``d`` is NaN and ``label`` gives the reason, e.g. ``"undefined (zero SD)"`` (see
+      :func:`~analysis.effect_size.d_with_reason`); two identical constant groups are
+      undefined as in R and pingouin, not d = 0;
+    * **all observations of the row tied** (R's ``wilcox.test`` gives NaN): ``p`` is NaN
+      and ``note`` is ``"not testable (all observations tied)"``; ``note`` is ``""``
+      otherwise.
 
     References
     ----------
@@ -552,19 +597,19 @@ def summary_table(
                 raise ValueError(f"condition {lev!r} of {between!r} has no non-NaN observations of {dv!r}")
             both = wide[[lev, reference]].dropna()
             x, r = both[lev].to_numpy(np.float64), both[reference].to_numpy(np.float64)
-            if x.size == 0:
-                raise ValueError(f"condition {lev!r} shares no subject with reference {reference!r}")
+            if x.size == 0:  # no subject with data in both: nothing to compare, but no reason to abort
+                rows.append((lev, 0, np.nan, np.nan, 0, np.nan, np.nan, np.nan, np.nan,
+                             d_with_reason(x, r, paired=True)[1], NO_COMMON_SUBJECT))
+                continue
         else:
             x = y[keep & (lab == lev)]
             r = y[keep & (lab == reference)]
             if x.size == 0:
                 raise ValueError(f"condition {lev!r} of {between!r} has no non-NaN observations of {dv!r}")
-        try:
-            d = cohens_d(x, r, paired=paired)
-        except ValueError as exc:
-            raise ValueError(f"condition {lev!r} vs reference {reference!r}: {exc}") from None
+        d, reason = d_with_reason(x, r, paired=paired)
         mx, vx = _mean_var(x)
         mr, vr = _mean_var(r)
+        tied = _all_tied(x, r)
         rows.append(
             (
                 lev,
@@ -574,11 +619,13 @@ def summary_table(
                 r.size,
                 mr,
                 float(np.sqrt(vr)) if r.size > 1 else np.nan,
-                _mann_whitney_arrays(x, r).p,
-                d,
-                effect_size_label(d),
+                np.nan if tied else _mann_whitney_arrays(x, r).p,
+                np.nan if reason else d,
+                reason or effect_size_label(d),
+                NOT_TESTABLE if tied else "",
             )
         )
     return pd.DataFrame(
-        rows, columns=["condition", "n", "mean", "std", "n_ref", "mean_ref", "std_ref", "p", "d", "label"]
+        rows,
+        columns=["condition", "n", "mean", "std", "n_ref", "mean_ref", "std_ref", "p", "d", "label", "note"],
     ).astype({"n": np.int64, "n_ref": np.int64})

@@ -13,16 +13,23 @@ Tables (per trial family present in the log; names are stable):
 ``<fam>_units``
     the dependent variable per unit of analysis and condition (what the tests compare).
 ``<fam>_omnibus``
-    Kruskal-Wallis over all conditions (and per scene).
-``<fam>_pairwise``
+    Kruskal-Wallis over all conditions (and per scene); always.
+``<fam>_pairwise`` (test ``pairwise_kruskal``)
     Kruskal-Wallis on every pair, Holm across the pairs (seed 001 Tables 2-3), overall and
-    per scene/block; ``<fam>_dunn``: Dunn's test (Holm) as the post-hoc of the omnibus test.
-``<fam>_summary``
+    per scene/block.
+``<fam>_dunn`` (test ``kruskal_dunn``)
+    Dunn's test (Holm) as the post-hoc of the omnibus test.
+``<fam>_summary`` (test ``summary_table``)
     mean ± SD, p, Cohen's d and label of every condition against the reference (seed 003
     Tables 5-6), overall and per scene.
-``2afc_scale`` / ``preference_scale``
+``2afc_scale`` / ``preference_scale`` (tests ``thurstone``, ``bradley_terry`` / ``plackett_luce``)
     Thurstone Case V (JOD) and Bradley-Terry scores (2AFC) or Plackett-Luce scores
-    (preference) with bootstrap intervals over participants.
+    (preference) with bootstrap intervals over participants, under the plan's prior.
+``<fam>_gee`` (test ``gee``; yes/no and 2AFC)
+    Logistic GEE odds ratios against the reference (:func:`analysis.gee.logistic_gee`).
+
+Degenerate data never abort the report: an untestable pair has p = NaN with a note, an undefined
+effect size d = NaN with the reason as its label, an inestimable odds ratio NaN with a note.
 """
 
 from __future__ import annotations
@@ -32,9 +39,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from .gee import logistic_gee
 from .plan import AnalysisPlan
 from .scaling import bradley_terry, plackett_luce, thurstone_jod
 from .stats import dunn, kruskal, pairwise_kruskal, summary_table
+from .vocabulary import DV_FAMILIES
 
 __all__ = ["StudyAnalysis", "analyze_log", "condition_order"]
 
@@ -221,9 +230,11 @@ def _votes_table(df, shown, picks, conds, family) -> pd.DataFrame:
     return out.sort_values(["block", "scene"], kind="stable").reset_index(drop=True)
 
 
-def _unit_values_votes(df, shown, picks, conds, plan) -> pd.DataFrame:
-    """votes (times chosen) per unit of analysis and condition."""
+def _unit_values_votes(df, shown, picks, conds, plan, dv="votes") -> pd.DataFrame:
+    """votes (times chosen, first or second choice) or chosen (first choices) per unit and condition."""
     k = len(conds)
+    if dv == "chosen":
+        picks = picks[:, :1]
     if plan.unit == "trial":
         rows_i, cond_i = np.nonzero(np.stack([(shown == c).any(axis=1) for c in range(k)], axis=1))
         chosen = (picks[rows_i] == cond_i[:, None]).any(axis=1).astype(float)
@@ -282,28 +293,9 @@ def _omnibus(units: pd.DataFrame, conds: list[str]) -> dict:
 
 
 def _summary(units: pd.DataFrame, conds: list[str], reference: str, plan: AnalysisPlan) -> pd.DataFrame:
-    """summary_table row by row, so that one condition with an undefined d does not sink the report.
-
-    A condition whose Cohen's d is undefined (both groups constant with different means: zero pooled SD)
-    gets ``d = NaN`` and the label ``"undefined (zero SD)"`` - never a verbal effect-size label.
-    """
-    from .stats import mann_whitney
-
-    rows = []
-    for c in (c for c in conds if c != reference):
-        try:
-            rows.append(summary_table(units, "value", "condition", reference, order=[c], paired=plan.paired,
-                                      subject="participant" if plan.paired else None))
-        except ValueError as exc:
-            if "standard deviation" not in str(exc):
-                raise
-            x = units.loc[units["condition"] == c, "value"].to_numpy(dtype=float)
-            r = units.loc[units["condition"] == reference, "value"].to_numpy(dtype=float)
-            rows.append(pd.DataFrame([{
-                "condition": c, "n": x.size, "mean": x.mean(), "std": x.std(ddof=1) if x.size > 1 else np.nan,
-                "n_ref": r.size, "mean_ref": r.mean(), "std_ref": r.std(ddof=1) if r.size > 1 else np.nan,
-                "p": mann_whitney(x, r).p, "d": np.nan, "label": "undefined (zero SD)"}]))
-    return pd.concat(rows, ignore_index=True).astype({"n": np.int64, "n_ref": np.int64})
+    """summary_table of the unit values; undefined effect sizes and untestable rows are NaN with a reason."""
+    return summary_table(units, "value", "condition", reference, order=conds, paired=plan.paired,
+                         subject="participant" if plan.paired else None)
 
 
 def _with_group(df: pd.DataFrame, block: str, scene: str) -> pd.DataFrame:
@@ -314,6 +306,11 @@ def _with_group(df: pd.DataFrame, block: str, scene: str) -> pd.DataFrame:
 
 
 # --- scaling -------------------------------------------------------------------------------------------------
+def _other_prior(plan: AnalysisPlan) -> str:
+    """Prior of the Bradley-Terry and Plackett-Luce scales: pwcmp's prior exists for the JOD scale only."""
+    return "none" if plan.prior == "none" else "weak"
+
+
 def _scale_2afc(df, shown, picks, conds, reference, plan) -> pd.DataFrame:
     """Thurstone (JOD) and Bradley-Terry on (participant, winner, loser) counts (exact observer bootstrap)."""
     k = len(conds)
@@ -328,11 +325,18 @@ def _scale_2afc(df, shown, picks, conds, reference, plan) -> pd.DataFrame:
                         "condition_2": np.asarray(conds, dtype=object)[uk % k], "selection": 1,
                         "count": counts})
     kw = {"reference": reference, "n_boot": plan.n_boot, "seed": plan.seed, "observer": "observer", "weight": "count"}
-    jod = thurstone_jod(agg, **kw)
-    bt = bradley_terry(agg, **kw)
-    out = jod.rename(columns={"ci_low": "jod_ci_low", "ci_high": "jod_ci_high"})
-    bt = bt.rename(columns={"score": "bt", "ci_low": "bt_ci_low", "ci_high": "bt_ci_high"})
-    out = out.merge(bt.drop(columns=["n_comparisons"]), on="condition")
+    parts = []
+    if "thurstone" in plan.tests:
+        jod = thurstone_jod(agg, prior=plan.prior, **kw)
+        parts.append(jod.rename(columns={"ci_low": "jod_ci_low", "ci_high": "jod_ci_high"}))
+    if "bradley_terry" in plan.tests:
+        bt = bradley_terry(agg, prior=_other_prior(plan), **kw)
+        parts.append(bt.rename(columns={"score": "bt", "ci_low": "bt_ci_low", "ci_high": "bt_ci_high"}))
+    if not parts:
+        return None
+    out = parts[0]
+    for extra in parts[1:]:
+        out = out.merge(extra.drop(columns=["n_comparisons"]), on="condition")
     out["order"] = [conds.index(c) for c in out["condition"]]
     return out.sort_values("order").drop(columns="order").reset_index(drop=True)
 
@@ -352,9 +356,29 @@ def _scale_preference(df, shown, picks, conds, reference, plan) -> pd.DataFrame:
     # plackett_luce has no weight column: expand the aggregated rows (bounded by participants x sets x picks).
     agg = agg.loc[agg.index.repeat(agg["count"])].reset_index(drop=True)
     out = plackett_luce(agg, ranking_cols=("first", "second"), options_col="options", reference=reference,
-                        n_boot=plan.n_boot, seed=plan.seed, observer="observer")
+                        n_boot=plan.n_boot, seed=plan.seed, observer="observer", prior=_other_prior(plan))
     out["order"] = [conds.index(c) for c in out["condition"]]
     return out.sort_values("order").drop(columns="order").reset_index(drop=True)
+
+
+# --- logistic GEE --------------------------------------------------------------------------------------------
+def _gee(sub: pd.DataFrame, fam: str, shown, picks, conds: list[str], reference: str) -> pd.DataFrame:
+    """yes/no: every answer by condition (treatment coding, reference = baseline); 2AFC: the trials that show
+    the reference, 1 when the other condition was chosen (no intercept: odds of beating the reference)."""
+    part = sub["participant"].astype(str).to_numpy()
+    if fam == "yes_no":
+        data = pd.DataFrame({"participant": part, "condition": sub["condition"].astype(str).to_numpy(),
+                             "y": sub["response"].to_numpy(dtype=float)})
+        return logistic_gee(data, "y", "condition", "participant", reference, order=conds, intercept=True)
+    ref = conds.index(reference)
+    with_ref = (shown[:, 0] == ref) | (shown[:, 1] == ref)
+    other = np.where(shown[:, 0] == ref, shown[:, 1], shown[:, 0])[with_ref]
+    data = pd.DataFrame({"participant": part[with_ref], "condition": np.asarray(conds, dtype=object)[other],
+                         "y": (picks[with_ref, 0] == other).astype(float)})
+    order = [c for c in conds if c != reference and (data["condition"] == c).any()]
+    if not order:
+        raise ValueError(f"gee: no 2afc trial shows the reference {reference!r} with another condition")
+    return logistic_gee(data, "y", "condition", "participant", reference, order=order, intercept=False)
 
 
 # --- driver --------------------------------------------------------------------------------------------------
@@ -392,9 +416,9 @@ def analyze_log(df: pd.DataFrame, plan: AnalysisPlan | None = None, progress=Non
             raise ValueError(f"reference condition {reference!r} does not occur in the {fam} trials "
                              f"(the log has: {', '.join(conds)})")
         dv = plan.dv or ("response" if fam == "yes_no" else "votes")
-        if (dv == "response") != (fam == "yes_no"):
-            raise ValueError(f"dv={dv!r} does not fit {fam} trials (use "
-                             f"{'response' if fam == 'yes_no' else 'votes'})")
+        if fam not in DV_FAMILIES[dv]:
+            fits = [d for d, fams in DV_FAMILIES.items() if fam in fams]
+            raise ValueError(f"dv={dv!r} does not fit {fam} trials (use {' or '.join(fits)})")
         if fam == "yes_no":
             shown = picks = None
         else:
@@ -407,7 +431,7 @@ def analyze_log(df: pd.DataFrame, plan: AnalysisPlan | None = None, progress=Non
             if fam == "yes_no":
                 units = _unit_values_response(part, conds, plan)
             else:
-                units = _unit_values_votes(part, shown[mask], picks[mask], conds, plan)
+                units = _unit_values_votes(part, shown[mask], picks[mask], conds, plan, dv)
             present = [c for c in conds if (units["condition"] == c).any()]
             if len(present) < 2:
                 if block == ALL and scene == ALL:
@@ -417,26 +441,48 @@ def analyze_log(df: pd.DataFrame, plan: AnalysisPlan | None = None, progress=Non
                 unit_frames.append(units)
             o = _omnibus(units, present)
             omni.append({"block": block, "scene": scene, "test": "kruskal", **o})
-            if plan.test == "kruskal_holm":
+            if "pairwise_kruskal" in plan.tests:
                 pair_rows.append(_with_group(pairwise_kruskal(units, "value", "condition", order=present),
                                              block, scene))
+            if "kruskal_dunn" in plan.tests:
                 dunn_rows.append(_with_group(dunn(units, "value", "condition", order=present), block, scene))
-            if reference in present:
+            if "summary_table" in plan.tests and reference in present:
                 summ_rows.append(_with_group(_summary(units, present, reference, plan), block, scene))
         res.tables[f"{fam}_units"] = unit_frames[0]
         res.tables[f"{fam}_omnibus"] = pd.DataFrame(omni)
-        if pair_rows:
-            res.tables[f"{fam}_pairwise"] = pd.concat(pair_rows, ignore_index=True)
-            res.tables[f"{fam}_dunn"] = pd.concat(dunn_rows, ignore_index=True)
-        if summ_rows:
-            res.tables[f"{fam}_summary"] = pd.concat(summ_rows, ignore_index=True)
-        say(f"{fam}: scaling")
-        if fam == "2afc":
+        for name, rows in (("pairwise", pair_rows), ("dunn", dunn_rows), ("summary", summ_rows)):
+            if rows:
+                res.tables[f"{fam}_{name}"] = pd.concat(rows, ignore_index=True)
+        if fam == "2afc" and {"thurstone", "bradley_terry"} & set(plan.tests):
+            say(f"{fam}: scaling")
             res.tables["2afc_scale"] = _scale_2afc(sub, shown, picks, conds, reference, plan)
-        elif fam == "preference":
+        elif fam == "preference" and "plackett_luce" in plan.tests:
+            say(f"{fam}: scaling")
             res.tables["preference_scale"] = _scale_preference(sub, shown, picks, conds, reference, plan)
+        if "gee" in plan.tests and fam != "preference":
+            say(f"{fam}: logistic GEE")
+            res.tables[f"{fam}_gee"] = _gee(sub, fam, shown, picks, conds, reference)
         res.notes.append(_unit_note(fam, plan, dv, reference))
+        res.notes += _degenerate_notes(res, fam)
     return res
+
+
+def _degenerate_notes(res: StudyAnalysis, fam: str) -> list[str]:
+    """One line per kind of undefined result in the family's tables (the tables say which row)."""
+    notes = []
+    for name, what in (("pairwise", "pairwise Kruskal-Wallis"), ("dunn", "Dunn"), ("summary", "summary")):
+        t = res.tables.get(f"{fam}_{name}")
+        if t is not None and t["note"].astype(str).str.startswith("not testable").any():
+            notes.append(f"{fam}: {what}: pairs whose observations are all tied are not testable (p = NaN, shown "
+                         "as 'not testable') and are left out of the Holm count, as R's p.adjust leaves out NA.")
+    t = res.tables.get(f"{fam}_summary")
+    if t is not None and t["label"].astype(str).str.startswith("undefined").any():
+        notes.append(f"{fam}: summary: Cohen's d is undefined for some rows (zero SD, or too few observations): "
+                     "shown as n/a with the reason.")
+    t = res.tables.get(f"{fam}_gee")
+    if t is not None and t["note"].astype(str).str.startswith("not estimable").any():
+        notes.append(f"{fam}: GEE: some odds ratios are not estimable (see the note column).")
+    return notes
 
 
 def _unit_note(fam: str, plan: AnalysisPlan, dv: str, reference: str) -> str:
@@ -444,13 +490,33 @@ def _unit_note(fam: str, plan: AnalysisPlan, dv: str, reference: str) -> str:
             "participant_block": "one value per participant, block and condition",
             "participant_scene": "one value per participant, scene and condition",
             "trial": "every trial is one observation"}[plan.unit]
-    what = "votes (times chosen)" if dv == "votes" else "mean score (1 = yes/acceptable)"
+    what = {"votes": "votes (times chosen, first or second choice)",
+            "chosen": "times chosen" if fam == "2afc" else "times chosen first",
+            "response": "mean score (1 = yes/acceptable)"}[dv]
     if plan.unit == "trial":
-        what = "chosen (1/0) each time a condition was shown" if dv == "votes" else "score (1 = yes/acceptable)"
+        what = {"votes": "chosen (1/0) each time a condition was shown",
+                "chosen": "chosen first (1/0) each time a condition was shown",
+                "response": "score (1 = yes/acceptable)"}[dv]
     d = "paired d_z over participants" if plan.paired else "pooled-SD Cohen's d of independent groups"
-    tests = ("pairwise p: two-sided Kruskal-Wallis on each pair, Holm-adjusted across the pairs; "
-             if plan.test == "kruskal_holm" else "")
-    return (f"{fam}: dependent variable {what}; unit of analysis: {unit}; reference {reference!r}; {tests}"
-            "p against the reference: two-sided Mann-Whitney (= two-group Kruskal-Wallis), unadjusted, as in "
-            f"seed 003 Tables 5-6; effect size: {d} (condition minus reference, SDs with ddof = 1), "
-            "Sawilowsky (2009) labels.")
+    parts = [f"{fam}: dependent variable {what}; unit of analysis: {unit}; reference {reference!r}",
+             "omnibus: Kruskal-Wallis over all conditions"]
+    if "pairwise_kruskal" in plan.tests:
+        parts.append("pairwise p: two-sided Kruskal-Wallis on each pair, Holm-adjusted across the pairs")
+    if "kruskal_dunn" in plan.tests:
+        parts.append("Dunn's test: two-sided, tie-corrected, Holm-adjusted")
+    if "summary_table" in plan.tests:
+        parts.append("p against the reference: two-sided Mann-Whitney (= two-group Kruskal-Wallis), unadjusted, "
+                     f"as in seed 003 Tables 5-6; effect size: {d} (condition minus reference, SDs with ddof = 1), "
+                     "Sawilowsky (2009) labels")
+    if fam == "2afc" and {"thurstone", "bradley_terry"} & set(plan.tests):
+        parts.append(f"scales: prior {plan.prior!r} (JOD), {_other_prior(plan)!r} (Bradley-Terry)")
+    if fam == "preference" and "plackett_luce" in plan.tests:
+        parts.append(f"Plackett-Luce prior {_other_prior(plan)!r}")
+    if "gee" in plan.tests and fam == "preference":
+        parts.append("no logistic GEE for top-two-of-N choices (yes/no and 2AFC only)")
+    if "gee" in plan.tests and fam != "preference":
+        parts.append("logistic GEE (statsmodels; participants as clusters, exchangeable working correlation, robust "
+                     "SEs): odds ratios with 95 % Wald intervals " + (
+                         "of a yes against the reference" if fam == "yes_no" else
+                         "of choosing each condition over the reference, in the trials that show both"))
+    return "; ".join(parts) + "."

@@ -225,7 +225,7 @@ def seed003_comparison(seed: int = 0) -> pd.DataFrame:
     rows = []
     for table, spec in SEED003_TABLES.items():
         log = seed003_yes_no_log(table, seed=seed)
-        plan = AnalysisPlan(unit="trial", test="mann_whitney", reference="EC", conditions=tuple(spec),
+        plan = AnalysisPlan(unit="trial", tests=("summary_table",), reference="EC", conditions=tuple(spec),
                             n_boot=0, per_scene=False)
         summ = analyze_log(validate_log(log), plan).tables["yes_no_summary"]
         m_ref, s_ref = spec["EC"][:2]

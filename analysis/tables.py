@@ -19,11 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from .stats import format_p, pairwise_matrix
+from .stats import format_p, format_p_cell, pairwise_matrix
 
 __all__ = [
     "Table",
     "fmt_num",
+    "gee_table",
     "omnibus_table",
     "pairwise_p_table",
     "scale_table",
@@ -147,8 +148,22 @@ def summary_vs_reference_table(summary: pd.DataFrame, reference: str, caption: s
              f"{fmt_num(first['std_ref'], decimals)}"), "/", "/", "/")]
     for r in summary.itertuples(index=False):
         rows.append((_name(r.condition, labels), f"{fmt_num(r.mean, decimals)} ± {fmt_num(r.std, decimals)}",
-                     format_p(r.p), fmt_num(r.d, decimals), str(r.label)))
+                     format_p_cell(r.p), fmt_num(r.d, decimals), str(r.label)))
     return Table(("con.", "avg. ± std. dev.", "p value", "Cohen's d", "effect size"), tuple(rows), caption)
+
+
+def gee_table(gee: pd.DataFrame, caption: str, labels: dict | None = None) -> Table:
+    """Logistic GEE odds ratios: condition, answers, rate, OR [95 % CI], p; 'n/a' and the note when undefined."""
+    labels = labels or {}
+    rows = []
+    for r in gee.itertuples(index=False):
+        if math.isnan(r.odds_ratio):
+            rows.append((_name(r.condition, labels), str(r.n), fmt_num(r.rate, 2), "n/a", "n/a", str(r.note)))
+            continue
+        rows.append((_name(r.condition, labels), str(r.n), fmt_num(r.rate, 2),
+                     f"{fmt_num(r.odds_ratio, 2)} [{fmt_num(r.ci_low, 2)}, {fmt_num(r.ci_high, 2)}]",
+                     format_p(r.p), str(r.note)))
+    return Table(("con.", "answers", "rate", "odds ratio [95% CI]", "p value", "note"), tuple(rows), caption)
 
 
 def votes_table(votes: pd.DataFrame, order: list[str], caption: str, labels: dict | None = None) -> Table:

@@ -13,7 +13,7 @@ from hypothesis import assume, given
 from hypothesis import strategies as st
 
 from analysis import SAWILOWSKY_BINS, BootstrapCI, bootstrap_ci_d, cohens_d, effect_size_label, hedges_g
-from analysis.effect_size import _quantile_linear
+from analysis.effect_size import _quantile_linear, d_with_reason
 
 sample = st.lists(st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False), min_size=2, max_size=15)
 
@@ -68,23 +68,27 @@ def test_cohens_d_nan_policy():
     )
 
 
-def test_cohens_d_zero_pooled_sd():
-    assert cohens_d([2.0, 2.0], [2.0, 2.0, 2.0]) == 0.0
-    assert cohens_d([0.1] * 7, [0.1] * 3) == 0.0  # no rounding noise from the mean of 0.1s
-    with pytest.raises(ValueError, match="zero pooled standard deviation"):
-        cohens_d([1.0, 1.0], [2.0, 2.0])
-    with pytest.raises(ValueError, match="zero pooled standard deviation"):
-        cohens_d([3.0, 4.0, 5.0], [1.0, 2.0, 3.0], paired=True)  # constant differences
-    assert cohens_d([3.0, 4.0], [3.0, 4.0], paired=True) == 0.0
+def test_cohens_d_zero_pooled_sd_follows_r():
+    # R: (mean(x) - mean(y)) / sqrt(((n1-1)*var(x) + (n2-1)*var(y)) / (n1+n2-2)) is 0/0 = NaN for two identical
+    # constant groups (pingouin's compute_effsize too) and +-Inf for constant but different groups.
+    assert np.isnan(cohens_d([2.0, 2.0], [2.0, 2.0, 2.0]))
+    assert np.isnan(cohens_d([0.1] * 7, [0.1] * 3))  # no rounding noise from the mean of 0.1s
+    assert cohens_d([1.0, 1.0], [2.0, 2.0]) == -np.inf
+    assert cohens_d([3.0, 4.0, 5.0], [1.0, 2.0, 3.0], paired=True) == np.inf  # constant differences
+    assert np.isnan(cohens_d([3.0, 4.0], [3.0, 4.0], paired=True))
+    assert d_with_reason([2.0, 2.0], [2.0, 2.0, 2.0])[1] == "undefined (zero SD)"
+    assert d_with_reason([1.0, 1.0], [2.0, 2.0])[1] == "undefined (zero SD)"
+    assert d_with_reason([1.0, 2.0], [2.0, 4.0]) == (cohens_d([1.0, 2.0], [2.0, 4.0]), None)
+    assert np.isnan(hedges_g([2.0, 2.0], [2.0, 2.0]))
 
 
 def test_cohens_d_size_one_groups():
     # n1 = 1 contributes nothing to the pooled SS: sp = sd(y)
     assert cohens_d([10.0], [1.0, 2.0, 3.0]) == pytest.approx(8.0, rel=1e-15)
-    with pytest.raises(ValueError, match="n1 \\+ n2 - 2 >= 1"):
-        cohens_d([1.0], [2.0])
-    with pytest.raises(ValueError, match="n1 \\+ n2 - 2 >= 1"):
-        cohens_d([1.0, np.nan], [np.nan, 2.0])
+    # n1 + n2 - 2 = 0: no SD at all (R: NA)
+    assert d_with_reason([1.0], [2.0])[1] == "undefined (n1 + n2 - 2 = 0: no SD)"
+    assert np.isnan(cohens_d([1.0, np.nan], [np.nan, 2.0]))
+    assert d_with_reason([1.0, np.nan], [2.0, 3.0], paired=True)[1] == "undefined (fewer than 2 complete pairs)"
     with pytest.raises(ValueError, match="both samples need observations"):
         cohens_d([], [1.0, 2.0, 3.0])
 
@@ -93,7 +97,6 @@ def test_cohens_d_size_one_groups():
     "x, y, kwargs, message",
     [
         ([1.0, 2.0], [1.0, 2.0, 3.0], dict(paired=True), "equal length"),
-        ([1.0, np.nan], [1.0, 2.0], dict(paired=True), "at least 2 complete pairs"),
         ([1.0, np.inf], [1.0, 2.0], {}, "must be finite"),
         ([1.0, np.inf], [1.0, 2.0], dict(paired=True), "must be finite"),
         ("ab", [1.0, 2.0], {}, "x must be a 1-D"),
@@ -121,8 +124,7 @@ def test_hedges_g_is_corrected_d(x, y):
 def test_hedges_g_values_and_errors():
     # n1 = n2 = 3: J = 1 - 3/(4*6 - 9) = 0.8
     assert hedges_g([1.0, 2.0, 3.0], [3.0, 4.0, 5.0]) == pytest.approx(-1.6, rel=1e-15)
-    with pytest.raises(ValueError, match="zero pooled standard deviation"):
-        hedges_g([1.0, 1.0], [2.0, 2.0])
+    assert hedges_g([1.0, 1.0], [2.0, 2.0]) == -np.inf  # zero pooled SD, different means: as cohens_d
 
 
 # --- effect_size_label ---------------------------------------------------------------------------
@@ -270,9 +272,11 @@ def test_bootstrap_invalid_arguments(kwargs, message):
         bootstrap_ci_d([1.0, 2.0, 3.0], [2.0, 3.0, 5.0], **kwargs)
 
 
-def test_bootstrap_propagates_undefined_d():
-    with pytest.raises(ValueError, match="zero pooled standard deviation"):
+def test_bootstrap_refuses_an_undefined_d():
+    with pytest.raises(ValueError, match=r"undefined \(zero SD\): no bootstrap interval"):
         bootstrap_ci_d([1.0, 1.0], [2.0, 2.0])
+    with pytest.raises(ValueError, match="fewer than 2 complete pairs"):
+        bootstrap_ci_d([1.0], [2.0], paired=True)
 
 
 @given(st.lists(st.floats(-1e6, 1e6), min_size=1, max_size=40), st.floats(0, 1))

@@ -482,7 +482,7 @@ def test_dunn_matches_r(frame, dv, between, prefix, source, z_sign):
     """Against the by-hand formula (DUNN) and rstatix::dunn_test (RSTATIX, z = group2 - group1)."""
     ref = {k: globals()[f"{prefix}_{source}_{k}"] for k in ("A", "B", "Z", "P", "PADJ")}
     out = analysis.dunn(frame(), dv, between)
-    assert list(out.columns) == ["A", "B", "z", "p_unc", "p_adj"]
+    assert list(out.columns) == ["A", "B", "z", "p_unc", "p_adj", "note"]
     assert [str(a) for a in out.A] == ref["A"] and [str(b) for b in out.B] == ref["B"]
     close(z_sign * out.z, ref["Z"])
     close(out.p_unc, ref["P"])
@@ -498,7 +498,7 @@ def test_dunn_matches_r(frame, dv, between, prefix, source, z_sign):
 )
 def test_pairwise_kruskal_matches_r(frame, dv, between, prefix):
     out = analysis.pairwise_kruskal(frame(), dv, between)
-    assert list(out.columns) == ["A", "B", "H", "df", "p_unc", "p_adj", "n_A", "n_B"]
+    assert list(out.columns) == ["A", "B", "H", "df", "p_unc", "p_adj", "n_A", "n_B", "note"]
     close(out.H, globals()[f"{prefix}_PKW_H"])
     close(out.p_unc, globals()[f"{prefix}_PKW_P"])
     close(out.p_adj, globals()[f"{prefix}_PKW_PADJ"])

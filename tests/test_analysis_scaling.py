@@ -22,7 +22,8 @@ def _pairwise_sample(true, n, link, seed, observers=0):
     b = (a + rng.integers(1, k, n)) % k
     d = true[a] - true[b]
     p = special.ndtr(d / JOD_SIGMA) if link == "probit" else special.expit(d)
-    df = pd.DataFrame({"condition_1": a, "condition_2": b, "selection": (rng.random(n) < p).astype(int)})
+    # selection: 1 = condition_1 chosen, 2 = condition_2 chosen (pwcmp export layout)
+    df = pd.DataFrame({"condition_1": a, "condition_2": b, "selection": np.where(rng.random(n) < p, 1, 2)})
     if observers:
         df["observer"] = rng.integers(0, observers, n)
     return df
@@ -30,7 +31,7 @@ def _pairwise_sample(true, n, link, seed, observers=0):
 
 def _tiny(n_a=75, n=100):
     return pd.DataFrame(
-        {"condition_1": ["a"] * n, "condition_2": ["b"] * n, "selection": [1] * n_a + [0] * (n - n_a)}
+        {"condition_1": ["a"] * n, "condition_2": ["b"] * n, "selection": [1] * n_a + [2] * (n - n_a)}
     )
 
 
@@ -95,14 +96,14 @@ def test_prior_shrinks_towards_zero():
     assert 0.0 < strong < weak < 1.0
 
 
-def test_selection_bool_and_swapped_columns_agree():
+def test_selection_float_and_swapped_columns_agree():
     df = _tiny()
-    as_bool = df.assign(selection=df["selection"].astype(bool))
+    as_float = df.assign(selection=df["selection"].astype(float))
     swapped = pd.DataFrame(
-        {"condition_1": df["condition_2"], "condition_2": df["condition_1"], "selection": 1 - df["selection"]}
+        {"condition_1": df["condition_2"], "condition_2": df["condition_1"], "selection": 3 - df["selection"]}
     )
     ref = thurstone_jod(df)
-    pd.testing.assert_frame_equal(thurstone_jod(as_bool), ref)
+    pd.testing.assert_frame_equal(thurstone_jod(as_float), ref)
     np.testing.assert_allclose(thurstone_jod(swapped)["jod"], ref["jod"], atol=1e-9)
 
 
@@ -211,7 +212,7 @@ def test_plackett_luce_bootstrap():
 
 def test_plackett_luce_two_options_is_bradley_terry():
     pw = _pairwise_sample(TRUE, 500, "logit", seed=31)
-    winner = np.where(pw["selection"] == 1, pw["condition_1"], pw["condition_2"])
+    winner = np.where(pw["selection"] == 1, pw["condition_1"], pw["condition_2"])  # 2: condition_2 chosen
     pl_df = pd.DataFrame(
         {"options": [(a, b) for a, b in zip(pw["condition_1"], pw["condition_2"])], "first": winner}
     )
@@ -249,8 +250,11 @@ def test_plackett_luce_top_two_counts_and_option_formats():
 def test_plackett_luce_second_choice_informs():
     # x always first; second choice y over z in every trial -> y above z
     df = pd.DataFrame({"options": ["x|y|z"] * 20, "first": ["x"] * 20, "second": ["y"] * 15 + ["z"] * 5})
-    out = plackett_luce(df, prior_sd=np.inf, reference="z")
-    assert out.loc[out["condition"] == "y", "score"].item() == pytest.approx(np.log(3.0), abs=1e-6)
+    out = plackett_luce(df, reference="z")  # weak prior: x stays finite, y - z shrinks by ~0.012
+    assert out.loc[out["condition"] == "y", "score"].item() == pytest.approx(np.log(3.0), abs=0.02)
+    # without a prior x's score is +inf: refused, not returned as a large unconverged number
+    with pytest.raises(ValueError, match="maximum-likelihood scale does not exist"):
+        plackett_luce(df, prior="none", reference="z")
 
 
 # ----------------------------------------------------------------------------- invariance (hypothesis)
@@ -284,10 +288,16 @@ def test_pairwise_bad_input(func):
         func(df.drop(columns="selection"))
     with pytest.raises(ValueError, match="DataFrame"):
         func(df.to_dict())
-    with pytest.raises(ValueError, match="binary"):
-        func(df.assign(selection=[2] + [1] * 99))
-    with pytest.raises(ValueError, match="binary"):
+    with pytest.raises(ValueError, match=r"must hold 1 \(condition_1 chosen\) or 2.*row 0 has 0 \(a 0/1"):
+        func(df.assign(selection=[0] + [1] * 99))
+    with pytest.raises(ValueError, match="row 0 has True"):
+        func(df.assign(selection=[True] * 100))
+    with pytest.raises(ValueError, match="row 3 has 3"):
+        func(df.assign(selection=[1, 2, 1, 3] + [1] * 96))
+    with pytest.raises(ValueError, match="must hold 1"):
         func(df.assign(selection=["a"] * 100))
+    with pytest.raises(ValueError, match="prior='pwcmp' is invalid here" if func is bradley_terry else "prior="):
+        func(df, prior="pwcmp" if func is bradley_terry else "strong")
     with pytest.raises(ValueError, match="itself"):
         func(df.assign(condition_2="a"))
     with pytest.raises(ValueError, match="at least two conditions"):

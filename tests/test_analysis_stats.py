@@ -395,6 +395,9 @@ def test_dunn_with_two_groups_is_kruskal(x, y):
     out = dunn(frame([x, y]), "y", "cond")
     kw = kruskal(x, y)
     assert len(out) == 1
+    if kw.degenerate:  # all observations tied: not testable, as R's NA
+        assert np.isnan(out.z.iloc[0]) and np.isnan(out.p_adj.iloc[0]) and out.note.iloc[0].startswith("not")
+        return
     assert out.z.iloc[0] ** 2 == pytest.approx(kw.H, rel=1e-10, abs=1e-12)
     assert out.p_unc.iloc[0] == pytest.approx(kw.p, rel=1e-10, abs=1e-300)
     assert out.p_adj.iloc[0] == out.p_unc.iloc[0]
@@ -405,10 +408,15 @@ def test_dunn_properties(groups):
     out = dunn(frame(groups), "y", "cond")
     k = len(groups)
     assert len(out) == k * (k - 1) // 2
-    assert list(out.columns) == ["A", "B", "z", "p_unc", "p_adj"]
-    assert ((out.p_unc >= 0) & (out.p_unc <= 1) & (out.p_adj >= out.p_unc) & (out.p_adj <= 1)).all()
-    np.testing.assert_allclose(out.p_adj, holm(out.p_unc), rtol=0)
-    assert np.isfinite(out.z).all()
+    assert list(out.columns) == ["A", "B", "z", "p_unc", "p_adj", "note"]
+    tied = out.note != ""
+    ok = out[~tied]
+    assert ((ok.p_unc >= 0) & (ok.p_unc <= 1) & (ok.p_adj >= ok.p_unc) & (ok.p_adj <= 1)).all()
+    np.testing.assert_allclose(out.p_adj, holm(out.p_unc), rtol=0)  # NaN (untestable) left out of the count
+    assert np.isfinite(ok.z).all() and out[tied][["z", "p_unc", "p_adj"]].isna().all().all()
+    for row in out.itertuples():  # untestable exactly when the pair's observations are all one value
+        pair = np.concatenate([groups[int(row.A[1:])], groups[int(row.B[1:])]])
+        assert (row.note != "") == (pair.min() == pair.max())
 
 
 def test_dunn_formula_by_hand():
@@ -423,9 +431,10 @@ def test_dunn_formula_by_hand():
     assert list(out.A) == ["g0", "g0", "g1"] and list(out.B) == ["g1", "g2", "g2"]
 
 
-def test_dunn_constant_data():
+def test_dunn_constant_data_is_not_testable():
     out = dunn(frame([[2.0, 2.0], [2.0], [2.0, 2.0, 2.0]]), "y", "cond")
-    assert (out.z == 0.0).all() and (out.p_unc == 1.0).all() and (out.p_adj == 1.0).all()
+    assert out[["z", "p_unc", "p_adj"]].isna().all().all()
+    assert (out.note == "not testable (all observations tied)").all()
 
 
 def test_dunn_order_subset_and_nan_rows():
@@ -477,20 +486,26 @@ def test_dunn_rejects_non_dataframe_and_single_condition():
 @given(groups_strategy)
 def test_pairwise_kruskal_is_kruskal_per_pair(groups):
     out = pairwise_kruskal(frame(groups), "y", "cond")
-    assert list(out.columns) == ["A", "B", "H", "df", "p_unc", "p_adj", "n_A", "n_B"]
+    assert list(out.columns) == ["A", "B", "H", "df", "p_unc", "p_adj", "n_A", "n_B", "note"]
     for row in out.itertuples():
         i, j = int(row.A[1:]), int(row.B[1:])
         res = kruskal(groups[i], groups[j])
-        assert (row.H, row.p_unc, row.df) == (res.H, res.p, 1)
+        if res.degenerate:  # R: kruskal.test gives NaN; the pair is left out of the Holm count
+            assert np.isnan(row.H) and np.isnan(row.p_unc) and row.note == "not testable (all observations tied)"
+        else:
+            assert (row.H, row.p_unc, row.df, row.note) == (res.H, res.p, 1, "")
         assert (row.n_A, row.n_B) == (len(groups[i]), len(groups[j]))
     np.testing.assert_allclose(out.p_adj, holm(out.p_unc), rtol=0)
-    assert ((out.p_adj >= 0) & (out.p_adj <= 1)).all()
+    assert ((out.p_adj.dropna() >= 0) & (out.p_adj.dropna() <= 1)).all()
 
 
 def test_pairwise_kruskal_degenerate_pair_and_dtypes():
     out = pairwise_kruskal(frame([[1.0, 1.0], [1.0], [2.0, 3.0]], ["a", "b", "c"]), "y", "cond")
     first = out.iloc[0]
-    assert (first.A, first.B, first.H, first.p_unc, first.p_adj) == ("a", "b", 0.0, 1.0, 1.0)
+    assert (first.A, first.B, first.note) == ("a", "b", "not testable (all observations tied)")
+    assert np.isnan(first.H) and np.isnan(first.p_unc) and np.isnan(first.p_adj)
+    # Holm counts the two testable pairs only
+    np.testing.assert_allclose(out.p_adj.iloc[1:], holm(out.p_unc.iloc[1:].to_numpy()), rtol=0)
     assert out.dtypes["df"] == np.int64 and out.dtypes["n_A"] == np.int64
     assert out.dtypes["H"] == np.float64
 
@@ -565,7 +580,7 @@ def test_summary_table_independent():
     df = study_frame()
     out = summary_table(df, "score", "cond", reference="full", order=["full", "fov", "low"])
     assert list(out.columns) == [
-        "condition", "n", "mean", "std", "n_ref", "mean_ref", "std_ref", "p", "d", "label"
+        "condition", "n", "mean", "std", "n_ref", "mean_ref", "std_ref", "p", "d", "label", "note"
     ]
     assert list(out.condition) == ["fov", "low"]
     ref = np.array([5.0, 6.0, 7.0, 6.5])
@@ -608,20 +623,30 @@ def test_summary_table_errors():
     dup = pd.concat([df, df.iloc[[0]]])
     with pytest.raises(ValueError, match="subject 1 has more than one row for condition 'full'"):
         summary_table(dup, "score", "cond", reference="full", paired=True, subject="subject")
-    const = pd.DataFrame({"c": ["r", "r", "x", "x"], "v": [1.0, 1.0, 2.0, 2.0]})
-    with pytest.raises(ValueError, match="condition 'x' vs reference 'r': zero pooled standard deviation"):
-        summary_table(const, "v", "c", reference="r")
     with pytest.raises(ValueError, match="no condition other than the reference"):
         summary_table(df[df.cond == "full"], "score", "cond", reference="full")
     with pytest.raises(ValueError, match="condition 'zz' of 'cond' has no non-NaN"):
         summary_table(df, "score", "cond", reference="full", order=["fov", "zz"])
 
 
-def test_summary_table_all_equal_gives_zero_effect_not_significant():
+def test_summary_table_all_equal_gives_undefined_effect_and_untestable_p():
+    # R: wilcox.test(c(4,4,4), c(4,4,4), exact=FALSE, correct=FALSE)$p.value is NaN; the pooled-SD d is 0/0.
     df = pd.DataFrame({"c": ["r"] * 3 + ["x"] * 3, "v": [4.0] * 6})
-    out = summary_table(df, "v", "c", reference="r")
-    row = out.iloc[0]
-    assert (row.p, row.d, row.label, row["std"]) == (1.0, 0.0, "very small", 0.0)
+    row = summary_table(df, "v", "c", reference="r").iloc[0]
+    assert np.isnan(row.p) and np.isnan(row.d) and row["std"] == 0.0
+    assert (row.label, row.note) == ("undefined (zero SD)", "not testable (all observations tied)")
+
+
+def test_summary_table_undefined_rows_never_abort():
+    # constant but different groups (R: d = -Inf), one observation per group (R: NA), a normal row
+    df = pd.DataFrame({"c": ["r", "r", "x", "x", "y", "z", "z", "z"],
+                       "v": [1.0, 1.0, 2.0, 2.0, 5.0, 0.0, 1.0, 3.0]})
+    out = summary_table(df, "v", "c", reference="r").set_index("condition")
+    assert np.isnan(out.loc["x", "d"]) and out.loc["x", "label"] == "undefined (zero SD)"
+    assert out.loc["x", "note"] == "" and 0.0 < out.loc["x", "p"] < 1.0  # the ranks still differ: testable
+    assert out.loc["z", "label"] in ("very small", "small", "medium", "large", "very large", "huge")
+    one = summary_table(df[df.c.isin(["r", "y"])].iloc[[0, 2]], "v", "c", reference="r").iloc[0]
+    assert np.isnan(one.d) and one.label == "undefined (n1 + n2 - 2 = 0: no SD)"
 
 
 def test_public_api_exports():

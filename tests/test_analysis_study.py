@@ -165,15 +165,6 @@ def _yes_no(values: dict[str, list[int]]) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["participant", "scene", "family", "condition", "response"])
 
 
-def test_constant_data_is_not_significant():
-    log = validate_log(_yes_no({"A": [1] * 8, "B": [1] * 8, "C": [1] * 8}))
-    res = analyze_log(log, AnalysisPlan(unit="trial", reference="A", n_boot=0))
-    s = res.tables["yes_no_summary"]
-    assert (s["p"] == 1.0).all() and (s["d"] == 0.0).all()
-    assert res.tables["yes_no_omnibus"]["p"].iloc[0] == 1.0
-    assert (res.tables["yes_no_pairwise"]["p_adj"] == 1.0).all()
-
-
 def test_constant_but_different_groups_give_undefined_d_not_a_label():
     log = validate_log(_yes_no({"A": [1] * 6, "B": [0] * 6, "C": [1, 0, 1, 0, 1, 1]}))
     s = analyze_log(log, AnalysisPlan(unit="trial", reference="A", n_boot=0)).tables["yes_no_summary"]
@@ -231,9 +222,9 @@ def test_large_synthetic_log_is_aggregated_not_looped():
 
 # --- plans and bad input -----------------------------------------------------------------------------------------
 def test_plan_from_mapping_aliases_and_errors():
-    plan = plan_from_mapping({"unit_of_analysis": "trial", "reference_condition": "EC", "test": "Mann-Whitney",
-                              "dv": "score"})
-    assert (plan.unit, plan.reference, plan.test, plan.dv) == ("trial", "EC", "mann_whitney", "response")
+    plan = plan_from_mapping({"unit_of_analysis": "trial", "reference_condition": "EC", "test": "summary_table",
+                              "dependent_variable": "response"})
+    assert (plan.unit, plan.reference, plan.tests, plan.dv) == ("trial", "EC", ("summary_table",), "response")
     with pytest.raises(ValueError, match="unknown field 'colour'"):
         plan_from_mapping({"colour": 1})
     with pytest.raises(ValueError, match="unit='day' is invalid"):
@@ -268,7 +259,7 @@ def test_cli_analyze_writes_tables_and_json(tmp_path, csv_log, capsys):
 
 @pytest.mark.parametrize("mutate, message", [
     (lambda df: df.drop(columns=["participant"]), "missing required column(s) participant"),
-    (lambda df: df.assign(response="often"), "column response must be numeric"),
+    (lambda df: df.assign(response="often"), "line 2: column response of a yes_no trial must be 0 or 1, found 'often'"),
     (lambda df: df[df.condition == "EC"], "fewer than two conditions"),
     (lambda df: df.assign(family="rating"), "unknown trial family 'rating'"),
 ])
@@ -346,7 +337,7 @@ def test_plan_accepts_the_protocol_schema_vocabulary():
     plan = plan_from_mapping({"dv": "chosen", "unit": "participant", "reference": "VaFR_Rep",
                               "test": "pairwise_kruskal", "by": [], "alpha": 0.01, "family": "2afc",
                               "protocol": "seed001_2afc"})
-    assert (plan.dv, plan.test, plan.per_scene, plan.alpha) == ("votes", "kruskal_holm", False, 0.01)
-    assert plan_from_mapping({"dv": "response", "unit": "trial", "test": "summary_table"}).test == "mann_whitney"
+    assert (plan.dv, plan.tests, plan.per_scene, plan.alpha) == ("chosen", ("pairwise_kruskal",), False, 0.01)
+    assert plan_from_mapping({"dv": "response", "unit": "trial", "test": "summary_table"}).tests == ("summary_table",)
     with pytest.raises(ValueError, match="by must be a list"):
         plan_from_mapping({"by": ["headset"]})

@@ -6,21 +6,34 @@ import json
 from pathlib import Path
 
 from data_schema.errors import CLIError
+
 from . import end_status, status
+
+
+def _vocabulary():
+    """``analysis.vocabulary``, the one declaration of the plan's names (cheap: the analysis package loads
+    its statistics lazily)."""
+    import analysis.vocabulary
+
+    return analysis.vocabulary
+
 
 HELP = "regenerate a study's tables and figures from its log (CSV, Parquet or study database)"
 DESCRIPTION = """\
 Analyse a study's trial log and write every table and figure its analysis plan asks for:
 votes per mode and scene (seed 001 Fig 14-15), Kruskal-Wallis over all conditions, Kruskal-Wallis
-on every pair with Holm-adjusted p in the seeds' '/' layout (seed 001 Tables 2-3), avg ± std / p /
-Cohen's d / effect-size label against the reference (seed 003 Tables 5-6), per-scene and per-block
-breakdowns, and Thurstone (JOD) / Bradley-Terry / Plackett-Luce scales with bootstrap intervals.
+on every pair with Holm-adjusted p in the seeds' '/' layout (seed 001 Tables 2-3), Dunn's test,
+avg ± std / p / Cohen's d / effect-size label against the reference (seed 003 Tables 5-6), per-scene
+and per-block breakdowns, Thurstone (JOD) / Bradley-Terry / Plackett-Luce scales with bootstrap
+intervals, and logistic GEE odds ratios against the reference (--test ... gee).
 Output: DIR/report.md, DIR/tables/*.md|.tex|.csv, DIR/figures/*.png, DIR/analysis.json. The plan
 comes from the study database (its protocol's analysis block), from --plan, or from the options
 below; options override the plan. The same input gives byte-identical output."""
 
 
 def register(sub, parser_class) -> None:
+    voc = _vocabulary()
+    UNITS, TESTS, PRIORS, DEFAULT_TESTS = voc.UNITS, voc.TESTS, voc.PRIORS, voc.DEFAULT_TESTS  # noqa: N806
     a = sub.add_parser("analyze", help=HELP, description=DESCRIPTION)
     a.add_argument("log", metavar="STUDY.db|LOG.csv|LOG.parquet", help="the trial log (tidy layout, one row "
                    "per trial; see data_schema/trial_log.py) or a study database")
@@ -30,10 +43,14 @@ def register(sub, parser_class) -> None:
                    "block itself")
     a.add_argument("--reference", metavar="COND", help="reference condition (summary table, JOD zero); "
                    "default: the plan's, else the first condition")
-    a.add_argument("--unit", choices=("participant", "participant_block", "participant_scene", "trial"),
-                   help="unit of analysis (default: participant)")
-    a.add_argument("--test", choices=("kruskal_holm", "mann_whitney"),
-                   help="kruskal_holm: all pairs, Holm-adjusted (default); mann_whitney: each vs reference")
+    a.add_argument("--unit", choices=list(UNITS), help="unit of analysis (default: participant): "
+                   + "; ".join(f"{k}: {v}" for k, v in UNITS.items()))
+    a.add_argument("--test", choices=list(TESTS), nargs="+", metavar="TEST",
+                   help="what to report, one or more of: " + "; ".join(f"{k}: {v}" for k, v in TESTS.items())
+                   + f" (default: the plan's, else {' '.join(DEFAULT_TESTS)}; the votes table and the "
+                   "Kruskal-Wallis omnibus test always)")
+    a.add_argument("--prior", choices=list(PRIORS), help="prior of the paired-comparison scales (default: the "
+                   "plan's, else weak): " + "; ".join(f"{k}: {v}" for k, v in PRIORS.items()))
     a.add_argument("--conditions", metavar="A,B,...", help="conditions in table order (all must occur)")
     a.add_argument("--paired", action="store_true", default=None,
                    help="paired Cohen's d_z over participants (needs --unit participant)")
@@ -82,8 +99,9 @@ def cmd_analyze(args) -> int:
     conditions = None
     if args.conditions is not None:
         conditions = tuple(c.strip() for c in args.conditions.split(",") if c.strip())
-    plan = plan.with_overrides(reference=args.reference, unit=args.unit, test=args.test, conditions=conditions,
-                               paired=args.paired, n_boot=args.n_boot, seed=args.seed)
+    tests = tuple(dict.fromkeys(args.test)) if args.test else None
+    plan = plan.with_overrides(reference=args.reference, unit=args.unit, tests=tests, prior=args.prior,
+                               conditions=conditions, paired=args.paired, n_boot=args.n_boot, seed=args.seed)
     out = check_dir_target(args.out, marker="analysis.json")
     df = read_log(log)
     _progress(f"{len(df):,} trials read")
@@ -130,7 +148,7 @@ def demo_step(out_dir: Path, progress=None) -> list[Path]:
         log = seed003_yes_no_log(table, seed=0)
         d = out_dir / f"synthetic_seed003_table{table}"
         written.append(write_text(d / "log.csv", to_csv(log)))
-        plan = AnalysisPlan(unit="trial", test="mann_whitney", reference="EC",
+        plan = AnalysisPlan(unit="trial", tests=("summary_table", "gee"), reference="EC",
                             conditions=tuple(SEED003_TABLES[table]), n_boot=0)
         written += write_report(analyze_log(validate_log(log), plan), d,
                                 title=f"Synthetic seed 003 Task {table - 4} (Table {table})")
