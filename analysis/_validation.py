@@ -12,6 +12,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from data_schema.errors import UserError
+
 __all__: list[str] = []  # private module
 
 
@@ -23,25 +25,25 @@ def as_float_1d(x: Any, name: str) -> np.ndarray:
     one-dimensional are rejected.
     """
     if isinstance(x, (str, bytes)) or x is None:
-        raise ValueError(f"{name} must be a 1-D array-like of numbers, got {type(x).__name__}")
+        raise UserError(f"{name} must be a 1-D array-like of numbers, got {type(x).__name__}")
     if isinstance(x, (pd.Series, pd.Index)):
         if not pd.api.types.is_numeric_dtype(x.dtype) or pd.api.types.is_bool_dtype(x.dtype):
-            raise ValueError(f"{name} must be numeric, got dtype {x.dtype}")
+            raise UserError(f"{name} must be numeric, got dtype {x.dtype}")
         return x.to_numpy(dtype=np.float64, na_value=np.nan)
     if isinstance(x, pd.DataFrame):
-        raise ValueError(f"{name} must be 1-D, got a DataFrame")
+        raise UserError(f"{name} must be 1-D, got a DataFrame")
     a = np.asarray(x)
     if a.ndim != 1:
-        raise ValueError(f"{name} must be 1-D, got an array with {a.ndim} dimension(s)")
+        raise UserError(f"{name} must be 1-D, got an array with {a.ndim} dimension(s)")
     if a.dtype.kind in "iuf":
         return a.astype(np.float64, copy=False)
     if a.dtype.kind == "O":
         try:
             out = np.array([np.nan if v is None or v is pd.NA else v for v in a], dtype=np.float64)
         except (TypeError, ValueError):
-            raise ValueError(f"{name} must contain only numbers (or NaN)") from None
+            raise UserError(f"{name} must contain only numbers (or NaN)") from None
         return out
-    raise ValueError(f"{name} must be numeric, got dtype {a.dtype}")
+    raise UserError(f"{name} must be numeric, got dtype {a.dtype}")
 
 
 def drop_nan(a: np.ndarray) -> np.ndarray:
@@ -54,7 +56,7 @@ def check_group(a: np.ndarray, name: str) -> np.ndarray:
     """Drop NaN from a group and reject it if nothing is left."""
     a = drop_nan(a)
     if a.size == 0:
-        raise ValueError(f"{name} is empty (no non-NaN observations)")
+        raise UserError(f"{name} is empty (no non-NaN observations)")
     return a
 
 
@@ -129,12 +131,12 @@ def rank_sum_of_squares(counts: np.ndarray, block_ranks: np.ndarray, n: int) -> 
 def check_frame(data: Any, columns: dict[str, Any]) -> pd.DataFrame:
     """Check ``data`` is a DataFrame holding every named column."""
     if not isinstance(data, pd.DataFrame):
-        raise ValueError(f"data must be a pandas DataFrame, got {type(data).__name__}")
+        raise UserError(f"data must be a pandas DataFrame, got {type(data).__name__}")
     for role, col in columns.items():
         if col is None:
-            raise ValueError(f"{role} must name a column of data, got None")
+            raise UserError(f"{role} must name a column of data, got None")
         if col not in data.columns:
-            raise ValueError(f"{role}={col!r} is not a column of data")
+            raise UserError(f"{role}={col!r} is not a column of data")
     return data
 
 
@@ -160,10 +162,10 @@ def levels_in_order(labels: pd.Series, order: Sequence[Any] | None, between: str
         except TypeError:
             return present
     if isinstance(order, (str, bytes)):
-        raise ValueError(f"order must be a sequence of {between!r} levels, not a string")
+        raise UserError(f"order must be a sequence of {between!r} levels, not a string")
     order = [py_scalar(v) for v in order]
     if len(set(order)) != len(order):
-        raise ValueError(f"order contains duplicate levels: {order!r}")
+        raise UserError(f"order contains duplicate levels: {order!r}")
     return order
 
 
@@ -178,7 +180,7 @@ def split_groups(
     """
     check_frame(data, {"dv": dv, "between": between})
     if dv == between:
-        raise ValueError("dv and between must be different columns")
+        raise UserError("dv and between must be different columns")
     y = as_float_1d(data[dv], f"column {dv!r}")
     labels = data[between]
     keep = ~np.isnan(y) & labels.notna().to_numpy()
@@ -188,8 +190,8 @@ def split_groups(
     for lev in levels:
         g = y[keep & (lab == lev)]
         if g.size == 0:
-            raise ValueError(f"condition {lev!r} of {between!r} has no non-NaN observations of {dv!r}")
+            raise UserError(f"condition {lev!r} of {between!r} has no non-NaN observations of {dv!r}")
         groups.append(g)
     if len(groups) < 2:
-        raise ValueError(f"need at least two conditions of {between!r} with data, got {len(groups)}")
+        raise UserError(f"need at least two conditions of {between!r} with data, got {len(groups)}")
     return levels, groups

@@ -17,6 +17,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from data_schema.errors import UserError
+
 from ._validation import as_float_1d, drop_nan
 
 __all__ = ["cohens_d", "hedges_g", "effect_size_label", "bootstrap_ci_d", "BootstrapCI", "SAWILOWSKY_BINS",
@@ -52,9 +54,9 @@ def _independent(x: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:
     xa = drop_nan(as_float_1d(x, "x"))
     ya = drop_nan(as_float_1d(y, "y"))
     if xa.size == 0 or ya.size == 0:
-        raise ValueError(f"both samples need observations, got n1={xa.size}, n2={ya.size}")
+        raise UserError(f"both samples need observations, got n1={xa.size}, n2={ya.size}")
     if not (np.all(np.isfinite(xa)) and np.all(np.isfinite(ya))):
-        raise ValueError("x and y must be finite (apart from NaN, which is dropped)")
+        raise UserError("x and y must be finite (apart from NaN, which is dropped)")
     return xa, ya
 
 
@@ -62,11 +64,11 @@ def _paired_diff(x: Any, y: Any) -> np.ndarray:
     xa = as_float_1d(x, "x")
     ya = as_float_1d(y, "y")
     if xa.size != ya.size:
-        raise ValueError(f"paired samples must have equal length, got {xa.size} and {ya.size}")
+        raise UserError(f"paired samples must have equal length, got {xa.size} and {ya.size}")
     ok = ~(np.isnan(xa) | np.isnan(ya))
     diff = xa[ok] - ya[ok]
     if not np.all(np.isfinite(diff)):
-        raise ValueError("x and y must be finite (apart from NaN, which is dropped pairwise)")
+        raise UserError("x and y must be finite (apart from NaN, which is dropped pairwise)")
     return diff
 
 
@@ -235,7 +237,7 @@ def effect_size_label(d: Any) -> Any:
     ('very small', 'medium', 'very large')
     """
     if isinstance(d, (str, bytes)) or d is None or isinstance(d, (bool, np.bool_)):
-        raise ValueError(f"effect size must be a number, got {d!r}")
+        raise UserError(f"effect size must be a number, got {d!r}")
     index = d.index if isinstance(d, pd.Series) else None
     try:
         if isinstance(d, (pd.Series, pd.Index)):
@@ -243,9 +245,9 @@ def effect_size_label(d: Any) -> Any:
         else:
             arr = np.asarray(d, dtype=np.float64)
     except (TypeError, ValueError):
-        raise ValueError("effect size must be numeric") from None
+        raise UserError("effect size must be numeric") from None
     if np.isnan(arr).any():
-        raise ValueError("effect size is NaN: no label for an undefined effect size")
+        raise UserError("effect size is NaN: no label for an undefined effect size")
     labels = _LABELS[np.searchsorted(_EDGES, np.abs(arr), side="right")]
     if index is not None:
         return pd.Series(labels, index=index, name=d.name, dtype=object)
@@ -366,17 +368,17 @@ def bootstrap_ci_d(
     Efron, B. & Tibshirani, R. J. (1993). *An Introduction to the Bootstrap*, ch. 13.
     """
     if isinstance(n_boot, (bool, np.bool_)) or not isinstance(n_boot, (int, np.integer)) or n_boot < 1:
-        raise ValueError(f"n_boot must be a positive integer, got {n_boot!r}")
+        raise UserError(f"n_boot must be a positive integer, got {n_boot!r}")
     ci_is_number = isinstance(ci, (int, float, np.floating)) and not isinstance(ci, (bool, np.bool_))
     if not ci_is_number or not 0.0 < ci < 1.0:
-        raise ValueError(f"ci must be a number strictly between 0 and 1, got {ci!r}")
+        raise UserError(f"ci must be a number strictly between 0 and 1, got {ci!r}")
     if seed is not None and (isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer))):
-        raise ValueError(f"seed must be an integer or None, got {seed!r}")
+        raise UserError(f"seed must be an integer or None, got {seed!r}")
     rng = np.random.default_rng(seed)
     n_boot = int(n_boot)
     d0, reason = d_with_reason(x, y, paired)
     if reason is not None:
-        raise ValueError(f"Cohen's d of the data is {reason}: no bootstrap interval")
+        raise UserError(f"Cohen's d of the data is {reason}: no bootstrap interval")
     if paired:
         diff = _paired_diff(x, y)
         sizes = (diff.size,)

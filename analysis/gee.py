@@ -17,6 +17,8 @@ import numpy as np
 import pandas as pd
 from scipy import special
 
+from data_schema.errors import UserError
+
 from ._validation import as_float_1d, check_frame, levels_in_order, py_scalar
 
 __all__ = ["GEE_COLUMNS", "logistic_gee"]
@@ -111,14 +113,14 @@ def logistic_gee(
     keep = ~np.isnan(y_all) & labels.notna().to_numpy() & data[subject].notna().to_numpy()
     y_all, lab, subj = y_all[keep], labels.to_numpy()[keep], data[subject].to_numpy()[keep]
     if not np.all((y_all == 0.0) | (y_all == 1.0)):
-        raise ValueError(f"column {dv!r} must hold 0/1 answers for a logistic GEE")
+        raise UserError(f"column {dv!r} must hold 0/1 answers for a logistic GEE")
     levels = levels_in_order(labels[keep], order, between)
     reference = py_scalar(reference)
     if intercept and reference not in levels:
-        raise ValueError(f"reference {reference!r} has no answers in column {between!r}")
+        raise UserError(f"reference {reference!r} has no answers in column {between!r}")
     conds = [c for c in levels if c != reference]
     if not conds:
-        raise ValueError(f"no condition other than the reference {reference!r} to compare")
+        raise UserError(f"no condition other than the reference {reference!r} to compare")
     per = {c: y_all[lab == c] for c in levels}
 
     def separated(c: Any) -> str | None:

@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from data_schema.trial_log import FAMILIES, FAMILY_COLUMNS, REQUIRED
 from data_schema.errors import UserError
+from data_schema.trial_log import FAMILIES, FAMILY_COLUMNS, REQUIRED
 
 __all__ = ["LogError", "read_log", "validate_log"]
 

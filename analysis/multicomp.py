@@ -6,6 +6,8 @@ from typing import Any
 
 import numpy as np
 
+from data_schema.errors import UserError
+
 __all__ = ["holm", "adjust_pvalues"]
 
 _METHODS = {
@@ -20,14 +22,14 @@ _METHODS = {
 
 def _as_pvalues(pvalues: Any) -> np.ndarray:
     if isinstance(pvalues, (str, bytes)) or pvalues is None:
-        raise ValueError(f"pvalues must be array-like numbers, got {type(pvalues).__name__}")
+        raise UserError(f"pvalues must be array-like numbers, got {type(pvalues).__name__}")
     try:
         p = np.array(pvalues, dtype=np.float64)
     except (TypeError, ValueError):
-        raise ValueError("pvalues must contain only numbers (or NaN)") from None
+        raise UserError("pvalues must contain only numbers (or NaN)") from None
     finite = p[~np.isnan(p)]
     if finite.size and (finite.min() < 0.0 or finite.max() > 1.0):
-        raise ValueError(
+        raise UserError(
             f"pvalues must lie in [0, 1] (NaN allowed), got min={finite.min()!r}, max={finite.max()!r}"
         )
     return p
@@ -85,7 +87,7 @@ def adjust_pvalues(pvalues: Any, method: str = "holm") -> np.ndarray:
     """
     key = _METHODS.get(str(method).lower()) if isinstance(method, str) else None
     if key is None:
-        raise ValueError(f"unknown p-value adjustment method {method!r}; use one of {sorted(_METHODS)}")
+        raise UserError(f"unknown p-value adjustment method {method!r}; use one of {sorted(_METHODS)}")
     p = _as_pvalues(pvalues)
     flat = p.ravel()
     out = np.full(flat.shape, np.nan)

@@ -10,6 +10,8 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
+from data_schema.errors import UserError
+
 from .vocabulary import DEFAULT_PRIOR, DEFAULT_TESTS, DVS, PRIORS, TESTS, UNITS
 
 __all__ = ["DVS", "PRIORS", "TESTS", "UNITS", "AnalysisPlan", "plan_from_mapping"]
@@ -22,7 +24,7 @@ _RENAMED = {"kruskal_holm": "pairwise_kruskal, kruskal_dunn", "mann_whitney": "s
 def _allowed(field_name: str, value: Any, names) -> None:
     if not isinstance(value, str) or value not in names:
         hint = f" (renamed: use {_RENAMED[value]})" if field_name == "test" and value in _RENAMED else ""
-        raise ValueError(f"analysis plan: {field_name}={value!r} is invalid{hint}: allowed {', '.join(names)}")
+        raise UserError(f"analysis plan: {field_name}={value!r} is invalid{hint}: allowed {', '.join(names)}")
 
 
 @dataclass(frozen=True)
@@ -81,35 +83,35 @@ class AnalysisPlan:
         _allowed("prior", self.prior, PRIORS)
         tests = (self.tests,) if isinstance(self.tests, str) else self.tests
         if not isinstance(tests, (list, tuple)) or not tests:
-            raise ValueError(f"analysis plan: test must name one or more of {', '.join(TESTS)}")
+            raise UserError(f"analysis plan: test must name one or more of {', '.join(TESTS)}")
         for t in tests:
             _allowed("test", t, TESTS)
         if len(set(tests)) != len(tests):
-            raise ValueError("analysis plan: test lists a test twice")
+            raise UserError("analysis plan: test lists a test twice")
         object.__setattr__(self, "tests", tuple(tests))
         if not isinstance(self.paired, bool):
-            raise ValueError(f"analysis plan: paired must be true or false, got {self.paired!r}")
+            raise UserError(f"analysis plan: paired must be true or false, got {self.paired!r}")
         if self.paired and self.unit != "participant":
-            raise ValueError("analysis plan: paired=true needs unit=participant (one value per participant)")
+            raise UserError("analysis plan: paired=true needs unit=participant (one value per participant)")
         if isinstance(self.alpha, bool) or not isinstance(self.alpha, (int, float)) or not 0 < self.alpha < 1:
-            raise ValueError(f"analysis plan: alpha={self.alpha!r} is invalid: allowed (0, 1)")
+            raise UserError(f"analysis plan: alpha={self.alpha!r} is invalid: allowed (0, 1)")
         if isinstance(self.n_boot, bool) or not isinstance(self.n_boot, int) or not 0 <= self.n_boot <= 100_000:
-            raise ValueError(f"analysis plan: n_boot={self.n_boot!r} is invalid: allowed integers 0..100000")
+            raise UserError(f"analysis plan: n_boot={self.n_boot!r} is invalid: allowed integers 0..100000")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ValueError(f"analysis plan: seed={self.seed!r} is invalid: allowed integers >= 0")
+            raise UserError(f"analysis plan: seed={self.seed!r} is invalid: allowed integers >= 0")
         if self.conditions is not None:
             conds = tuple(str(c) for c in self.conditions)
             if len(set(conds)) != len(conds):
-                raise ValueError("analysis plan: conditions lists a condition twice")
+                raise UserError("analysis plan: conditions lists a condition twice")
             if len(conds) < 2:
-                raise ValueError("analysis plan: conditions must name at least two conditions")
+                raise UserError("analysis plan: conditions must name at least two conditions")
             object.__setattr__(self, "conditions", conds)
         if self.reference is not None:
             object.__setattr__(self, "reference", str(self.reference))
             if self.conditions is not None and self.reference not in self.conditions:
-                raise ValueError(f"analysis plan: reference {self.reference!r} is not among the conditions")
+                raise UserError(f"analysis plan: reference {self.reference!r} is not among the conditions")
         if not isinstance(self.labels, Mapping):
-            raise ValueError("analysis plan: labels must map condition names to display names")
+            raise UserError("analysis plan: labels must map condition names to display names")
         object.__setattr__(self, "labels", {str(k): str(v) for k, v in dict(self.labels).items()})
 
     def with_overrides(self, **kw: Any) -> AnalysisPlan:
@@ -142,7 +144,7 @@ def plan_from_mapping(data: Mapping[str, Any] | None) -> AnalysisPlan:
     if data is None:
         return AnalysisPlan()
     if not isinstance(data, Mapping):
-        raise ValueError(f"analysis plan must be a mapping, got {type(data).__name__}")
+        raise UserError(f"analysis plan must be a mapping, got {type(data).__name__}")
     known = {f.name for f in fields(AnalysisPlan)}
     kw: dict[str, Any] = {}
     for key, value in data.items():
@@ -150,15 +152,15 @@ def plan_from_mapping(data: Mapping[str, Any] | None) -> AnalysisPlan:
             continue
         if key == "by":  # the protocol schema's breakdown list: any breakdown turns per-scene tables on
             if not isinstance(value, (list, tuple)) or not set(value) <= {"scene", "block"}:
-                raise ValueError("analysis plan: by must be a list of 'scene' and/or 'block'")
+                raise UserError("analysis plan: by must be a list of 'scene' and/or 'block'")
             kw["per_scene"] = bool(value)
             continue
         name = _ALIASES.get(str(key), str(key))
         if name not in known:
-            raise ValueError(f"analysis plan: unknown field {key!r}: allowed {', '.join(sorted(known))}")
+            raise UserError(f"analysis plan: unknown field {key!r}: allowed {', '.join(sorted(known))}")
         kw[name] = value
     if "conditions" in kw and kw["conditions"] is not None:
         if isinstance(kw["conditions"], str) or not hasattr(kw["conditions"], "__iter__"):
-            raise ValueError("analysis plan: conditions must be a list of condition names")
+            raise UserError("analysis plan: conditions must be a list of condition names")
         kw["conditions"] = tuple(kw["conditions"])
     return AnalysisPlan(**kw)

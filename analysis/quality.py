@@ -26,6 +26,10 @@ from typing import Any, NamedTuple
 import numpy as np
 import pandas as pd
 
+from data_schema.errors import UserError
+from data_schema.geometry import PIXELS
+from data_schema.ranges import Range
+
 __all__ = [
     "QUALITY_COLUMNS",
     "RegionMasks",
@@ -64,21 +68,11 @@ class RegionMasks(NamedTuple):
 
 # --- validation ---------------------------------------------------------------------------------------------
 def _whole(name: str, value: Any) -> int:
-    ok = not isinstance(value, bool) and isinstance(value, (int, np.integer, float))
-    ok = ok and float(value).is_integer()
-    if not ok or value < 1:
-        raise ValueError(f"{name}={value!r} is out of range: must be a whole number of pixels >= 1")
-    return int(value)
+    return PIXELS.check(name, value)
 
 
 def _open_interval(name: str, value: Any, low: float, high: float) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}={value!r} is invalid: must be a number") from None
-    if not low < v < high:
-        raise ValueError(f"{name}={v:g} is out of range: allowed ({low:g}, {high:g})")
-    return v
+    return Range(low, high, low_open=True, high_open=True).check(name, value)
 
 
 def _gaze_xy(gaze: Any, width: int, height: int) -> tuple[float, float]:
@@ -87,9 +81,9 @@ def _gaze_xy(gaze: Any, width: int, height: int) -> tuple[float, float]:
     try:
         gx, gy = (float(g) for g in gaze)
     except (TypeError, ValueError):
-        raise ValueError(f"gaze={gaze!r} is invalid: must be a pair (x, y) of pixel coordinates") from None
+        raise UserError(f"gaze={gaze!r} is invalid: must be a pair (x, y) of pixel coordinates") from None
     if not (math.isfinite(gx) and math.isfinite(gy)):
-        raise ValueError(f"gaze=({gx:g}, {gy:g}) is invalid: both coordinates must be finite")
+        raise UserError(f"gaze=({gx:g}, {gy:g}) is invalid: both coordinates must be finite")
     return gx, gy
 
 
@@ -99,16 +93,16 @@ def _as_image(a: Any, name: str) -> np.ndarray:
     if a.ndim == 3 and a.shape[2] == 1:
         a = a[:, :, 0]
     if a.ndim not in (2, 3) or (a.ndim == 3 and not 1 <= a.shape[2] <= 4):
-        raise ValueError(f"{name} has shape {a.shape}: expected (H, W) or channels-last (H, W, C), "
+        raise UserError(f"{name} has shape {a.shape}: expected (H, W) or channels-last (H, W, C), "
                          "C in 1..4")
     if a.shape[0] == 0 or a.shape[1] == 0:
-        raise ValueError(f"{name} has shape {a.shape}: it has no pixels")
+        raise UserError(f"{name} has shape {a.shape}: it has no pixels")
     if a.dtype.name not in _DTYPE_RANGE and a.dtype.kind != "f":
-        raise ValueError(f"{name} has dtype {a.dtype}: supported are uint8, uint16 and float")
+        raise UserError(f"{name} has dtype {a.dtype}: supported are uint8, uint16 and float")
     if a.dtype.kind == "f":
         bad = int(np.count_nonzero(~np.isfinite(a)))
         if bad:
-            raise ValueError(f"{name} contains {bad} NaN or infinite value(s)")
+            raise UserError(f"{name} contains {bad} NaN or infinite value(s)")
     return a
 
 
@@ -117,10 +111,10 @@ def _check_pair(image: Any, reference: Any, data_range: Any) -> tuple[np.ndarray
     img = _as_image(image, "image")
     ref = _as_image(reference, "reference")
     if img.shape != ref.shape:
-        raise ValueError(f"image shape {img.shape} differs from reference shape {ref.shape}")
+        raise UserError(f"image shape {img.shape} differs from reference shape {ref.shape}")
     kinds = {a.dtype.name if a.dtype.kind != "f" else "float" for a in (img, ref)}
     if len(kinds) > 1:
-        raise ValueError(f"image dtype {img.dtype} and reference dtype {ref.dtype} differ in scale: "
+        raise UserError(f"image dtype {img.dtype} and reference dtype {ref.dtype} differ in scale: "
                          "convert both to uint8, uint16 or float first")
     if data_range is None:
         rng = _DTYPE_RANGE.get(img.dtype.name, 1.0)
@@ -128,7 +122,7 @@ def _check_pair(image: Any, reference: Any, data_range: Any) -> tuple[np.ndarray
             lo = min(float(img.min()), float(ref.min()))
             hi = max(float(img.max()), float(ref.max()))
             if lo < 0.0 or hi > 1.0:
-                raise ValueError(f"float images have values in [{lo:g}, {hi:g}], outside [0, 1]: "
+                raise UserError(f"float images have values in [{lo:g}, {hi:g}], outside [0, 1]: "
                                  "pass data_range (e.g. the GT's peak value)")
     else:
         rng = _open_interval("data_range", data_range, 0.0, math.inf)
@@ -251,7 +245,7 @@ def _ssim_map(img: np.ndarray, ref: np.ndarray, data_range: float) -> np.ndarray
 
     h, w = img.shape[:2]
     if min(h, w) < SSIM_WIN_SIZE:
-        raise ValueError(f"image is {w}x{h} pixels: SSIM needs at least {SSIM_WIN_SIZE}x{SSIM_WIN_SIZE} "
+        raise UserError(f"image is {w}x{h} pixels: SSIM needs at least {SSIM_WIN_SIZE}x{SSIM_WIN_SIZE} "
                          f"(its {SSIM_WIN_SIZE}x{SSIM_WIN_SIZE} window)")
     channel_axis = 2 if img.ndim == 3 else None
     _, s = structural_similarity(img, ref, win_size=SSIM_WIN_SIZE, data_range=data_range,

@@ -20,6 +20,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from data_schema import families
+
 from .study import ALL, StudyAnalysis
 from .tables import (
     Table,
@@ -36,8 +38,7 @@ from .tables import (
 
 __all__ = ["report_json", "write_report"]
 
-_FAMILY_TITLE = {"2afc": "2AFC preference", "preference": "Preference (top two of N)",
-                 "yes_no": "Yes/no judgements"}
+_FAMILY_TITLE = {name: fam.title for name, fam in families.FAMILIES.items()}
 
 
 def _json_value(v):

@@ -66,6 +66,8 @@ import numpy as np
 import pandas as pd
 from scipy import special
 
+from data_schema.errors import UserError
+
 from .vocabulary import PRIORS
 
 __all__ = ["JOD_SIGMA", "ConvergenceError", "bradley_terry", "plackett_luce", "thurstone_jod"]
@@ -88,10 +90,10 @@ _LOG_SQRT_2PI = 0.5 * np.log(2.0 * np.pi)
 
 def _check_frame(data: Any, cols: Sequence[str]) -> pd.DataFrame:
     if not isinstance(data, pd.DataFrame):
-        raise ValueError(f"data must be a pandas DataFrame, got {type(data).__name__}")  # noqa: TRY004
+        raise UserError(f"data must be a pandas DataFrame, got {type(data).__name__}")  # noqa: TRY004
     missing = [c for c in cols if c not in data.columns]
     if missing:
-        raise ValueError(f"data is missing column(s): {', '.join(map(repr, missing))}")
+        raise UserError(f"data is missing column(s): {', '.join(map(repr, missing))}")
     return data
 
 
@@ -99,22 +101,22 @@ def _check_common(n_boot: Any, ci: Any, prior: Any, prior_sd: Any,
                   allowed: Sequence[str] = ("none", "weak")) -> tuple[int, float, str, float]:
     """Validate the shared arguments; return ``(n_boot, ci, prior, tau)`` (tau = inf without the weak prior)."""
     if isinstance(n_boot, bool) or not isinstance(n_boot, (int, np.integer)) or n_boot < 0:
-        raise ValueError(f"n_boot must be a non-negative integer, got {n_boot!r}")
+        raise UserError(f"n_boot must be a non-negative integer, got {n_boot!r}")
     try:
         ci_f = float(ci)
     except (TypeError, ValueError):
-        raise ValueError(f"ci must be a number in (0, 1), got {ci!r}") from None
+        raise UserError(f"ci must be a number in (0, 1), got {ci!r}") from None
     if not 0.0 < ci_f < 1.0:
-        raise ValueError(f"ci must be in (0, 1), got {ci!r}")
+        raise UserError(f"ci must be in (0, 1), got {ci!r}")
     if prior not in allowed:
         known = [p for p in PRIORS if p in allowed]
-        raise ValueError(f"prior={prior!r} is invalid here: allowed {', '.join(known)}")
+        raise UserError(f"prior={prior!r} is invalid here: allowed {', '.join(known)}")
     try:
         tau = float(prior_sd)
     except (TypeError, ValueError):
-        raise ValueError(f"prior_sd must be a positive number, got {prior_sd!r}") from None
+        raise UserError(f"prior_sd must be a positive number, got {prior_sd!r}") from None
     if not tau > 0.0:
-        raise ValueError(f"prior_sd must be positive (np.inf for no prior), got {prior_sd!r}")
+        raise UserError(f"prior_sd must be positive (np.inf for no prior), got {prior_sd!r}")
     if prior == "weak" and np.isinf(tau):
         prior = "none"
     return int(n_boot), ci_f, prior, (tau if prior == "weak" else np.inf)
@@ -130,11 +132,11 @@ def _sorted_labels(values: Any) -> list:
 
 def _reference_index(labels: list, reference: Any) -> int:
     if len(labels) < 2:
-        raise ValueError(f"need at least two conditions, got {len(labels)}")
+        raise UserError(f"need at least two conditions, got {len(labels)}")
     if reference is None:
         return 0
     if reference not in labels:
-        raise ValueError(f"reference {reference!r} is not one of the conditions")
+        raise UserError(f"reference {reference!r} is not one of the conditions")
     return labels.index(reference)
 
 
@@ -156,7 +158,7 @@ def _check_connected(k: int, groups: list[np.ndarray]) -> None:
                 parent[rv] = r0
     n_comp = len({find(i) for i in range(k)})
     if n_comp > 1:
-        raise ValueError(
+        raise UserError(
             f"the comparison graph is disconnected ({n_comp} components); scores are not comparable"
         )
 
@@ -167,7 +169,7 @@ def _row_weights(df: pd.DataFrame, weight: str | None) -> np.ndarray:
         return np.ones(len(df))
     w = pd.to_numeric(df[weight], errors="coerce").to_numpy(dtype=float)
     if not np.all(np.isfinite(w) & (w >= 0) & (w == np.rint(w))):
-        raise ValueError(f"column {weight!r} must hold non-negative integer counts")
+        raise UserError(f"column {weight!r} must hold non-negative integer counts")
     return w
 
 
@@ -515,7 +517,7 @@ def _selection_codes(sel: pd.Series, selection: str, cond_a: str, cond_b: str) -
         v = v.item() if isinstance(v, np.generic) else v
         hint = (" (a 0/1 coding is ambiguous: pwcmp's is_A_selected has 1 = condition_1 chosen, its older "
                 "selection column 0 = condition_1 chosen; recode to 1/2)") if v in (0, 1, True, False) else ""
-        raise ValueError(f"column {selection!r} must hold 1 ({cond_a} chosen) or 2 ({cond_b} chosen), as "
+        raise UserError(f"column {selection!r} must hold 1 ({cond_a} chosen) or 2 ({cond_b} chosen), as "
                          f"studyapp's pwcmp export writes; row {sel.index[i]!r} has {v!r}{hint}")
     return values
 
@@ -544,7 +546,7 @@ def _pairwise(
     a_vals = df[cond_a].to_numpy(dtype=object)
     b_vals = df[cond_b].to_numpy(dtype=object)
     if np.any(a_vals == b_vals):
-        raise ValueError(f"a row compares a condition with itself ({cond_a!r} == {cond_b!r})")
+        raise UserError(f"a row compares a condition with itself ({cond_a!r} == {cond_b!r})")
     labels = _sorted_labels(list(a_vals) + list(b_vals))
     k = len(labels)
     ref = _reference_index(labels, reference)
@@ -574,7 +576,7 @@ def _pairwise(
 
     n = len(df)
     if prior == "none" and not has_mle(np.bincount(code_row, base_w, k * k)):
-        raise ValueError("without a prior the maximum-likelihood scale does not exist: some conditions won "
+        raise UserError("without a prior the maximum-likelihood scale does not exist: some conditions won "
                          "(or lost) every comparison with the rest; use prior='weak' or 'pwcmp'")
     q = fit_weighted(np.ones(n), None)
     out = pd.DataFrame({"condition": labels, score_name: q})
@@ -785,13 +787,13 @@ def _parse_options(v: Any, row: Any) -> list:
     elif isinstance(v, (list, tuple, set, frozenset, np.ndarray, pd.Series)):
         opts = list(v)
     else:
-        raise ValueError(  # noqa: TRY004
+        raise UserError(  # noqa: TRY004
             f"options in row {row!r} must be a list/tuple or a '|'-separated string, got {type(v).__name__}"
         )
     if len(set(opts)) != len(opts):
-        raise ValueError(f"options in row {row!r} contain duplicates")
+        raise UserError(f"options in row {row!r} contain duplicates")
     if len(opts) < 2:
-        raise ValueError(f"options in row {row!r} must offer at least two conditions")
+        raise UserError(f"options in row {row!r} must offer at least two conditions")
     return opts
 
 
@@ -855,7 +857,7 @@ def plackett_luce(
         ranking_cols = (ranking_cols,)
     ranking_cols = tuple(ranking_cols)
     if len(ranking_cols) == 0:
-        raise ValueError("ranking_cols must name at least one column")
+        raise UserError("ranking_cols must name at least one column")
     df = _check_frame(data, [*ranking_cols, options_col])
     n_boot_i, ci_f, prior, tau = _check_common(n_boot, ci, prior, prior_sd)
     keep = [
@@ -874,13 +876,13 @@ def plackett_luce(
                 ended = True
                 continue
             if ended:
-                raise ValueError(f"row {row!r} has a choice after a missing one in {ranking_cols!r}")
+                raise UserError(f"row {row!r} has a choice after a missing one in {ranking_cols!r}")
             if c not in opts and str(c) in opts:
                 c = str(c)
             if c not in opts:
-                raise ValueError(f"row {row!r}: choice {c!r} is not among the offered options")
+                raise UserError(f"row {row!r}: choice {c!r} is not among the offered options")
             if c in ranked:
-                raise ValueError(f"row {row!r}: condition {c!r} is ranked twice")
+                raise UserError(f"row {row!r}: condition {c!r} is ranked twice")
             ranked.append(c)
         trials.append((opts, ranked))
 
@@ -931,7 +933,7 @@ def plackett_luce(
 
     n = len(trials)
     if prior == "none" and not has_mle(np.ones(len(rows))):
-        raise ValueError("without a prior the maximum-likelihood scale does not exist (some conditions were "
+        raise UserError("without a prior the maximum-likelihood scale does not exist (some conditions were "
                          "always or never chosen over the others); use prior='weak'")
     q = fit_weighted(np.ones(n), None)
     out = pd.DataFrame({"condition": labels, "score": q})

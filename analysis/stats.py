@@ -21,6 +21,8 @@ import numpy as np
 import pandas as pd
 from scipy import special
 
+from data_schema.errors import UserError
+
 from ._validation import (
     as_float_1d,
     check_frame,
@@ -198,7 +200,7 @@ def kruskal(*groups: Any) -> KruskalResult:
     (0.77143, 2, 0.68)
     """
     if len(groups) < 2:
-        raise ValueError(f"kruskal needs at least two groups, got {len(groups)}")
+        raise UserError(f"kruskal needs at least two groups, got {len(groups)}")
     arrays = [check_group(as_float_1d(g, f"groups[{i}]"), f"groups[{i}]") for i, g in enumerate(groups)]
     return _kruskal_groups(arrays)
 
@@ -429,10 +431,10 @@ def format_p(p: float, decimals: int = 3) -> str:
     ('0.012', '<0.001', '1.000')
     """
     if not isinstance(decimals, (int, np.integer)) or decimals < 1:
-        raise ValueError(f"decimals must be a positive integer, got {decimals!r}")
+        raise UserError(f"decimals must be a positive integer, got {decimals!r}")
     p = float(p)
     if np.isnan(p) or p < 0.0 or p > 1.0:
-        raise ValueError(f"p must be a number in [0, 1], got {p!r} (see format_p_cell for untestable pairs)")
+        raise UserError(f"p must be a number in [0, 1], got {p!r} (see format_p_cell for untestable pairs)")
     threshold = 10.0 ** -int(decimals)
     if p < threshold:
         return f"<{threshold:.{decimals}f}"
@@ -482,7 +484,7 @@ def pairwise_matrix(
         a, b = py_scalar(a), py_scalar(b)
         key = frozenset((a, b))
         if key in lookup:
-            raise ValueError(f"pair ({a!r}, {b!r}) appears more than once in result")
+            raise UserError(f"pair ({a!r}, {b!r}) appears more than once in result")
         lookup[key] = p
     if order is None:
         order = list(pd.unique(pd.concat([result["A"], result["B"]], ignore_index=True)))
@@ -491,7 +493,7 @@ def pairwise_matrix(
     for r, c in combinations(range(len(order)), 2):
         key = frozenset((order[r], order[c]))
         if key not in lookup:
-            raise ValueError(f"pair ({order[r]!r}, {order[c]!r}) is missing from result")
+            raise UserError(f"pair ({order[r]!r}, {order[c]!r}) is missing from result")
         cells[r][c] = format_p_cell(lookup[key], decimals)
     return pd.DataFrame(cells, index=pd.Index(order), columns=pd.Index(order), dtype=object)
 
@@ -564,7 +566,7 @@ def summary_table(
     Statistical Methods*, 8(2), 597-599.
     """
     if paired and subject is None:
-        raise ValueError("paired=True needs subject= naming the subject column")
+        raise UserError("paired=True needs subject= naming the subject column")
     cols = {"dv": dv, "between": between}
     if paired:
         cols["subject"] = subject
@@ -576,10 +578,10 @@ def summary_table(
         keep &= data[subject].notna().to_numpy()
     present = set(pd.unique(labels[keep]))
     if reference not in present:
-        raise ValueError(f"reference {reference!r} has no non-NaN observations in column {between!r}")
+        raise UserError(f"reference {reference!r} has no non-NaN observations in column {between!r}")
     levels = [lev for lev in levels_in_order(labels[keep], order, between) if lev != reference]
     if not levels:
-        raise ValueError(f"no condition other than the reference {reference!r} to compare")
+        raise UserError(f"no condition other than the reference {reference!r} to compare")
     lab = labels.to_numpy()
 
     if paired:
@@ -587,14 +589,14 @@ def summary_table(
         dup = sub.duplicated(["s", "c"])
         if dup.any():
             s, c = (py_scalar(v) for v in sub.loc[dup.idxmax(), ["s", "c"]])
-            raise ValueError(f"subject {s!r} has more than one row for condition {c!r}; aggregate first")
+            raise UserError(f"subject {s!r} has more than one row for condition {c!r}; aggregate first")
         wide = sub.pivot(index="s", columns="c", values="y")
 
     rows = []
     for lev in levels:
         if paired:
             if lev not in wide.columns:
-                raise ValueError(f"condition {lev!r} of {between!r} has no non-NaN observations of {dv!r}")
+                raise UserError(f"condition {lev!r} of {between!r} has no non-NaN observations of {dv!r}")
             both = wide[[lev, reference]].dropna()
             x, r = both[lev].to_numpy(np.float64), both[reference].to_numpy(np.float64)
             if x.size == 0:  # no subject with data in both: nothing to compare, but no reason to abort
@@ -605,7 +607,7 @@ def summary_table(
             x = y[keep & (lab == lev)]
             r = y[keep & (lab == reference)]
             if x.size == 0:
-                raise ValueError(f"condition {lev!r} of {between!r} has no non-NaN observations of {dv!r}")
+                raise UserError(f"condition {lev!r} of {between!r} has no non-NaN observations of {dv!r}")
         d, reason = d_with_reason(x, r, paired=paired)
         mx, vx = _mean_var(x)
         mr, vr = _mean_var(r)

@@ -39,6 +39,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from data_schema import families
+from data_schema.errors import UserError
+
 from .gee import logistic_gee
 from .plan import AnalysisPlan
 from .scaling import bradley_terry, plackett_luce, thurstone_jod
@@ -77,11 +80,11 @@ def condition_order(seen: list[str], plan: AnalysisPlan, family: str) -> list[st
         return sorted(seen_set)
     unknown = [c for c in plan.conditions if c not in seen_set]
     if unknown:
-        raise ValueError(f"analysis plan names condition {unknown[0]!r}, which the {family} trials never show "
+        raise UserError(f"analysis plan names condition {unknown[0]!r}, which the {family} trials never show "
                          f"(the log has: {', '.join(sorted(seen_set))})")
     extra = sorted(seen_set - set(plan.conditions))
     if extra:
-        raise ValueError(f"the {family} trials show condition {extra[0]!r}, which the analysis plan does not "
+        raise UserError(f"the {family} trials show condition {extra[0]!r}, which the analysis plan does not "
                          f"list (plan: {', '.join(plan.conditions)})")
     return list(plan.conditions)
 
@@ -157,45 +160,9 @@ def _group_frames(df: pd.DataFrame, plan: AnalysisPlan) -> list[tuple[str, str, 
 
 # --- 2AFC and preference: votes ------------------------------------------------------------------------------
 def _choice_counts(df: pd.DataFrame, family: str, conds: list[str]):
-    """Per row: codes of the shown conditions (n_rows x m, -1 padded) and of the picks (n_rows x 2)."""
-    if family == "2afc":
-        a = _codes(df["condition_a"], conds)
-        b = _codes(df["condition_b"], conds)
-        ch = _codes(df["chosen"], conds)
-        if np.any(a < 0) or np.any(b < 0):
-            raise ValueError("2afc trials with an empty condition_a/condition_b")
-        bad = (ch != a) & (ch != b)
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            raise ValueError(f"2afc trial {i}: chosen {df['chosen'].iloc[i]!r} is neither condition_a nor "
-                             "condition_b")
-        if np.any(a == b):
-            raise ValueError("a 2afc trial compares a condition with itself")
-        shown = np.stack([a, b], axis=1)
-        picks = np.stack([ch, np.full_like(ch, -1)], axis=1)
-    else:
-        offered = df["conditions"].astype(str)
-        cats = pd.Categorical(offered)
-        sets = [s.split("|") for s in cats.categories]
-        m = max(len(s) for s in sets)
-        table = np.full((len(sets), m), -1, dtype=np.int64)
-        for i, s in enumerate(sets):
-            idx = [conds.index(c) if c in conds else -2 for c in s]
-            if -2 in idx:
-                raise ValueError(f"preference trials offer an unknown condition in {cats.categories[i]!r}")
-            table[i, :len(idx)] = idx
-        shown = table[cats.codes]
-        c1 = _codes(df["chosen"], conds)
-        c2 = _codes(df["chosen_2"], conds) if "chosen_2" in df.columns else np.full(len(df), -1)
-        for name, c in (("chosen", c1), ("chosen_2", c2)):
-            ok = (c < 0) | (shown == c[:, None]).any(axis=1)
-            if not ok.all():
-                i = int(np.flatnonzero(~ok)[0])
-                raise ValueError(f"preference trial {i}: {name} is not among the offered conditions")
-        if np.any(c1 < 0):
-            raise ValueError("preference trials with an empty first choice (chosen)")
-        picks = np.stack([c1, c2], axis=1)
-    return shown, picks
+    """Per row: codes of the shown conditions (n_rows x m, -1 padded) and of the picks (n_rows x 2): the
+    family's reading of its answers (data_schema.families)."""
+    return families.get(family).shown_and_picks(df, conds, _codes)
 
 
 def _votes_table(df, shown, picks, conds, family) -> pd.DataFrame:
@@ -287,7 +254,7 @@ def _omnibus(units: pd.DataFrame, conds: list[str]) -> dict:
     groups = [units.loc[units["condition"] == c, "value"].to_numpy() for c in conds]
     groups = [g for g in groups if g.size]
     if len(groups) < 2:
-        raise ValueError("fewer than two conditions with data: nothing to compare")
+        raise UserError("fewer than two conditions with data: nothing to compare")
     r = kruskal(*groups)
     return {"H": r.H, "df": r.df, "p": r.p, "N": r.N, "degenerate": r.degenerate}
 
@@ -377,7 +344,7 @@ def _gee(sub: pd.DataFrame, fam: str, shown, picks, conds: list[str], reference:
                          "y": (picks[with_ref, 0] == other).astype(float)})
     order = [c for c in conds if c != reference and (data["condition"] == c).any()]
     if not order:
-        raise ValueError(f"gee: no 2afc trial shows the reference {reference!r} with another condition")
+        raise UserError(f"gee: no 2afc trial shows the reference {reference!r} with another condition")
     return logistic_gee(data, "y", "condition", "participant", reference, order=order, intercept=False)
 
 
@@ -393,33 +360,29 @@ def analyze_log(df: pd.DataFrame, plan: AnalysisPlan | None = None, progress=Non
     """
     plan = plan or AnalysisPlan()
     say = progress or (lambda msg: None)
-    fams = [f for f in ("2afc", "preference", "yes_no") if (df["family"] == f).any()]
+    fams = [f for f in families.NAMES if (df["family"] == f).any()]
     res = StudyAnalysis(plan=plan, families=fams, conditions={})
     for fam in fams:
         sub = _compact(df.loc[(df["family"] == fam).to_numpy()].reset_index(drop=True))
         res.n_trials[fam] = len(sub)
         res.n_participants[fam] = len(sub["participant"].cat.categories)
         say(f"{fam}: {len(sub):,} trials")
-        if fam == "yes_no":
-            seen = _present(sub["condition"])
-        elif fam == "2afc":
-            seen = sorted(set(_present(sub["condition_a"])) | set(_present(sub["condition_b"])))
-        else:
-            seen = sorted({c for s in _present(sub["conditions"]) for c in s.split("|")})
+        family = families.get(fam)
+        seen = sorted({c for col in family.condition_columns for s in _present(sub[col]) for c in s.split("|")})
         conds = condition_order(seen, plan, fam)
         if len(conds) < 2:
-            raise ValueError(f"the {fam} trials show fewer than two conditions ({', '.join(conds) or 'none'}): "
+            raise UserError(f"the {fam} trials show fewer than two conditions ({', '.join(conds) or 'none'}): "
                              "nothing to compare")
         res.conditions[fam] = conds
         reference = plan.reference if plan.reference is not None else conds[0]
         if reference not in conds:
-            raise ValueError(f"reference condition {reference!r} does not occur in the {fam} trials "
+            raise UserError(f"reference condition {reference!r} does not occur in the {fam} trials "
                              f"(the log has: {', '.join(conds)})")
-        dv = plan.dv or ("response" if fam == "yes_no" else "votes")
+        dv = plan.dv or family.default_dv
         if fam not in DV_FAMILIES[dv]:
             fits = [d for d, fams in DV_FAMILIES.items() if fam in fams]
-            raise ValueError(f"dv={dv!r} does not fit {fam} trials (use {' or '.join(fits)})")
-        if fam == "yes_no":
+            raise UserError(f"dv={dv!r} does not fit {fam} trials (use {' or '.join(fits)})")
+        if family.kind == "score":
             shown = picks = None
         else:
             shown, picks = _choice_counts(sub, fam, conds)
@@ -428,14 +391,14 @@ def analyze_log(df: pd.DataFrame, plan: AnalysisPlan | None = None, progress=Non
         omni, pair_rows, dunn_rows, summ_rows, unit_frames = [], [], [], [], []
         for block, scene, mask in _group_frames(sub, plan):
             part = _compact(sub.loc[mask].reset_index(drop=True))
-            if fam == "yes_no":
+            if family.kind == "score":
                 units = _unit_values_response(part, conds, plan)
             else:
                 units = _unit_values_votes(part, shown[mask], picks[mask], conds, plan, dv)
             present = [c for c in conds if (units["condition"] == c).any()]
             if len(present) < 2:
                 if block == ALL and scene == ALL:
-                    raise ValueError(f"the {fam} trials have data for fewer than two conditions")
+                    raise UserError(f"the {fam} trials have data for fewer than two conditions")
                 continue
             if block == ALL and scene == ALL:
                 unit_frames.append(units)
@@ -459,7 +422,7 @@ def analyze_log(df: pd.DataFrame, plan: AnalysisPlan | None = None, progress=Non
         elif fam == "preference" and "plackett_luce" in plan.tests:
             say(f"{fam}: scaling")
             res.tables["preference_scale"] = _scale_preference(sub, shown, picks, conds, reference, plan)
-        if "gee" in plan.tests and fam != "preference":
+        if "gee" in plan.tests and "gee" in family.tests:
             say(f"{fam}: logistic GEE")
             res.tables[f"{fam}_gee"] = _gee(sub, fam, shown, picks, conds, reference)
         res.notes.append(_unit_note(fam, plan, dv, reference))

@@ -20,6 +20,8 @@ import numpy as np
 import pandas as pd
 from scipy import special
 
+from data_schema.errors import UserError
+
 from .scaling import JOD_SIGMA
 
 __all__ = ["SEED001_MODES", "SEED001_TRUE_JOD", "SEED003_TABLES", "seed001_2afc_log", "seed003_yes_no_log",
@@ -93,7 +95,7 @@ def seed003_yes_no_log(task: int = 5, seed: int = 0, n_participants: int = 32, r
     population SD (Table 5's EC, 0.79 ± 0.40, exists only that way for 320 trials).
     """
     if task not in SEED003_TABLES:
-        raise ValueError(f"task={task!r} is invalid: allowed 5 (Table 5, Task 1) or 6 (Table 6, Task 2)")
+        raise UserError(f"task={task!r} is invalid: allowed 5 (Table 5, Task 1) or 6 (Table 6, Task 2)")
     rng = np.random.default_rng(seed)
     table = SEED003_TABLES[task]
     cells = [(p, s, r) for p in range(n_participants) for s in scenes for r in range(reps)]
@@ -117,7 +119,7 @@ def synthetic_2afc_log(n_trials: int, seed: int = 0, trials_per_participant: int
                        true_jod: dict | None = None, scenes=SEED001_SCENES) -> pd.DataFrame:
     """A 2AFC log of ``n_trials`` rows (vectorised; for benchmarks), Thurstone observers as above."""
     if n_trials < 1:
-        raise ValueError(f"n_trials={n_trials!r} is invalid: allowed >= 1")
+        raise UserError(f"n_trials={n_trials!r} is invalid: allowed >= 1")
     q = dict(SEED001_TRUE_JOD if true_jod is None else true_jod)
     modes = np.array(list(q), dtype=object)
     k = len(modes)

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from data_schema.errors import UserError
+
 from .stats import format_p, format_p_cell, pairwise_matrix
 
 __all__ = [
@@ -142,7 +144,7 @@ def summary_vs_reference_table(summary: pd.DataFrame, reference: str, caption: s
     """
     labels = labels or {}
     if summary.empty:
-        raise ValueError("empty summary: nothing to tabulate")
+        raise UserError("empty summary: nothing to tabulate")
     first = summary.iloc[0]
     rows = [(_name(reference, labels), (f"{fmt_num(first['mean_ref'], decimals)} ± "
              f"{fmt_num(first['std_ref'], decimals)}"), "/", "/", "/")]

@@ -17,6 +17,8 @@ import json
 import sys
 from pathlib import Path
 
+from data_schema import families as _families
+
 __all__ = ["DEFAULT_TESTS", "DVS", "PRIORS", "TESTS", "UNITS", "render_schema_block", "schema_path",
            "write_schema"]
 
@@ -55,9 +57,9 @@ DVS: dict[str, str] = {
     "chosen": "2AFC and preference trials: times a condition was the (first) choice",
     "votes": "2AFC and preference trials: times a condition was chosen, first or second choice",
 }
-#: Trial families each dependent variable fits.
-DV_FAMILIES: dict[str, tuple[str, ...]] = {"response": ("yes_no",), "chosen": ("2afc", "preference"),
-                                           "votes": ("2afc", "preference")}
+#: Trial families each dependent variable fits (each family declares its dvs: data_schema.families).
+DV_FAMILIES: dict[str, tuple[str, ...]] = {
+    dv: tuple(name for name, fam in _families.FAMILIES.items() if dv in fam.dvs) for dv in DVS}
 
 #: Priors of the paired-comparison scales (:func:`analysis.scaling.thurstone_jod`).
 PRIORS: dict[str, str] = {

@@ -64,8 +64,8 @@ def _occluder(seed: int = 1):
 
 
 def run(repeats: int) -> list[str]:
-    from renderers.lightcuts.foveated import foveated_lightcuts
     from data_schema.geometry import ViewingGeometry
+    from renderers.lightcuts.foveated import foveated_lightcuts
     from renderers.lightcuts.fpsm import eccentricity_map
     from renderers.lightcuts.sampling import stochastic_lightcuts
     from renderers.lightcuts.tree import build_light_tree

@@ -59,7 +59,8 @@ def _stats(values: list[float]) -> dict:
 
 
 def measure(repeats: int, workdir: Path) -> dict:
-    from studyapp.presentation.base import DisplaySettings, Stimulus, TrialDisplay
+    from data_schema.geometry import Display
+    from studyapp.presentation.base import Stimulus, TrialDisplay
     from studyapp.presentation.psychopy_window import PsychoPyPresenter
 
     files = []
@@ -72,7 +73,7 @@ def measure(repeats: int, workdir: Path) -> dict:
         make_stimulus(frames[-1], 1280, 720, 10 + i)
 
     pres = PsychoPyPresenter(fixation_rgb=None)
-    facts = pres.open(DisplaySettings(W, H, 59.8, 57.0))
+    facts = pres.open(Display(W, H, 59.8, 57.0))
     from pyglet import gl
 
     try:

@@ -88,7 +88,7 @@ def bench_session(folder: Path) -> dict:
     p = load_protocol(ROOT / "protocols" / "seed003_task1.yaml", stimuli_dir=folder / "none", check_renderers=False)
     t0 = time.perf_counter()
     s = run_session(p, "P1", folder / "session.db",
-                    lambda st, d: SimulatedObserver(p, "P1", 0, ground_truth_stimuli(p, st), display=d),
+                    lambda st, d: SimulatedObserver(p, "P1", 0, ground_truth_stimuli(p, st)),
                     allow_declared=True)
     return {"trials": s.planned, "seconds": time.perf_counter() - t0}
 

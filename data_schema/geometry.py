@@ -32,6 +32,7 @@ from .ranges import Range
 RAD_PER_DEG = math.pi / 180.0
 DEG_PER_RAD = 180.0 / math.pi
 PIXELS = Range(1, 32768, integer=True)
+DISPLAY_PIXELS = Range(16, 16384, integer=True)
 FOV = Range(0.0, 180.0, low_open=True, high_open=True)
 
 
@@ -175,6 +176,16 @@ class Display:
     refresh_hz: float = 60.0
     fullscreen: bool = False
     screen: int = 0
+
+    def __post_init__(self):
+        # The ranges of the protocol schema's display block, for displays made in code too.
+        for name, rng in (("width_px", DISPLAY_PIXELS), ("height_px", DISPLAY_PIXELS),
+                          ("width_cm", Range(0.0, 1000.0, low_open=True)),
+                          ("distance_cm", Range(0.0, 10000.0, low_open=True)), ("refresh_hz", Range(20.0, 1000.0)),
+                          ("screen", Range(0, 16, integer=True))):
+            object.__setattr__(self, name, rng.check(f"display.{name}", getattr(self, name)))
+        if not isinstance(self.fullscreen, bool):
+            raise UserError(f"display.fullscreen={self.fullscreen!r} is invalid: must be true or false")
 
     @property
     def height_cm(self) -> float:

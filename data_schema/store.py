@@ -50,6 +50,7 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
+from . import families
 from .atomic import atomic_path, current_umask, write_text
 from .errors import UserError
 from .trial_log import ALL_COLUMNS
@@ -223,7 +224,7 @@ class Store:
 
     def __exit__(self, exc_type, exc, tb) -> None:
         self.close()
-        if self.readonly and isinstance(exc, sqlite3.DatabaseError):  # a damaged page met while reading
+        if self.readonly and isinstance(exc, (sqlite3.DatabaseError, UnicodeDecodeError)):  # damage met reading
             with damage_is_refused(self.path):
                 raise exc
 
@@ -460,13 +461,7 @@ def tidy_row(participant: str, session: str, block: str, scene: str, trial: int,
     row.update(participant=participant, session=session, block=block, scene=scene, trial=trial, family=family,
                chosen=chosen, chosen_2=chosen_2, response=response, rt_s=rt_s,
                practice=int(kind == "practice"), catch=int(kind == "catch"))
-    if family == "yes_no":
-        row["condition"] = conditions[0]
-        row["chosen"] = ""
-    elif family == "2afc":
-        row["condition_a"], row["condition_b"] = conditions[0], conditions[1]
-    else:
-        row["conditions"] = "|".join(conditions)
+    row.update(families.get(family).tidy_columns(conditions))
     return row
 
 
@@ -540,6 +535,8 @@ def damage_is_refused(path: Path):
     """Turn SQLite's "malformed" errors while reading ``path`` into the one-line damaged-database refusal."""
     try:
         yield
+    except UnicodeDecodeError as exc:  # text bytes overwritten: not UTF-8 any more
+        raise _damaged(path, f"a text value is not UTF-8 ({exc.reason})") from None
     except sqlite3.DatabaseError as exc:
         if isinstance(exc, (sqlite3.OperationalError, sqlite3.IntegrityError)) and "malformed" not in str(exc):
             raise StoreError(f"{path}: cannot read the study database: {str(exc).splitlines()[0]}") from None
@@ -568,6 +565,8 @@ def verify(path: Path, conn: sqlite3.Connection) -> None:
             if (got_p, got_a) != (n_planned, n_answered):
                 raise _damaged(path, f"participant {pid!r} has {got_a} answers and {got_p} planned trials, the "
                                f"file recorded {n_answered} and {n_planned}")
+    except UnicodeDecodeError as exc:
+        raise _damaged(path, f"a text value is not UTF-8 ({exc.reason})") from None
     except sqlite3.DatabaseError as exc:
         raise _damaged(path, str(exc).splitlines()[0]) from None
 

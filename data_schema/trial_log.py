@@ -28,20 +28,21 @@ practice, catch           1 for practice / catch trials (excluded from the analy
 
 from __future__ import annotations
 
+from .families import FAMILIES as _FAMILIES
+from .families import NAMES
+
+#: The trial families a log may hold (data_schema.families).
+FAMILIES = NAMES
 REQUIRED = ("participant", "family", "scene")
 
-FAMILY_COLUMNS = {
-    "2afc": ("condition_a", "condition_b", "chosen"),
-    "preference": ("conditions", "chosen"),
-    "yes_no": ("condition", "response"),
-}
+#: Family -> the columns it fills (declared by each family, :mod:`data_schema.families`).
+FAMILY_COLUMNS = {name: fam.log_columns for name, fam in _FAMILIES.items()}
 
 OPTIONAL = ("block", "session", "trial", "chosen_2", "rt_s", "practice", "catch")
 
 ALL_COLUMNS = ("participant", "session", "block", "scene", "trial", "family", "condition", "condition_a",
                "condition_b", "conditions", "chosen", "chosen_2", "response", "rt_s", "practice", "catch")
 
-FAMILIES = tuple(FAMILY_COLUMNS)
 
 
 def missing_columns(columns, family: str | None = None) -> list[str]:

@@ -9,8 +9,6 @@ rendered, cameras ``-/+ ipd/2`` along the right vector; VaFR also ``rep``: right
 
 from __future__ import annotations
 
-import math
-
 from . import pipeline as pl
 from .foveation import PRESETS, mapping_for
 from .plugin_types import Param, RendererPlugin
@@ -50,6 +48,12 @@ def _mapping_params(method: str, p: dict) -> dict:
     return {"delta": p["delta"], "alpha": p["alpha"], "beta": p["beta"], "a": p["a"]}
 
 
+def _checker(method: str):
+    def check(params: dict, geometry) -> None:
+        mapping_for(method, geometry, **_mapping_params(method, params))  # raises where it is undefined
+    return check
+
+
 def run_foveated(method: str):
     def run(ctx):
         p = ctx.params
@@ -87,14 +91,14 @@ VAFR = RendererPlugin(
      "fxaa": Param(bool, True, help="FXAA 3.11 (preset 12) in the LP buffer"),
      "preset": Param(str, "default", choices=tuple(PRESETS), help="acuity curve"),
      "e_max": Param(float, 60.0, 0.0, 90.0, low_open=True, high_open=True, help="largest eccentricity (deg)")},
-    run_foveated("vafr"), bytes_per_pixel=40.0)
+    run_foveated("vafr"), bytes_per_pixel=40.0, check=_checker("vafr"))
 _AA = {"aa": Param(bool, True, help="LMFR anti-aliasing: 3x3 Gaussian in the LP buffer + foveal Gaussian")}
 LMFR = RendererPlugin(
     "lmfr", "kernel log-polar foveated rendering (Meng et al.), u = w z^alpha",
     {**COMMON, **FOVEATED, **_AA,
      "delta": Param(float, 1.8, 1.0, 16.0, low_open=True, help="LP buffer = screen / delta per axis"),
      "alpha": Param(float, 4.0, 0.0, 16.0, low_open=True, help="kernel exponent")},
-    run_foveated("lmfr"), bytes_per_pixel=40.0)
+    run_foveated("lmfr"), bytes_per_pixel=40.0, check=_checker("lmfr"))
 LAFR = RendererPlugin(
     "lafr", "locomotion-aware foveated rendering (Shi et al.), two-part kernel",
     {**COMMON, **FOVEATED, **_AA,
@@ -102,6 +106,6 @@ LAFR = RendererPlugin(
      "alpha": Param(float, 0.85, 0.0, 1.0, low_open=True, high_open=True, help="foveal kernel parameter"),
      "beta": Param(float, 0.7, 0.0, 10.0, low_open=True, help="peripheral kernel parameter"),
      "a": Param(float, 0.25, 0.0, 1.0, low_open=True, high_open=True, help="LMFR exponent in LaFR convention")},
-    run_foveated("lafr"), bytes_per_pixel=40.0)
+    run_foveated("lafr"), bytes_per_pixel=40.0, check=_checker("lafr"))
 
 

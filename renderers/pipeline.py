@@ -26,9 +26,10 @@ import time
 
 import numpy as np
 
+from data_schema.errors import UserError
+
 from . import _lp
 from .antialias import FOVEAL_RADII, foveal_gaussian, lp_filter
-from .foveation import make_mapping
 from .scene import Camera
 from .tracer import Tracer, camera_rays
 
@@ -220,7 +221,7 @@ def finish(tracer: Tracer, layout: LPLayout, lp, params: dict, width: int, heigh
         lp = lp_filter(lp, layout.n, "gaussian3")
     tracer.counters.add_time("antialias", t0)
     if not np.isfinite(lp).all():  # the screen image is a convex blend of LP pixels: checking them suffices
-        raise ValueError(f"{layout.method}: the LP buffer holds non-finite values")
+        raise UserError(f"{layout.method}: the LP buffer holds non-finite values")
     aa_post = layout.method != "vafr" and params.get("aa", False)
     return _inverse_map(tracer, layout, lp, aa_post, width, height)
 

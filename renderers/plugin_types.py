@@ -92,6 +92,9 @@ class RendererPlugin:
     gpu: Callable[[RenderContext], Any] | str | None = None
     presets: dict[str, tuple[str, dict]] = field(default_factory=dict)
     preset_of: str | None = None  # set on the plug-ins made from a preset
+    #: ``check(params, geometry)`` raises a one-line error when the renderer cannot render for a viewing
+    #: geometry (e.g. a foveation mapping undefined on that display); called when a protocol is validated.
+    check: Callable[[dict, ViewingGeometry], None] | str | None = None
 
     def preset(self, name: str) -> RendererPlugin:
         """The plug-in of preset ``name``: this one, renamed, with the preset's defaults."""

@@ -26,7 +26,7 @@ from data_schema.geometry import ViewingGeometry, check_gaze
 from .plugin_types import Param, RenderContext, RendererPlugin
 
 __all__ = ["ENTRY_POINT_GROUP", "Param", "RenderContext", "RendererPlugin", "available", "get", "render",
-           "resolve_params", "check_resolution", "BACKENDS"]
+           "resolve_params", "check_resolution", "check_geometry", "BACKENDS"]
 
 ENTRY_POINT_GROUP = "studyapp.renderers"
 BACKENDS = ("cpu", "gpu")
@@ -86,6 +86,15 @@ def resolve_params(name: str, params: dict | None) -> dict:
         raise UserError(f"renderer {name!r} has no parameter {unknown[0]!r}: allowed "
                         f"{', '.join(plugin.params) or 'none'}")
     return {k: spec.coerce(f"{name}.{k}", params.get(k, spec.default)) for k, spec in plugin.params.items()}
+
+
+def check_geometry(name: str, params: dict | None, geometry: ViewingGeometry) -> None:
+    """Refuse (one line) a renderer that cannot render for ``geometry`` with ``params`` (the plug-in's
+    ``check``; e.g. LaFR whose fovea does not fit on the display)."""
+    plugin = get(name)
+    full = resolve_params(name, params)
+    if plugin.check is not None:
+        _load(plugin.check)(full, geometry)
 
 
 def _available_bytes() -> float:

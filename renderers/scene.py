@@ -26,7 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from data_schema.errors import UserError
-from data_schema.geometry import check_gaze
+from data_schema.geometry import PIXELS, check_gaze
+from data_schema.ranges import Range
 from data_schema.yamlfile import YAMLFileError
 
 TEXTURES = ("none", "checker", "brick", "noise")
@@ -37,32 +38,19 @@ def _vec3(name: str, value, *, nonneg: bool = False, unit: bool = False) -> tupl
     try:
         v = tuple(float(x) for x in value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name}={value!r} is invalid: must be 3 numbers") from None
+        raise UserError(f"{name}={value!r} is invalid: must be 3 numbers") from None
     if len(v) != 3 or not all(math.isfinite(x) for x in v):
-        raise ValueError(f"{name}={value!r} is invalid: must be 3 finite numbers")
+        raise UserError(f"{name}={value!r} is invalid: must be 3 finite numbers")
     if nonneg and min(v) < 0:
-        raise ValueError(f"{name}={list(v)} is out of range: components must be >= 0")
+        raise UserError(f"{name}={list(v)} is out of range: components must be >= 0")
     if unit and math.hypot(*v) == 0:
-        raise ValueError(f"{name}={list(v)} is invalid: must be a non-zero vector")
+        raise UserError(f"{name}={list(v)} is invalid: must be a non-zero vector")
     return v
 
 
 def _num(name: str, value, lo: float | None = None, hi: float | None = None, *, lo_open=False,
          hi_open=False) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}={value!r} is invalid: must be a number") from None
-    ok = math.isfinite(x)
-    if lo is not None:
-        ok &= x > lo if lo_open else x >= lo
-    if hi is not None:
-        ok &= x < hi if hi_open else x <= hi
-    if not ok:
-        lb = "(-inf" if lo is None else ("(" if lo_open else "[") + f"{lo:g}"
-        hb = "inf)" if hi is None else f"{hi:g}" + (")" if hi_open else "]")
-        raise ValueError(f"{name}={value!r} is out of range: allowed {lb}, {hb}")
-    return x
+    return Range(lo, hi, lo_open, hi_open).check(name, value)
 
 
 @dataclass(frozen=True)
@@ -93,11 +81,11 @@ class Material:
         object.__setattr__(self, "albedo2", _vec3(f"{f}.albedo2", self.albedo2, nonneg=True))
         object.__setattr__(self, "emission", _vec3(f"{f}.emission", self.emission, nonneg=True))
         if max(self.albedo + self.albedo2) > 1:
-            raise ValueError(f"{f}.albedo is out of range: components must lie in [0, 1]")
+            raise UserError(f"{f}.albedo is out of range: components must lie in [0, 1]")
         if self.texture not in TEXTURES:
-            raise ValueError(f"{f}.texture={self.texture!r} is invalid: allowed {', '.join(TEXTURES)}")
+            raise UserError(f"{f}.texture={self.texture!r} is invalid: allowed {', '.join(TEXTURES)}")
         if self.kind not in KINDS:
-            raise ValueError(f"{f}.kind={self.kind!r} is invalid: allowed {', '.join(KINDS)}")
+            raise UserError(f"{f}.kind={self.kind!r} is invalid: allowed {', '.join(KINDS)}")
         object.__setattr__(self, "texture_scale", _num(f"{f}.texture_scale", self.texture_scale, 0, None,
                                                        lo_open=True))
         object.__setattr__(self, "roughness", _num(f"{f}.roughness", self.roughness, 0.02, 1.0))
@@ -148,9 +136,9 @@ class Camera:
         object.__setattr__(self, "fov_y", _num("camera.fov_y", self.fov_y, 0, 180, lo_open=True, hi_open=True))
         f = np.subtract(self.look_at, self.position)
         if np.linalg.norm(f) == 0:
-            raise ValueError("camera.look_at is invalid: must differ from camera.position")
+            raise UserError("camera.look_at is invalid: must differ from camera.position")
         if np.linalg.norm(np.cross(f, self.up)) < 1e-9 * np.linalg.norm(f):
-            raise ValueError("camera.up is invalid: must not be parallel to the view direction")
+            raise UserError("camera.up is invalid: must not be parallel to the view direction")
 
     def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(forward, right, up)`` unit vectors; ``right = forward x up`` (screen x grows to the right)."""
@@ -171,7 +159,7 @@ class Camera:
             return self
         unknown = sorted(set(camera) - {"position", "look_at", "up", "fov_y", "previous"})
         if unknown:
-            raise ValueError(f"camera.{unknown[0]} is unknown: allowed position, look_at, up, fov_y, previous")
+            raise UserError(f"camera.{unknown[0]} is unknown: allowed position, look_at, up, fov_y, previous")
         return Camera(**{**asdict(self), **{k: v for k, v in camera.items() if k != "previous"}})
 
     def previous(self, camera: dict | None) -> "Camera | None":
@@ -180,7 +168,7 @@ class Camera:
         if prev is None:
             return None
         if not isinstance(prev, dict) or "previous" in prev:
-            raise ValueError("camera.previous is invalid: must be a mapping of position, look_at, up, fov_y")
+            raise UserError("camera.previous is invalid: must be a mapping of position, look_at, up, fov_y")
         return self.override(prev)
 
     def eye(self, offset: float) -> "Camera":
@@ -202,12 +190,9 @@ class Display:
 
     def __post_init__(self):
         for k in ("width", "height"):
-            v = getattr(self, k)
-            if isinstance(v, bool) or not float(v).is_integer() or v < 1:
-                raise ValueError(f"display.{k}={v!r} is out of range: must be a whole number of pixels >= 1")
-            object.__setattr__(self, k, int(v))
+            object.__setattr__(self, k, PIXELS.check(f"display.{k}", getattr(self, k)))
         if self.eye not in ("left", "right", "center"):
-            raise ValueError(f"display.eye={self.eye!r} is invalid: allowed left, right, center")
+            raise UserError(f"display.eye={self.eye!r} is invalid: allowed left, right, center")
         object.__setattr__(self, "ipd", _num("display.ipd", self.ipd, 0, None))
         if self.gaze is not None:
             object.__setattr__(self, "gaze", tuple(check_gaze(self.gaze, self.width, self.height)))
@@ -242,17 +227,17 @@ class Scene:
         self.faces = np.ascontiguousarray(self.faces, dtype=np.int32)
         self.material_ids = np.ascontiguousarray(self.material_ids, dtype=np.int32)
         if self.vertices.ndim != 2 or self.vertices.shape[1] != 3 or not np.isfinite(self.vertices).all():
-            raise ValueError("vertices is invalid: must be a finite (n, 3) array")
+            raise UserError("vertices is invalid: must be a finite (n, 3) array")
         if self.faces.ndim != 2 or self.faces.shape[1] != 3 or len(self.faces) == 0:
-            raise ValueError("faces is invalid: must be a non-empty (n, 3) integer array")
+            raise UserError("faces is invalid: must be a non-empty (n, 3) integer array")
         if self.faces.min() < 0 or self.faces.max() >= len(self.vertices):
-            raise ValueError("faces is invalid: vertex index out of range")
+            raise UserError("faces is invalid: vertex index out of range")
         if self.material_ids.shape != (len(self.faces),):
-            raise ValueError("material_ids is invalid: needs one entry per face")
+            raise UserError("material_ids is invalid: needs one entry per face")
         if not self.materials:
-            raise ValueError("materials is empty: at least one material is needed")
+            raise UserError("materials is empty: at least one material is needed")
         if self.material_ids.min() < 0 or self.material_ids.max() >= len(self.materials):
-            raise ValueError("material_ids is invalid: material index out of range")
+            raise UserError("material_ids is invalid: material index out of range")
         self.ambient = _vec3("ambient", self.ambient, nonneg=True)
         self.background = _vec3("background", self.background, nonneg=True)
         self.exposure = _num("exposure", self.exposure, 0, None, lo_open=True)

@@ -114,9 +114,10 @@ def render_stimulus(scene, renderer: str, params: dict | None, width: int, heigh
     The linear float32 image is stored next to it as ``.npy`` and the stats as ``.json``. Bad input raises a
     one-line ValueError before anything is written.
     """
-    from .registry import check_resolution, get, render, resolve_params
-    from .catalog import resolve
     from data_schema.geometry import check_gaze
+
+    from .catalog import resolve
+    from .registry import check_resolution, get, render, resolve_params
 
     sc = resolve(scene)
     full = resolve_params(renderer, params)

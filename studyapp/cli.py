@@ -13,10 +13,11 @@ import signal
 import sys
 from pathlib import Path
 
+from data_schema.errors import EXIT_USAGE, CLIError, UserError
+
 from . import __version__
 from .commands import end_status as _end_progress
 from .commands import status as _progress
-from data_schema.errors import EXIT_USAGE, CLIError
 
 # Command groups living in their own modules (see studyapp/commands/__init__.py). One line each.
 COMMAND_MODULES = (
@@ -186,7 +187,7 @@ def main(argv=None) -> int:
     try:
         args = parser.parse_args(argv)
         return args.func(args)
-    except (CLIError, ValueError) as exc:
+    except UserError as exc:  # bad input: one line; any other exception is a bug and keeps its traceback
         print(f"studyapp: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except BrokenPipeError:  # e.g. 'studyapp renderers | head': the reader left, nothing to report

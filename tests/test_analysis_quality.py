@@ -80,7 +80,7 @@ def test_fovea_with_gaze_at_a_corner_counted_by_hand():
 
 @pytest.mark.parametrize("kwargs, msg", [
     ({"width": 0}, "width=0 is out of range"),
-    ({"height": 2.5}, "height=2.5 is out of range"),
+    ({"height": 2.5}, "height=2.5 is invalid: must be a whole number"),
     ({"fov_y_deg": 180.0}, r"fov_y_deg=180 is out of range: allowed \(0, 180\)"),
     ({"gaze": (1.0,)}, "gaze=.* is invalid"),
     ({"gaze": (float("nan"), 1.0)}, "must be finite"),

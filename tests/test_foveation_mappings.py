@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import assume, given
+from hypothesis import assume, example, given
 from hypothesis import strategies as st
 
 from renderers.foveation import make_mapping
@@ -25,11 +25,14 @@ gazes = st.tuples(st.sampled_from(["centre", "corner", "inside", "outside"]), st
 def _make(method, W, H, fov, gaze):
     try:
         return make_mapping(method, W, H, fov, gaze)
-    except ValueError as exc:  # LaFR is undefined when its fovea covers the whole display: a clear error
-        assert method == "lafr" and "foveal_boundary_deg" in str(exc)
+    except ValueError as exc:
+        # LaFR is undefined when its fovea covers (almost) the whole display, e.g. 64x3338 at 30 degrees:
+        # a clear error, and protocols with such a display are refused at validation (test_protocol.py).
+        assert method == "lafr" and ("foveal_boundary_deg" in str(exc) or "on this display" in str(exc)), exc
         assume(False)
 
 
+@example(method="lafr", size=(64, 3338), fov=30.0, g=("centre", 0.5, 0.5), seed=0)  # found when CI randomised
 @given(method=st.sampled_from(METHODS), size=sizes, fov=fovs, g=gazes, seed=st.integers(0, 2**31))
 def test_inverse_forward_round_trip_over_the_screen(method, size, fov, g, seed):
     W, H = size

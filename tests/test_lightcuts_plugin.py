@@ -9,7 +9,6 @@ from renderers.procedural import MeshBuilder
 from renderers.scene import Camera, Material
 
 
-
 def _diffuse_scene(glossy=False):
     b = MeshBuilder()
     b.material(Material("floor", albedo=(0.6, 0.6, 0.6)))

@@ -8,37 +8,28 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from data_schema.families.base import phi
 from studyapp.presentation.base import Stimulus, TrialDisplay
+from studyapp.runner.images import save_png
 from studyapp.runner.observer import (
     E2_DEG,
     SimulatedObserver,
     foveated_difference,
     participant_params,
-    phi,
 )
-from studyapp.runner.protocol import Display, load_protocol
-from studyapp.runner.stimuli import eccentricity_map, save_png, synthetic_scene
+from studyapp.runner.protocol import load_protocol
+from studyapp.runner.stimuli import synthetic_scene
 
 PROTOCOLS = Path(__file__).resolve().parents[1] / "protocols"
 
 
-@given(st.integers(0, 63), st.integers(0, 47))
-def test_eccentricity_is_the_angle_between_the_rays(x, y):
-    d = Display(64, 48, 32.0, 40.0)
-    gaze = (20.0, 30.0)
-    e = eccentricity_map(d, gaze)
-    s = 32.0 / 64
-    p = np.array([(x + 0.5 - 32) * s, (y + 0.5 - 24) * s, 40.0])
-    g = np.array([(20 - 32) * s, (30 - 24) * s, 40.0])
-    want = math.degrees(math.acos(np.dot(p, g) / np.linalg.norm(p) / np.linalg.norm(g)))
-    assert e[y, x] == pytest.approx(want, abs=1e-6)
-
-
-def test_eccentricity_on_axis_is_atan_of_distance():
-    d = Display(101, 101, 50.5, 30.0)
-    e = eccentricity_map(d, (50.5, 50.5))
-    assert e[50, 50] == pytest.approx(0.0, abs=1e-9)
-    assert e[50, 100] == pytest.approx(math.degrees(math.atan(50 * 0.5 / 30.0)), rel=1e-12)
+def test_the_observer_uses_the_stimuli_viewing_geometry(task1):
+    """Eccentricity comes from the one geometry: the display's visual angle at the image's resolution."""
+    obs = SimulatedObserver(task1, "P1", 0, {})
+    ecc = obs._eccentricity((36, 64))
+    want = task1.render_geometry().resized(64, 36).eccentricity_map()
+    np.testing.assert_array_equal(ecc, want)
+    assert task1.render_geometry().fov_y_deg == pytest.approx(task1.display.fov_y_deg)
 
 
 def test_foveated_difference_weights_the_fovea_more():
@@ -137,7 +128,7 @@ def test_images_are_used_when_present(tmp_path, task1):
     save_png(tmp_path / "same.png", gt)
     noisy = np.clip(gt + np.random.default_rng(0).normal(0, 0.2, gt.shape), 0, 1)
     save_png(tmp_path / "noisy.png", noisy)
-    obs = SimulatedObserver(task1, "V1", 0, {"s": Stimulus("CC1", (tmp_path / "gt.png",))}, display=Display(w, h, 53, 45))
+    obs = SimulatedObserver(task1, "V1", 0, {"s": Stimulus("CC1", (tmp_path / "gt.png",))})
     assert obs.impairment(Stimulus("EC", (tmp_path / "same.png",)), "s") == 0.0  # declared quality ignored
     d = obs.impairment(Stimulus("CC2", (tmp_path / "noisy.png",)), "s")
     assert d > 3.0  # ~0.2 RMS noise on a 0.02 JND scale (clipping shrinks it a little)

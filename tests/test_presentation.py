@@ -13,13 +13,12 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from studyapp.presentation.base import DisplaySettings, Stimulus, TrialDisplay
+from data_schema.geometry import Display
+from studyapp.presentation.base import Stimulus, TrialDisplay
 from studyapp.presentation.psychopy_window import (
     AnswerState,
     Placement,
-    pixels_per_degree,
     sequence_frame,
-    validate_display,
     validate_trial,
 )
 
@@ -31,14 +30,12 @@ sizes = st.integers(16, 5000)
 def test_placement_fits_centres_and_maps_pixels(win_w, win_h, img_w, img_h):
     p = Placement.fit(win_w, win_h, img_w, img_h)
     w, h = p.size
-    assert 0 < p.scale <= 1.0
-    assert p.left >= 0 and p.top >= 0 and p.left + w <= win_w + 1e-9 and p.top + h <= win_h + 1e-9
-    # centred to within one pixel, and the image touches the window on at least one axis when shrunk
+    assert p.scale > 0
+    assert p.left >= 0 and p.top >= 0 and p.left + w <= win_w + 1e-6 and p.top + h <= win_h + 1e-6
+    # centred to within one pixel, and the image covers the window on at least one axis (scaled up or down:
+    # a stimulus subtends the display's visual angle)
     assert abs((win_w - w) / 2 - p.left) < 1 and abs((win_h - h) / 2 - p.top) < 1
-    if p.scale < 1:
-        assert math.isclose(w, win_w) or math.isclose(h, win_h)
-    else:
-        assert (w, h) == (img_w, img_h)
+    assert math.isclose(w, win_w) or math.isclose(h, win_h)
     # image corners -> window corners of the drawn rectangle; pix units have the origin at the centre, y up
     assert p.image_to_window(0, 0) == (p.left, p.top)
     x1, y1 = p.image_to_window(img_w, img_h)
@@ -49,10 +46,12 @@ def test_placement_fits_centres_and_maps_pixels(win_w, win_h, img_w, img_h):
     assert math.isclose(px, p.left - win_w / 2) and math.isclose(py, win_h / 2 - p.top)
 
 
-def test_placement_native_size_is_pixel_exact():
-    p = Placement.fit(640, 480, 321, 241)
-    assert (p.scale, p.left, p.top) == (1.0, 159, 119)
-    assert p.image_to_window(10, 20) == (169, 139)
+def test_placement_native_size_is_pixel_exact_and_a_smaller_render_covers_the_window():
+    p = Placement.fit(640, 480, 640, 480)
+    assert (p.scale, p.left, p.top) == (1.0, 0, 0)
+    assert p.image_to_window(10, 20) == (10, 20)
+    q = Placement.fit(1920, 1080, 256, 144)  # seed 003's render on its 1920x1080 display
+    assert q.scale == 7.5 and q.size == (1920, 1080) and (q.left, q.top) == (0, 0)
 
 
 @given(st.floats(0, 100), st.sampled_from([10.0, 24.0, 30.0, 60.0]), st.integers(1, 500), st.booleans())
@@ -78,16 +77,16 @@ def test_sequence_frame_values():
 
 
 def test_pixels_per_degree_matches_psychopy_flat_screen():
-    d = DisplaySettings(2560, 1440, 59.8, 57.0)
+    d = Display(2560, 1440, 59.8, 57.0)
     expected = 2560 / 59.8 * 57.0 * math.tan(math.radians(1.0))
-    assert math.isclose(pixels_per_degree(d), expected)
+    assert math.isclose(d.ppd, expected)
     from psychopy import monitors
     from psychopy.tools import monitorunittools as mu
 
     mon = monitors.Monitor("t", width=59.8, distance=57.0)
     mon.setSizePix([2560, 1440])
     assert math.isclose(
-        pixels_per_degree(d), mu.deg2pix(np.array([[1.0, 0.0]]), mon, correctFlat=True)[0, 0], rel_tol=1e-9
+        d.ppd, mu.deg2pix(np.array([[1.0, 0.0]]), mon, correctFlat=True)[0, 0], rel_tol=1e-9
     )
 
 
@@ -150,19 +149,16 @@ def test_validate_trial_accepts_the_families():
 @pytest.mark.parametrize(
     "kw, message",
     [
-        (dict(width_px=8), "display.width_px=8 is out of range: must be a whole number of pixels >= 16"),
-        (
-            dict(distance_cm=float("nan")),
-            "display.distance_cm=nan is out of range: must be a finite number > 0",
-        ),
-        (dict(refresh_hz=0), "display.refresh_hz=0 is out of range: must be a finite number > 0"),
-        (dict(screen=-1), "display.screen=-1 is out of range: must be an integer >= 0"),
+        (dict(width_px=8), "display.width_px=8 is out of range: allowed [16, 16384]"),
+        (dict(distance_cm=float("nan")), "display.distance_cm=nan is invalid: must be a finite number"),
+        (dict(refresh_hz=0), "display.refresh_hz=0 is out of range: allowed [20, 1000]"),
+        (dict(screen=-1), "display.screen=-1 is out of range: allowed [0, 16]"),
     ],
 )
-def test_validate_display_one_line_errors(kw, message):
-    d = DisplaySettings(**{**dict(width_px=640, height_px=480, width_cm=30.0, distance_cm=60.0), **kw})
+def test_display_one_line_errors(kw, message):
+    """The display checks itself (data_schema.geometry, the ranges of data_schema.ranges)."""
     with pytest.raises(ValueError) as e:
-        validate_display(d)
+        Display(**{**dict(width_px=640, height_px=480, width_cm=30.0, distance_cm=60.0), **kw})
     assert str(e.value) == message
 
 
@@ -187,8 +183,8 @@ def test_open_without_a_display_is_a_one_line_error():
     env["PYTHONPATH"] = str(ROOT)
     code = (
         "from studyapp.presentation.psychopy_window import PsychoPyPresenter, PresentationError\n"
-        "from studyapp.presentation.base import DisplaySettings\n"
-        "try:\n    PsychoPyPresenter().open(DisplaySettings(640, 480, 30.0, 60.0))\n"
+        "from data_schema.geometry import Display\n"
+        "try:\n    PsychoPyPresenter().open(Display(640, 480, 30.0, 60.0))\n"
         "except PresentationError as e:\n    print('ERR', e)\n"
     )
     out = _run(code, env)

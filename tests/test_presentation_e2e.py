@@ -21,9 +21,8 @@ import pytest
 from PIL import Image
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "gui"))
-from xvfb import ROOT, Xvfb, missing_tools  # noqa: E402
-
 import psychopy  # noqa: E402,F401 - the GUI tests need it: a missing install is a failure, not a skip
+from xvfb import ROOT, Xvfb, missing_tools  # noqa: E402
 
 
 @pytest.fixture(autouse=True)

@@ -19,9 +19,8 @@ import pytest
 from PIL import Image
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "gui"))
-from xvfb import Driver, Xvfb, missing_tools  # noqa: E402
-
 import psychopy  # noqa: E402,F401 - the GUI tests need it: a missing install is a failure, not a skip
+from xvfb import Driver, Xvfb, missing_tools  # noqa: E402
 
 
 @pytest.fixture(autouse=True)
@@ -52,28 +51,32 @@ def shot_of(shots: Path, trial: int, stim: int) -> np.ndarray:
     return np.asarray(Image.open(files[0]).convert("RGB"))
 
 
+SCALE = WIN_W / IMG_W  # the stimulus covers the window (the display), here upscaled 2x from the render
+
+
 def assert_shows(shot: np.ndarray, img: np.ndarray, fixation: tuple[int, int], rng_seed: int = 0) -> None:
-    """Pixels of ``shot`` at 200 random image positions away from the fixation cross and the corner label
-    equal the stimulus; the pixels at the fixation point are the fixation colour; outside the image is
-    black."""
-    left, top = (WIN_W - IMG_W) // 2, (WIN_H - IMG_H) // 2
+    """The stimulus covers the window at the size the geometry predicts (SCALE): pixels of ``shot`` at 200
+    random image positions inside the 16-px blocks (away from block edges, where the upscaling interpolates),
+    the fixation cross and the corner label equal the stimulus; the pixels at the fixation point are the
+    fixation colour; the stimulus reaches every edge of the window."""
     assert shot.shape == (WIN_H, WIN_W, 3)
     rng = np.random.default_rng(rng_seed)
     fx, fy = fixation
     checked = 0
-    for x, y in zip(rng.integers(0, IMG_W, 400), rng.integers(0, IMG_H, 400)):
-        if max(abs(x - fx), abs(y - fy)) <= 10:
+    for x, y in zip(rng.integers(0, IMG_W, 2000), rng.integers(0, IMG_H, 2000)):
+        if not (2 <= x % 16 <= 13 and 2 <= y % 16 <= 13) or max(abs(x - fx), abs(y - fy)) <= 10 or y < 24:
             continue
-        np.testing.assert_array_equal(shot[top + y, left + x], img[y, x], err_msg=f"image pixel ({x}, {y})")
+        wx, wy = int(SCALE * x + 1), int(SCALE * y + 1)
+        np.testing.assert_array_equal(shot[wy, wx], img[y, x], err_msg=f"image pixel ({x}, {y})")
         checked += 1
         if checked == 200:
             break
     assert checked == 200
+    wfx, wfy = int(SCALE * fx), int(SCALE * fy)
     for dx, dy in ((-1, -1), (0, 0), (-6, 0), (5, -1), (0, 5), (-1, -7)):
-        np.testing.assert_array_equal(
-            shot[top + fy + dy, left + fx + dx], RED, err_msg=f"fixation pixel offset ({dx}, {dy})"
-        )
-    assert (shot[40 : top - 1] == 0).all() and (shot[top + IMG_H + 1 : top + IMG_H + 20] == 0).all()
+        np.testing.assert_array_equal(shot[wfy + dy, wfx + dx], RED, err_msg=f"fixation pixel offset ({dx}, {dy})")
+    for wx, wy, x, y in ((WIN_W - 3, WIN_H - 3, IMG_W - 2, IMG_H - 2), (2, WIN_H - 3, 1, IMG_H - 2)):
+        np.testing.assert_array_equal(shot[wy, wx], img[y, x], err_msg="the stimulus does not cover the window")
 
 
 def stim(cond: str, *frames: Path, fps: float = 0.0) -> dict:
@@ -213,7 +216,7 @@ def test_gui_mousegaze_flags_gaze_outside_fovea_and_pause_end(tmp_path):
         "presenter": {"eyetracker": "mousegaze", "fovea_deg": 2.5, "gaze_log": str(tmp_path / "gaze.csv")},
         "steps": [{"trial": t} for t in trials],
     }
-    left, top = (WIN_W - IMG_W) // 2, (WIN_H - IMG_H) // 2
+    fwx, fwy = SCALE * fix[0], SCALE * fix[1]  # the fixation point in window pixels (stimulus upscaled)
     with Xvfb() as x:
         d = Driver(x, spec, tmp_path)
         try:
@@ -221,15 +224,15 @@ def test_gui_mousegaze_flags_gaze_outside_fovea_and_pause_end(tmp_path):
             assert facts["eyetracker"] == {"kind": "mousegaze", "ok": True}
             wx, wy = facts["window_pos_px"]
 
-            def gaze_at(ix, iy):  # image pixel -> screen pixel under the pointer
-                x.xdotool("mousemove", str(wx + left + ix), str(wy + top + iy))
+            def gaze_at(px, py):  # window pixel -> screen pixel under the pointer
+                x.xdotool("mousemove", str(int(wx + px)), str(int(wy + py)))
 
             for i, far in enumerate((False, True)):
                 d.wait_for("black", trial=i)
-                gaze_at(*fix)
+                gaze_at(fwx, fwy)
                 d.wait_for("onset", trial=i)
                 if far:
-                    gaze_at(fix[0] + 200, fix[1] + 0)  # 200 px = 9.0 deg at 22.3 px/deg
+                    gaze_at(fwx + 200, fwy)  # 200 window px = 9.0 deg at 22.3 px/deg
                 time.sleep(0.4)
                 x.key("ny"[i])
             d.wait_for("onset", trial=2)
@@ -246,8 +249,8 @@ def test_gui_mousegaze_flags_gaze_outside_fovea_and_pause_end(tmp_path):
     g0 = np.array(result["trial_info"][0]["gaze"])
     g1 = np.array(result["trial_info"][1]["gaze"])
     assert len(g0) > 3 and len(g1) > 3
-    np.testing.assert_allclose(g0[:, 1:], [[left + fix[0], top + fix[1]]] * len(g0), atol=1.0)
-    np.testing.assert_allclose(g1[-1, 1:], [left + fix[0] + 200, top + fix[1]], atol=1.0)
+    np.testing.assert_allclose(g0[:, 1:], [[fwx, fwy]] * len(g0), atol=1.0)
+    np.testing.assert_allclose(g1[-1, 1:], [fwx + 200, fwy], atol=1.0)
     logged = np.loadtxt(tmp_path / "gaze.csv", delimiter=",", skiprows=1)  # the same samples, made durable
     assert (tmp_path / "gaze.csv").read_text().startswith("trial,t_s,x_px,y_px\n")
     np.testing.assert_allclose(logged[: len(g0), 1:], g0, atol=1e-2)
@@ -260,8 +263,8 @@ def _open_refusal(x: Xvfb, screen: int, pythonpath: str) -> list[str]:
     """Open a presenter on ``screen`` in a subprocess; return the PresentationError line(s) it printed."""
     code = (
         "from studyapp.presentation.psychopy_window import PsychoPyPresenter, PresentationError\n"
-        "from studyapp.presentation.base import DisplaySettings\n"
-        f"try:\n    PsychoPyPresenter().open(DisplaySettings(640, 480, 30.0, 60.0, screen={screen}))\n"
+        "from data_schema.geometry import Display\n"
+        f"try:\n    PsychoPyPresenter().open(Display(640, 480, 30.0, 60.0, screen={screen}))\n"
         "except PresentationError as e:\n    print('REFUSED', e)\n"
     )
     env = dict(x.env, PYTHONPATH=pythonpath)
@@ -283,3 +286,43 @@ def test_gui_refuses_a_keyboard_without_psychtoolbox_and_a_missing_screen(tmp_pa
         "install libjack-jackd2-0); refusing to run with imprecise reaction times"
     ]
     assert screen_1 == ["REFUSED display.screen=1 does not exist: this machine has 1 screen(s), 0..0"]
+
+
+LONG_QUESTION = ("Is the quality of what you just saw acceptable for exploring this scene on a headset for a "
+                 "whole afternoon, considering flicker, blur in the periphery and any shimmering edges? "
+                 "Press Y for yes or N for no, then wait for the next scene.")
+
+
+def test_gui_question_text_is_laid_out_for_a_small_window_and_never_clipped(tmp_path):
+    """A 320x180 display (seed 003's 256x144 render covers it): the question shown in the black interval is
+    wrapped and sized for the window, and every one of its pixels lies inside it."""
+    img = blocks_image(tmp_path / "a.png", 1, size=(256, 144))
+    shots = tmp_path / "shots"
+    trial = yes_no_still(0, tmp_path / "a.png", (128, 72), 0.3)
+    trial["question"] = LONG_QUESTION
+    trial["progress"] = [7, 50]
+    spec = {"display": {"width_px": 320, "height_px": 180, "width_cm": 30.0, "distance_cm": 60.0},
+            "presenter": {"screenshot_dir": str(shots)}, "steps": [{"trial": trial}]}
+    with Xvfb() as x:
+        d = Driver(x, spec, tmp_path)
+        try:
+            d.wait_for("onset", trial=0)
+            x.key("y")
+            result = d.finish()
+        finally:
+            d.kill()
+    layout = result["text_layout"]["0"]
+    assert layout["window_px"] == [320, 180]
+    w, h = layout["text_box_px"]
+    assert w <= 0.9 * 320 + 1 and h <= 0.8 * 180 + 1  # wrapped and shrunk to fit
+    black = np.asarray(Image.open(sorted(shots.glob("trial0000_black_*.png"))[0]).convert("RGB")).astype(int)
+    ink = black.max(axis=2) > 40
+    ys, xs = np.nonzero(ink)
+    assert len(xs) > 500  # the question is there
+    assert xs.min() > 0 and xs.max() < 319 and ys.min() > 0 and ys.max() < 179  # and nowhere cut by the edges
+    stim = np.asarray(Image.open(sorted(shots.glob("trial0000_stim0_*.png"))[0]).convert("RGB"))
+    s = 320 / 256  # the stimulus covers the 320x180 window
+    for x0, y0 in ((40, 40), (200, 100), (250, 140)):
+        if 2 <= x0 % 16 <= 13 and 2 <= y0 % 16 <= 13:
+            np.testing.assert_array_equal(stim[int(s * y0 + 1), int(s * x0 + 1)], img[y0, x0])
+    assert result["trials"][0]["answers"] == ["yes"]

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from data_schema.protocol_schema import ProtocolError, load_schema
-from studyapp.runner.protocol import load_protocol, renderer_names
+from studyapp.runner.protocol import load_protocol
 from studyapp.runner.schedule import build_schedule
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -56,8 +56,36 @@ def test_seed003_designs():
 def test_ppd_from_display_geometry():
     p = load_protocol(PROTOCOLS / "seed003_task1.yaml", check_renderers=False)
     d = p.display
-    # 256 px over 53 cm seen from 45 cm: px per cm * cm per degree at the centre.
-    assert d.ppd == pytest.approx(256 / 53.0 * 45.0 * 0.017455064928217585, rel=1e-12)
+    # 1920 px over 53 cm seen from 45 cm: px per cm * cm per degree at the centre.
+    assert d.ppd == pytest.approx(1920 / 53.0 * 45.0 * 0.017455064928217585, rel=1e-12)
+    # the 256x144 render covers the display: the same visual angle, fewer pixels per degree
+    assert p.render_geometry().fov_y_deg == pytest.approx(d.fov_y_deg) and p.render_size == (256, 144)
+    assert p.render_geometry().ppd == pytest.approx(d.ppd * 256 / 1920, rel=1e-12)
+
+
+def test_display_angle_stated_must_agree_and_render_aspect_must_match(tmp_path):
+    text = (PROTOCOLS / "seed003_task1.yaml").read_text()
+    f = _write(tmp_path, text.replace("refresh_hz: 60}", "refresh_hz: 60, fov_y_deg: 60}", 1))
+    with pytest.raises(ProtocolError, match=r"display\.fov_y_deg: 60° disagrees with the display's size.*36\.65°"):
+        load_protocol(f, check_renderers=False)
+    f = _write(tmp_path, text.replace("refresh_hz: 60}", "refresh_hz: 60, fov_y_deg: 36.65}", 1))
+    assert load_protocol(f, check_renderers=False).display.fov_y_deg == pytest.approx(36.655, abs=1e-3)
+    f = _write(tmp_path, text.replace("render_px: [256, 144]", "render_px: [256, 256]", 1))
+    with pytest.raises(ProtocolError, match=r"stimulus\.render_px: 256x256 has not the display's aspect ratio"):
+        load_protocol(f, check_renderers=False)
+
+
+def test_a_renderer_that_cannot_render_for_the_display_is_refused_at_validation(tmp_path):
+    """LaFR's defaults are undefined on a tall, narrow display (its foveal share would leave (0, 1)): refused
+    when the protocol is validated, with the reason, not when a participant is waiting."""
+    text = (PROTOCOLS / "seed001_2afc.yaml").read_text().replace(
+        "display: {width_px: 1920, height_px: 1080, width_cm: 53.0, distance_cm: 45.0, refresh_hz: 60}",
+        "display: {width_px: 64, height_px: 3338, width_cm: 1.0, distance_cm: 100.84, refresh_hz: 60}").replace(
+        "render_px: [960, 540]", "render_px: [64, 3338]")
+    f = _write(tmp_path, text)
+    with pytest.raises(ProtocolError, match=r"conditions\.LaFR\(2\.2\)\.renderer: lafr cannot render for this "
+                       r"display \(64x3338 px, 29\.0°\): alpha=0\.85 is out of range"):
+        load_protocol(f)
 
 
 def test_schema_file_is_json_schema_and_the_shipped_files_pass_it():

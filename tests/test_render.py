@@ -9,9 +9,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from data_schema.geometry import ViewingGeometry
 from renderers import render
 from renderers.antialias import fxaa
-from data_schema.geometry import ViewingGeometry
 from renderers.registry import Param, RendererPlugin, available, resolve_params
 from renderers.scene import Camera, Display, Material, PointLight, Scene
 

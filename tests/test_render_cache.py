@@ -7,11 +7,11 @@ import json
 import numpy as np
 import pytest
 
+from data_schema.errors import CLIError
 from renderers import registry
 from renderers.stimuli import render_stimulus, to_srgb8
 from studyapp.cli import _Parser
 from studyapp.commands.render import register
-from data_schema.errors import CLIError
 
 
 def _files(d):

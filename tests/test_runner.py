@@ -22,7 +22,7 @@ SHIPPED = sorted(PROTOCOLS.glob("seed*.yaml"))
 
 def _sim(p, pid, seed=0, script=None):
     def make(stimuli, display):
-        obs = SimulatedObserver(p, pid, seed, ground_truth_stimuli(p, stimuli), display=display)
+        obs = SimulatedObserver(p, pid, seed, ground_truth_stimuli(p, stimuli))
         return obs if script is None else script(obs)
     return make
 
@@ -220,11 +220,11 @@ def test_protocol_of_another_version_is_refused(tmp_path, capsys):
     assert main(["run", "seed003_task2"] + base) == 0
     before = _log(db)
     v2 = tmp_path / "t2.yaml"
-    v2.write_text((PROTOCOLS / "seed003_task2.yaml").read_text().replace('version: "1.0"', 'version: "1.1"'))
+    v2.write_text((PROTOCOLS / "seed003_task2.yaml").read_text().replace('version: "1.1"', 'version: "1.2"'))
     capsys.readouterr()
     assert main(["run", str(v2)] + base[:1] + ["P2"] + base[2:]) == 2
     err = capsys.readouterr().err
-    assert "written by protocol 'seed003_task2' version '1.0'" in err and "'1.1'" in err
+    assert "written by protocol 'seed003_task2' version '1.1'" in err and "'1.2'" in err
     assert _log(db) == before
 
 
@@ -281,9 +281,7 @@ def test_analysis_plan_of_a_study_follows_the_protocol(tmp_path):
 
 def test_window_errors_are_one_line(tmp_path, monkeypatch, capsys):
     from studyapp.commands import study
-
-    class PresentationError(RuntimeError):
-        pass
+    from studyapp.presentation.base import PresentationError
 
     class NoKeyboard:
         def open(self, display):

@@ -9,17 +9,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from studyapp.commands.study import ProgressBar
+from studyapp.progress import Bar
+from studyapp.runner.images import load_gray, save_png
 from studyapp.runner.protocol import load_protocol
 from studyapp.runner.stimuli import (
     absolute_camera,
     camera_at,
     frame_paths,
-    load_gray,
     missing_stimuli,
     needed_stimuli,
     prepare,
-    save_png,
 )
 
 PROTOCOLS = Path(__file__).resolve().parents[1] / "protocols"
@@ -129,13 +128,13 @@ def test_yaw_offsets_turn_the_scene_camera():
 
 def test_progress_bar_reports_counts_and_time_left():
     buf = io.StringIO()
-    bar = ProgressBar("frames", stream=buf, width=10)
+    bar = Bar("frames", stream=buf)
     for i in range(1, 21):
         bar(i, 20, (20 - i) * 3.0)
     lines = buf.getvalue().splitlines()
-    assert lines[0] == "[..........] 1/20 frames, 57s left"
-    assert lines[-1] == "[##########] 20/20 frames, 0s left"
-    assert "[#####.....] 10/20 frames, 30s left" in lines
+    assert lines[0].startswith("frames: |") and lines[0].endswith("| 1/20 [00:00<00:57]")
+    assert lines[-1].endswith("| 20/20 [00:00<00:00]") and "#" * 40 in lines[-1]
+    assert any(x.endswith("| 10/20 [00:00<00:30]") for x in lines)
     assert len(lines) == 11  # not a terminal: one line per 10 %
 
 
@@ -145,7 +144,7 @@ name: tiny
 version: "1"
 family: 2afc
 question: "Which one?"
-display: {width_px: 64, height_px: 36, width_cm: 53.0, distance_cm: 45.0, fov_y_deg: 40}
+display: {width_px: 64, height_px: 36, width_cm: 53.0, distance_cm: 40.95, fov_y_deg: 40}
 scenes: [cornell]
 conditions:
   GT: {renderer: gt}
@@ -190,7 +189,7 @@ def test_synthetic_images_carry_the_declared_impairment(tmp_path):
     p = load_protocol(PROTOCOLS / "seed003_task1.yaml", stimuli_dir=tmp_path / "s", check_renderers=False)
     write_synthetic_stimuli(p, 0.2, max_frames=1)
     st = StimulusSet(p, 0.2)
-    obs = SimulatedObserver(p, "P1", 0, ground_truth_stimuli(p, st), display=p.display.scaled(0.2))
+    obs = SimulatedObserver(p, "P1", 0, ground_truth_stimuli(p, st))
     for cond in p.design_conditions:
         stim = st.stimulus(cond, "yard")
         assert len(stim.frames) == p.n_frames  # read from the images, not declared
@@ -204,5 +203,52 @@ def test_frame_camera_carries_the_previous_frame():
     p = load_protocol(PROTOCOLS / "seed003_task2.yaml", check_renderers=False)
     assert "previous" not in frame_camera(p, "study", 0)
     cam = frame_camera(p, "study", 3)
-    assert cam["previous"] == absolute_camera("study", camera_at(p, 2))
-    assert {k: v for k, v in cam.items() if k != "previous"} == absolute_camera("study", camera_at(p, 3))
+    fov = {"fov_y": p.display.fov_y_deg}  # every frame has the display's visual angle
+    assert cam["previous"] == {**absolute_camera("study", camera_at(p, 2)), **fov}
+    assert {k: v for k, v in cam.items() if k != "previous"} == {**absolute_camera("study", camera_at(p, 3)), **fov}
+
+
+def test_a_stimulus_prepared_for_a_20_degree_display_is_the_20_degree_render(tmp_path):
+    """The protocol's display is the only source of the visual angle: the prepared frame equals `render` of
+    the scene with a 20 degree camera (street_night's own camera has 60), and its fovea measures the
+    protocol's degrees."""
+    import json
+    import math
+
+    from data_schema.geometry import Display
+    from renderers.registry import render
+    from renderers.stimuli import to_srgb8
+    from studyapp.runner.stimuli import prepare
+
+    height_cm = 2 * 40.0 * math.tan(math.radians(10.0))  # 20 degrees high at 40 cm
+    display = Display(96, 54, height_cm * 96 / 54, 40.0)
+    assert display.fov_y_deg == pytest.approx(20.0, abs=1e-9)
+    text = TINY.replace("display: {width_px: 64, height_px: 36, width_cm: 53.0, distance_cm: 40.95, fov_y_deg: 40}",
+                        f"display: {{width_px: 96, height_px: 54, width_cm: {display.width_cm!r}, distance_cm: 40.0}}")
+    text = text.replace("scenes: [cornell]", "scenes: [street_night]").replace("kind: sequence", "kind: image")
+    text = text.replace("  duration_s: 1.0\n  fps: 2\n  camera_path: [{t: 0, yaw_deg: -2}, {t: 1, yaw_deg: 2}]\n", "")
+    text = text.replace("LaFR: {renderer: lafr, params: {delta: 4.0}}", "VaFR: {renderer: vafr}")
+    f = tmp_path / "p20.yaml"
+    f.write_text(text)
+    p = load_protocol(f)
+    assert p.display.fov_y_deg == pytest.approx(20.0) and p.render_geometry().fov_y_deg == pytest.approx(20.0)
+    prepare(p, cache_dir=tmp_path / "cache")
+    from PIL import Image
+
+    with Image.open(frame_paths(p, "VaFR", "street_night")[0]) as im:
+        prepared = np.asarray(im.convert("RGB"))
+    img, stats = render("street_night", "vafr", {}, 96, 54, gaze=(48.0, 27.0), camera={"fov_y": 20.0})
+    from renderers.catalog import resolve
+
+    assert resolve("street_night").camera.fov_y == 60.0
+    np.testing.assert_array_equal(prepared, to_srgb8(img, resolve("street_night").exposure))
+    assert stats["fov_y_deg"] == 20.0
+    cached = [json.loads(x.read_text()) for x in (tmp_path / "cache").rglob("*.json")]
+    vafr = [c for c in cached if c["renderer"] == "vafr"]
+    assert [c["fov_y_deg"] for c in vafr] == [20.0]  # the renderer saw the protocol's degrees
+    # its fovea: 5 degrees of eccentricity lie where the 20-degree display puts them
+    from renderers.foveation import mapping_for
+
+    m = mapping_for("vafr", p.render_geometry())
+    assert float(m.display.radius(5.0)) == pytest.approx(math.tan(math.radians(5.0)) / p.render_geometry().c_r)
+    assert float(m.display.radius(10.0)) == pytest.approx(54 / 2)  # the top edge is 10 degrees up

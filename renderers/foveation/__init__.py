@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import inspect
 
-from .acuity import DEFAULT_PIVOTS, AcuityMapping
-from .base import FoveationMapping
 from data_schema.errors import UserError
 from data_schema.geometry import ViewingGeometry
+
+from .acuity import DEFAULT_PIVOTS, AcuityMapping
+from .base import FoveationMapping
 from .kernel import LAFR_FOVEAL_BOUNDARY_DEG, LaFRMapping, LMFRMapping
 from .reference import acuity_curve, guenter_step
 from .vafr import PRESETS, SEED_PRESET_REDUCTION, VaFRMapping

@@ -31,9 +31,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
-from . import _kernels as K
+from data_schema.errors import UserError
 from data_schema.geometry import DEG_PER_RAD, RAD_PER_DEG
 from data_schema.ranges import check_range
+
+from . import _kernels as K
 
 #: Seed 001 §3.3: f(0°)=40, f(10°)=10, f(20°)=6, f(30°)=5, f(60°)=4 cpd.
 DEFAULT_PIVOTS: tuple[tuple[float, float], ...] = ((0.0, 40.0), (10.0, 10.0), (20.0, 6.0), (30.0, 5.0),
@@ -47,17 +49,17 @@ def validate_pivots(pivots) -> tuple[tuple[float, float], ...]:
     try:
         pts = tuple((float(e), float(f)) for e, f in pivots)
     except (TypeError, ValueError):
-        raise ValueError("pivots is invalid: must be a sequence of (eccentricity_deg, cpd) pairs") from None
+        raise UserError("pivots is invalid: must be a sequence of (eccentricity_deg, cpd) pairs") from None
     if len(pts) < 2:
-        raise ValueError(f"pivots has {len(pts)} point(s): at least 2 (eccentricity, cpd) pairs are needed")
+        raise UserError(f"pivots has {len(pts)} point(s): at least 2 (eccentricity, cpd) pairs are needed")
     if pts[0][0] != 0.0:
-        raise ValueError(f"pivots must start at eccentricity 0°, got {pts[0][0]:g}°")
+        raise UserError(f"pivots must start at eccentricity 0°, got {pts[0][0]:g}°")
     for e, f in pts:
         check_range("pivot eccentricity", e, 0.0, 90.0, low_open=False)
         check_range("pivot cpd", f, 0.0, None)
     for (e0, _), (e1, _) in zip(pts, pts[1:]):
         if not e1 > e0:
-            raise ValueError(f"pivots must be strictly increasing in eccentricity: {e0:g}° is followed by {e1:g}°")
+            raise UserError(f"pivots must be strictly increasing in eccentricity: {e0:g}° is followed by {e1:g}°")
     return pts
 
 

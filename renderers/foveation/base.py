@@ -17,8 +17,10 @@ import math
 
 import numpy as np
 
-from . import _kernels as K
+from data_schema.errors import UserError
 from data_schema.geometry import ViewingGeometry
+
+from . import _kernels as K
 
 TWO_PI = 2.0 * math.pi
 #: LP pixels inverted per block when counting the on-screen ones: bounds temporary memory.
@@ -127,12 +129,12 @@ class FoveationMapping(abc.ABC):
         """
         e = np.asarray(e_deg, dtype=np.float64)
         if np.any(~np.isfinite(e)) or np.any(e < 0) or np.any(e >= 90):
-            raise ValueError("e_deg is out of range: eccentricities must lie in [0, 90) degrees")
+            raise UserError("e_deg is out of range: eccentricities must lie in [0, 90) degrees")
         if direction == "radial":
             return 0.5 * self._radial_du_de(e)
         if direction == "tangential":
             return self._tangential_rate(e)
-        raise ValueError(f"direction={direction!r} is invalid: allowed 'radial' or 'tangential'")
+        raise UserError(f"direction={direction!r} is invalid: allowed 'radial' or 'tangential'")
 
     def describe(self) -> dict:
         w, h = self.lp_shape

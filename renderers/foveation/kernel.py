@@ -21,10 +21,12 @@ import math
 
 import numpy as np
 
-from . import _kernels as K
-from .base import FoveationMapping
+from data_schema.errors import UserError
 from data_schema.geometry import RAD_PER_DEG, ViewingGeometry
 from data_schema.ranges import check_range
+
+from . import _kernels as K
+from .base import FoveationMapping
 
 #: LaFR's foveal boundary (seed 001 Eq 15, Fig 6).
 LAFR_FOVEAL_BOUNDARY_DEG = 4.89
@@ -148,14 +150,14 @@ class LaFRMapping(_KernelMapping):
         self.foveal_boundary_deg = check_range("foveal_boundary_deg", foveal_boundary_deg, 0.0, 90.0)
         r_ef = float(display.radius(self.foveal_boundary_deg))
         if not r_ef < self.R:
-            raise ValueError(
+            raise UserError(
                 f"foveal_boundary_deg={self.foveal_boundary_deg:g} is out of range for this display: it lies "
                 f"{r_ef:.1f} px from the gaze, beyond the farthest corner ({self.R:.1f} px); LaFR needs a larger "
                 "display or field of view")
         self.Z_ef = math.log1p(r_ef) / self.Lp
         q = self.alpha * self.Z_ef ** (1.0 - self.a) / (1.0 - self.a)
         if not 0.0 < q < 1.0:
-            raise ValueError(
+            raise UserError(
                 f"alpha={self.alpha:g} is out of range with a={self.a:g} on this display: LaFR's Fa must lie in "
                 f"(0, 1), which needs alpha * Z_ef^(1-a) < 1 - a (Z_ef = {self.Z_ef:.4f})")
         self.Fa = 1.0 - math.log(q) / math.log(self.Z_ef)

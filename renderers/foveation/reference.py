@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .acuity import DEFAULT_PIVOTS, AcuityMapping
 from data_schema.ranges import check_range
+
+from .acuity import DEFAULT_PIVOTS, AcuityMapping
 
 
 def acuity_curve(e_deg, pivots=DEFAULT_PIVOTS):

@@ -32,11 +32,13 @@ from typing import Callable
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from .acuity import DEFAULT_PIVOTS, AcuityMapping
-from . import _kernels as K
-from .base import FoveationMapping
+from data_schema.errors import UserError
 from data_schema.geometry import ViewingGeometry
 from data_schema.ranges import check_range
+
+from . import _kernels as K
+from .acuity import DEFAULT_PIVOTS, AcuityMapping
+from .base import FoveationMapping
 
 #: Seed 001 §3.3 / Fig 3 acuity curves; "auto" caps at the display's own radial Nyquist rate.
 PRESETS: dict[str, dict] = {
@@ -75,7 +77,7 @@ class VaFRMapping(FoveationMapping):
                  tangential_factor: float | Callable = 1.0):
         super().__init__(display)
         if preset not in PRESETS:
-            raise ValueError(f"preset={preset!r} is invalid: allowed {', '.join(sorted(PRESETS))}")
+            raise UserError(f"preset={preset!r} is invalid: allowed {', '.join(sorted(PRESETS))}")
         spec = PRESETS[preset]
         self.preset = preset
         pivots = spec["pivots"] if pivots is None else pivots
@@ -108,7 +110,7 @@ class VaFRMapping(FoveationMapping):
     def delta(self, e_deg):
         d = np.asarray(self._delta(np.asarray(e_deg, dtype=np.float64)), dtype=np.float64)
         if np.any(~np.isfinite(d)) or np.any(d <= 0):
-            raise ValueError("tangential_factor must return finite values > 0")
+            raise UserError("tangential_factor must return finite values > 0")
         return d
 
     def shading_height(self, e_deg):

@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from data_schema.errors import UserError
+
 from . import _kernels as K
 from . import multires as MR
 from .fpsm import FPSM, build_fpsm, check_alpha, light_budget
@@ -42,7 +44,7 @@ class FoveatedResult:
 
 def _check_image_gbuffer(name: str, g: GBuffer) -> tuple[int, int]:
     if len(g.shape) != 2:
-        raise ValueError(f"{name} G-buffer has shape {g.shape}: must be an image (h, w)")
+        raise UserError(f"{name} G-buffer has shape {g.shape}: must be an image (h, w)")
     return g.shape
 
 
@@ -54,7 +56,7 @@ def foveated_lightcuts(tree: LightTree, full: GBuffer, low: GBuffer, eccentricit
     light_budget(np.zeros(1), max_lspp)  # validates max_lspp
     max_lspp = int(max_lspp)
     if seed < 0:
-        raise ValueError(f"seed={seed} is out of range: must be >= 0")
+        raise UserError(f"seed={seed} is out of range: must be >= 0")
     h, w = _check_image_gbuffer("full", full)
     hl, wl = _check_image_gbuffer("low", low)
     offset = ray_offset_for(tree, full)

@@ -24,6 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from data_schema.errors import UserError
+
 EPSILON = 0.01
 ACUITY_FLOOR = 0.02
 LUMA = np.array([0.2126, 0.7152, 0.0722])
@@ -35,16 +37,16 @@ def check_alpha(alpha) -> float:
     try:
         a = float(alpha)
     except (TypeError, ValueError):
-        raise ValueError(f"alpha={alpha!r} is invalid: must be a number in (0, 1)") from None
+        raise UserError(f"alpha={alpha!r} is invalid: must be a number in (0, 1)") from None
     if not 0.0 < a < 1.0:
-        raise ValueError(f"alpha={a:g} is out of range: allowed (0, 1)")
+        raise UserError(f"alpha={a:g} is out of range: allowed (0, 1)")
     return a
 
 
 def _finite(name: str, x) -> np.ndarray:
     a = np.asarray(x, dtype=np.float64)
     if not np.all(np.isfinite(a)):
-        raise ValueError(f"{name} must be finite (found NaN or inf)")
+        raise UserError(f"{name} must be finite (found NaN or inf)")
     return a
 
 
@@ -52,7 +54,7 @@ def acuity_map(eccentricity_rad) -> np.ndarray:
     """Eq 2: ``fb_f = clamp(1.1715 - 2.45 e, 0.02, 1)``, ``e`` in radians (>= 0)."""
     e = _finite("eccentricity", eccentricity_rad)
     if np.any(e < 0):
-        raise ValueError("eccentricity must be >= 0")
+        raise UserError("eccentricity must be >= 0")
     return np.clip(1.1715 - 2.45 * e, ACUITY_FLOOR, 1.0)
 
 
@@ -68,7 +70,7 @@ def gradient_feature(buffer) -> np.ndarray:
     if b.ndim == 2:
         b = b[..., None]
     if b.ndim != 3:
-        raise ValueError(f"buffer has shape {b.shape}: must be (h, w) or (h, w, channels)")
+        raise UserError(f"buffer has shape {b.shape}: must be (h, w) or (h, w, channels)")
     out = np.zeros(b.shape[:2])
     for c in range(b.shape[2]):
         gx = ndimage.sobel(b[..., c], axis=1, mode="nearest")
@@ -105,7 +107,7 @@ def spatiotemporal_feature(fb_f, normal, albedo, velocity) -> np.ndarray:
     for name, buf in (("normal", normal), ("albedo", albedo), ("velocity", velocity)):
         g = gradient_feature(buf)
         if g.shape != f.shape:
-            raise ValueError(f"{name} has shape {np.shape(buf)}: must match fb_f {f.shape}")
+            raise UserError(f"{name} has shape {np.shape(buf)}: must match fb_f {f.shape}")
         np.maximum(out, g, out=out)
     return np.clip(out, 0.0, 1.0)
 
@@ -139,10 +141,10 @@ def luminance_contrast(low_res_rgb, shape, eps: float = EPSILON) -> np.ndarray:
     lo = _finite("low_res_rgb", low_res_rgb)
     if lo.ndim == 3:
         if lo.shape[2] != 3:
-            raise ValueError(f"low_res_rgb has shape {lo.shape}: must be (h', w', 3) or (h', w')")
+            raise UserError(f"low_res_rgb has shape {lo.shape}: must be (h', w', 3) or (h', w')")
         lo = lo @ LUMA
     elif lo.ndim != 2:
-        raise ValueError(f"low_res_rgb has shape {lo.shape}: must be (h', w', 3) or (h', w')")
+        raise UserError(f"low_res_rgb has shape {lo.shape}: must be (h', w', 3) or (h', w')")
     lum = np.maximum(_resize(lo, tuple(shape), 3), 0.0)
     lp = laplacian_pyramid(lum, 3)
     residual = np.maximum(_resize(lp[2], lum.shape, 1), 0.0)
@@ -177,7 +179,7 @@ def rho_map(fb_st, fb_l, alpha) -> np.ndarray:
     st = np.clip(_finite("fb_st", fb_st), 0.0, 1.0)
     lu = np.clip(_finite("fb_l", fb_l), 0.0, 1.0)
     if st.shape != lu.shape:
-        raise ValueError(f"fb_l has shape {lu.shape}: must match fb_st {st.shape}")
+        raise UserError(f"fb_l has shape {lu.shape}: must match fb_st {st.shape}")
     d = (st - gaussian5(st)) ** 2 + (lu - gaussian5(lu)) ** 2
     m = np.maximum(st, lu)
     defined = m > a
@@ -193,7 +195,7 @@ def normalise_rho(rho) -> np.ndarray:
     """
     r = np.asarray(rho, dtype=np.float64)
     if np.any(np.isnan(r)) or np.any(r < 0):
-        raise ValueError("rho must be >= 0 or +inf (found NaN or a negative value)")
+        raise UserError("rho must be >= 0 or +inf (found NaN or a negative value)")
     fin = np.isfinite(r)
     out = np.zeros(r.shape)
     if not fin.any():
@@ -230,8 +232,8 @@ def build_fpsm(eccentricity_rad, normal, albedo, velocity, low_res_rgb, alpha, e
 def light_budget(fpsm_map, max_lspp: int = 48) -> np.ndarray:
     """``#L = map[p] · MAX_lspp`` (seed 003 §3.1) rounded up, at least 1 so no pixel goes unlit."""
     if isinstance(max_lspp, bool) or not float(max_lspp).is_integer() or max_lspp <= 0:
-        raise ValueError(f"max_lspp={max_lspp!r} is out of range: must be a whole number >= 1")
+        raise UserError(f"max_lspp={max_lspp!r} is out of range: must be a whole number >= 1")
     m = np.asarray(fpsm_map, dtype=np.float64)
     if np.any(~np.isfinite(m)) or np.any(m < 0) or np.any(m > 1):
-        raise ValueError("map must hold values in [0, 1]")
+        raise UserError("map must hold values in [0, 1]")
     return np.maximum(1, np.ceil(m * int(max_lspp) - 1e-9)).astype(np.int64)

@@ -19,6 +19,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from data_schema.errors import UserError
+
 from . import _kernels as K
 from .sampling import stochastic_lightcuts
 
@@ -72,7 +74,7 @@ def glossy_pass(hits, counts, seed: int, trace, tree, occluded, lspp_bounce: int
     """
     counts = np.asarray(counts, dtype=np.int64).reshape(-1)
     if np.any(counts < 0):
-        raise ValueError("rspp must be >= 0")
+        raise UserError("rspp must be >= 0")
     g = hits.gbuf
     n = g.n
     out = np.zeros((n, 3))

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from data_schema.errors import UserError
+
 from . import _kernels as K
 from .tree import LightTree
 
@@ -43,22 +45,22 @@ class GBuffer:
         """Validate and flatten ``(..., 3)`` arrays; normals are renormalised, invalid pixels are skipped."""
         pos = np.asarray(position, dtype=np.float64)
         if pos.ndim < 2 or pos.shape[-1] != 3:
-            raise ValueError(f"position has shape {pos.shape}: must be (..., 3)")
+            raise UserError(f"position has shape {pos.shape}: must be (..., 3)")
         shape = pos.shape[:-1]
         arrays = {}
         for name, arr in (("normal", normal), ("albedo", albedo)):
             a = np.asarray(arr, dtype=np.float64)
             if a.shape != pos.shape:
-                raise ValueError(f"{name} has shape {a.shape}: must match position {pos.shape}")
+                raise UserError(f"{name} has shape {a.shape}: must match position {pos.shape}")
             arrays[name] = a.reshape(-1, 3)
         ok = np.ones(int(np.prod(shape)), bool) if valid is None else np.asarray(valid, bool).reshape(-1)
         if ok.size != int(np.prod(shape)):
-            raise ValueError(f"valid has {ok.size} entries: must have one per pixel ({int(np.prod(shape))})")
+            raise UserError(f"valid has {ok.size} entries: must have one per pixel ({int(np.prod(shape))})")
         pos = pos.reshape(-1, 3)
         nrm = arrays["normal"]
         for name, a in (("position", pos), ("normal", nrm), ("albedo", arrays["albedo"])):
             if not np.all(np.isfinite(a[ok])):
-                raise ValueError(f"{name} must be finite on valid pixels (found NaN or inf)")
+                raise UserError(f"{name} must be finite on valid pixels (found NaN or inf)")
         length = np.linalg.norm(nrm, axis=1)
         ok = ok & (length > 0)
         nrm = np.where(ok[:, None], nrm / np.where(length > 0, length, 1.0)[:, None], 0.0)
@@ -146,13 +148,13 @@ def stochastic_lightcuts(tree: LightTree, gbuf: GBuffer, budget, *, seed: int = 
     """
     b = np.broadcast_to(np.asarray(budget), gbuf.shape).reshape(-1)
     if not np.issubdtype(b.dtype, np.integer) and (not np.all(np.isfinite(b)) or np.any(b != np.round(b))):
-        raise ValueError("budget must hold whole numbers of light samples")
+        raise UserError("budget must hold whole numbers of light samples")
     b = b.astype(np.int64)
     if np.any(b < 0):
-        raise ValueError(f"budget must be >= 0 (found {int(b.min())})")
+        raise UserError(f"budget must be >= 0 (found {int(b.min())})")
     b = np.where(gbuf.valid, b, 0)
     if seed < 0:
-        raise ValueError(f"seed={seed} is out of range: must be >= 0")
+        raise UserError(f"seed={seed} is out of range: must be >= 0")
     offset = ray_offset_for(tree, gbuf) if ray_offset is None else float(ray_offset)
     max_b = max(int(b.max()) if b.size else 0, 1)
     out = np.zeros((gbuf.n, 3))

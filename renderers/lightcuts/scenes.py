@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from data_schema.errors import UserError
 from renderers.procedural import MeshBuilder, cornell
 from renderers.scene import Camera, Material, Scene
 
@@ -197,7 +198,7 @@ def trace_vpls(scene: Scene, light_pos, light_intensity, n: int, seed: int = 0, 
         nrm.append(hits.gbuf.normal[idx])
         alb.append(hits.albedo[idx])
         if traced > 1000 * n:
-            raise ValueError("light paths escape the scene: no surface around the light")
+            raise UserError("light paths escape the scene: no surface around the light")
     nrm = np.concatenate(nrm)
     flux = 4.0 * np.pi * np.asarray(light_intensity, dtype=np.float64) / traced
     return np.concatenate(pos) + 1e-4 * scene.scale * nrm, nrm, flux * np.concatenate(alb) / np.pi

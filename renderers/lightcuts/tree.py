@@ -29,6 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from data_schema.errors import UserError
+
 MORTON_BITS = 10  # per axis: a 30-bit code
 
 
@@ -108,22 +110,22 @@ def validate_lights(positions, intensities) -> tuple[np.ndarray, np.ndarray]:
     """
     pos = np.asarray(positions, dtype=np.float64)
     if pos.ndim != 2 or pos.shape[1] != 3:
-        raise ValueError(f"light positions has shape {pos.shape}: must be (n_lights, 3)")
+        raise UserError(f"light positions has shape {pos.shape}: must be (n_lights, 3)")
     if pos.shape[0] == 0:
-        raise ValueError("lights: the scene has zero lights; at least 1 light is needed")
+        raise UserError("lights: the scene has zero lights; at least 1 light is needed")
     rgb = np.asarray(intensities, dtype=np.float64)
     if rgb.ndim == 1:
         rgb = np.repeat(rgb[:, None], 3, axis=1)
     if rgb.shape != pos.shape:
-        raise ValueError(f"light intensities has shape {np.shape(intensities)}: must be ({pos.shape[0]},) "
+        raise UserError(f"light intensities has shape {np.shape(intensities)}: must be ({pos.shape[0]},) "
                          f"or ({pos.shape[0]}, 3)")
     if not np.all(np.isfinite(pos)):
-        raise ValueError("light positions must be finite (found NaN or inf)")
+        raise UserError("light positions must be finite (found NaN or inf)")
     if not np.all(np.isfinite(rgb)):
-        raise ValueError("light intensities must be finite (found NaN or inf)")
+        raise UserError("light intensities must be finite (found NaN or inf)")
     if np.any(rgb < 0):
         i = int(np.argwhere(rgb < 0)[0, 0])
-        raise ValueError(f"light intensities must be >= 0: light {i} has {rgb[i].tolist()}")
+        raise UserError(f"light intensities must be >= 0: light {i} has {rgb[i].tolist()}")
     return pos, rgb
 
 
@@ -176,10 +178,10 @@ def build_light_tree(positions, intensities, normals=None) -> LightTree:
     if normals is not None:
         nrm = np.asarray(normals, dtype=np.float64)
         if nrm.shape != pos.shape:
-            raise ValueError(f"light normals has shape {nrm.shape}: must be ({n}, 3)")
+            raise UserError(f"light normals has shape {nrm.shape}: must be ({n}, 3)")
         length = np.linalg.norm(nrm, axis=1)
         if not np.all(np.isfinite(length)):
-            raise ValueError("light normals must be finite (found NaN or inf)")
+            raise UserError("light normals must be finite (found NaN or inf)")
         light_nrm = np.zeros((n_leaves, 3))
         light_nrm[:n] = (nrm / np.where(length > 0, length, 1.0)[:, None])[order]
     return LightTree(n, n_leaves, levels, order, light_pos, light_rgb, bmin, bmax, inten, radius, light_nrm)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from data_schema.errors import UserError
+
 
 class EmbreeOccluder:
     """``occluded(origins, targets)``: True where a triangle lies between each origin and its target.
@@ -19,9 +21,9 @@ class EmbreeOccluder:
         v = np.ascontiguousarray(vertices, dtype=np.float32)
         f = np.ascontiguousarray(faces, dtype=np.int32)
         if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3:
-            raise ValueError(f"vertices {v.shape} and faces {f.shape} must both be (n, 3)")
+            raise UserError(f"vertices {v.shape} and faces {f.shape} must both be (n, 3)")
         if f.size and (f.min() < 0 or f.max() >= len(v)):
-            raise ValueError("faces index a vertex outside vertices")
+            raise UserError("faces index a vertex outside vertices")
         self.end_eps = float(end_eps)
         self._scene = rtcore_scene.EmbreeScene()
         self._mesh = mesh_construction.TriangleMesh(self._scene, v, f) if len(f) else None

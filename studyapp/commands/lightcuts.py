@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 from data_schema.errors import CLIError
+
 from . import end_status, status
 
 DESCRIPTION = """\

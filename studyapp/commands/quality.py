@@ -18,6 +18,8 @@ TABLE_COLUMNS = ("image", "region", "mse", "psnr", "ssim", "n_pixels", "n_ssim_p
 
 
 def register(subparsers, parser_class) -> None:
+    from data_schema.ranges import FOV_Y, Range, argtype
+
     q = subparsers.add_parser(
         "quality", help="MSE, PSNR and SSIM of stimuli against GT in the fovea and the periphery",
         description="Compare every stimulus (PNG or .npy) with the ground-truth image: MSE, PSNR and SSIM "
@@ -28,14 +30,16 @@ def register(subparsers, parser_class) -> None:
                    help="stimuli: PNG or .npy files, or folders (their *.png and *.npy, not recursive; the "
                         "GT itself is skipped)")
     q.add_argument("--gt", required=True, metavar="GT", help="ground-truth image (PNG or .npy)")
-    q.add_argument("--fov-y", type=float, required=True, metavar="DEG",
+    q.add_argument("--fov-y", type=argtype("--fov-y", FOV_Y), required=True, metavar="DEG",
                    help="vertical field of view of the display in degrees, in (0, 180)")
     q.add_argument("--gaze", metavar="X,Y", default=None,
                    help="gaze point in pixels, x right, y down (default: the image centre); write "
                         "negative values as --gaze=-10,5")
-    q.add_argument("--fovea-deg", type=float, default=5.0, metavar="DEG",
+    q.add_argument("--fovea-deg", type=argtype("--fovea-deg", Range(0.0, 90.0, low_open=True, high_open=True)),
+                   default=5.0, metavar="DEG",
                    help="fovea radius in degrees of eccentricity, in (0, 90) (default: 5)")
-    q.add_argument("--data-range", type=float, default=None, metavar="L",
+    q.add_argument("--data-range", type=argtype("--data-range", Range(0.0, None, low_open=True)), default=None,
+                   metavar="L",
                    help="peak-to-peak value range for PSNR/SSIM (default: 255 for 8-bit, 65535 for 16-bit, "
                         "1 for float .npy)")
     q.add_argument("--out", metavar="DIR",
@@ -216,12 +220,6 @@ def quality_table(paths: list[Path], gt_image, *, fov_y: float, gaze, fovea_deg:
 def cmd_quality(args) -> int:
     from data_schema.atomic import write_text
 
-    if args.fovea_deg is None or not 0.0 < args.fovea_deg < 90.0:
-        raise CLIError(f"--fovea-deg={args.fovea_deg:g} is out of range: allowed (0, 90)")
-    if not 0.0 < args.fov_y < 180.0:
-        raise CLIError(f"--fov-y={args.fov_y:g} is out of range: allowed (0, 180)")
-    if args.data_range is not None and not (math.isfinite(args.data_range) and args.data_range > 0):
-        raise CLIError(f"--data-range={args.data_range:g} is out of range: must be a finite number > 0")
     gaze = parse_gaze(args.gaze)
     gt_path = Path(args.gt)
     if not gt_path.exists():

@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import json
-import sys
-import threading
-import time
 from pathlib import Path
 
 from data_schema.errors import CLIError
+from studyapp.progress import ticker
 
 RENDER_HELP = "render a scene with a renderer (GT, VaFR, LMFR, LaFR, plug-ins) to an sRGB PNG"
 RENDER_DESCRIPTION = (
@@ -59,39 +57,10 @@ def parse_gaze(text: str | None):
     return x, y
 
 
-class _Ticker:
-    """Prints elapsed time on a terminal once a render has run for more than two seconds."""
-
-    def __init__(self, label: str):
-        self.label = label
-        self.stop = threading.Event()
-        self.thread = threading.Thread(target=self._run, daemon=True)
-
-    def _run(self):
-        t0 = time.perf_counter()
-        if self.stop.wait(2.0) or not sys.stderr.isatty():
-            return
-        spin = "|/-\\"
-        k = 0
-        while not self.stop.wait(0.25):
-            print(f"\r\033[K{self.label} {spin[k % 4]} {time.perf_counter() - t0:.1f} s", end="",
-                  file=sys.stderr, flush=True)
-            k += 1
-        print("\r\033[K", end="", file=sys.stderr, flush=True)
-
-    def __enter__(self):
-        self.thread.start()
-        return self
-
-    def __exit__(self, *exc):
-        self.stop.set()
-        self.thread.join()
-
-
 def cmd_render(args) -> int:
-    from renderers.registry import render
-    from renderers.catalog import resolve
     from data_schema.atomic import check_target
+    from renderers.catalog import resolve
+    from renderers.registry import render
     from renderers.stimuli import write_png_and_npy
 
     out = Path(args.out)
@@ -102,7 +71,7 @@ def cmd_render(args) -> int:
     params = parse_params(args.param)
     gaze = parse_gaze(args.gaze)
     scene = resolve(args.scene)
-    with _Ticker(f"rendering {scene.name} with {args.renderer}"):
+    with ticker(f"rendering {scene.name} with {args.renderer}"):
         img, stats = render(scene, args.renderer, params, args.width, args.height, gaze=gaze)
     write_png_and_npy(out, img, scene.exposure)
     if args.json:
@@ -142,9 +111,8 @@ def cmd_renderers(args) -> int:
 
 def demo_step(out_dir: Path, progress=None) -> list[Path]:
     """Render the Cornell box at 320x240 with GT and the foveated renderers (a few seconds in total)."""
-    from renderers.stimuli import render_stimulus
-
     from data_schema.atomic import write_bytes, write_text
+    from renderers.stimuli import render_stimulus
 
     out_dir = Path(out_dir)
     cache = out_dir / "cache"

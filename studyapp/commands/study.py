@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 from data_schema.errors import CLIError
+from studyapp.progress import Bar
 
 SHIPPED = Path(__file__).resolve().parents[2] / "protocols"
 
@@ -30,25 +31,6 @@ def _fmt_seconds(s: float) -> str:
         return "?"
     s = round(s)
     return f"{s // 3600}h{s % 3600 // 60:02d}m" if s >= 3600 else (f"{s // 60}m{s % 60:02d}s" if s >= 60 else f"{s}s")
-
-
-class ProgressBar:
-    """``[#####.....] 12/288 frames, 3m20s left`` on stderr (redrawn on a terminal, every 10% otherwise)."""
-
-    def __init__(self, what: str, stream=None, width: int = 30) -> None:
-        self.what, self.stream, self.width = what, stream or sys.stderr, width
-        self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
-        self._last_decile = -1
-
-    def __call__(self, done: int, total: int, seconds_left: float = math.nan) -> None:
-        frac = done / total if total else 1.0
-        bar = "#" * int(frac * self.width) + "." * (self.width - int(frac * self.width))
-        line = f"[{bar}] {done}/{total} {self.what}, {_fmt_seconds(seconds_left)} left"
-        if self.tty:
-            print(f"\r\033[K{line}", end="" if done < total else "\n", file=self.stream, flush=True)
-        elif int(frac * 10) != self._last_decile or done == total:
-            self._last_decile = int(frac * 10)
-            print(line, file=self.stream, flush=True)
 
 
 # -- handlers ------------------------------------------------------------------------------------------------
@@ -74,7 +56,7 @@ def cmd_prepare(args) -> int:
     from studyapp.runner.stimuli import prepare, stimulus_root
 
     p = _protocol(args.protocol, args.stimuli)
-    bar = ProgressBar("frames")
+    bar = Bar("frames")
     res = prepare(p, scale=args.scale, progress=bar, cache_dir=Path(args.cache) if args.cache else None)
     print(f"{p.name}: {res['frames']} frame(s) built ({res['rendered']} rendered) in {_fmt_seconds(res['seconds'])}"
           f" -> {stimulus_root(p, args.scale)}")
@@ -88,8 +70,7 @@ def _presenter_factory(args, protocol):
 
         def make(stimuli, display):
             return SimulatedObserver(protocol, args.participant, args.seed if args.seed is not None else 0,
-                                     ground_truth_stimuli(protocol, stimuli), display=display,
-                                     delay_s=args.sim_delay)
+                                     ground_truth_stimuli(protocol, stimuli), delay_s=args.sim_delay)
         return make
 
     def make_window(stimuli, display):
@@ -102,6 +83,7 @@ def _presenter_factory(args, protocol):
 
 
 def cmd_run(args) -> int:
+    from studyapp.presentation.base import PresentationError
     from studyapp.runner.session import run_session
     from studyapp.runner.stimuli import missing_stimuli, prepare
 
@@ -122,7 +104,7 @@ def cmd_run(args) -> int:
             usable = False
         if renderable and usable:
             print(f"{len(missing)} stimulus set(s) missing: preparing them first", file=sys.stderr)
-            prepare(p, scale=args.scale, progress=ProgressBar("frames"))
+            prepare(p, scale=args.scale, progress=Bar("frames"))
     if args.seed is None and args.resume and db.exists():
         from data_schema.store import open_store
         with open_store(db) as st:
@@ -135,15 +117,13 @@ def cmd_run(args) -> int:
             print(note, file=sys.stderr)
         print(f"session {sid} started ({db})", flush=True)
 
-    bar = ProgressBar("trials") if not args.quiet else None
+    bar = Bar("trials") if not args.quiet else None
     try:
         summary = run_session(p, args.participant, db, _presenter_factory(args, p), seed=args.seed,
                               resume=args.resume, scale=args.scale, stimuli_root=None, allow_declared=args.simulate,
                               on_started=started, progress=(lambda d, t: bar(d, t)) if bar else None)
-    except RuntimeError as exc:  # the window's PresentationError (no display, keyboard backend not ptb, ...)
-        if type(exc).__name__ != "PresentationError":
-            raise
-        raise CLIError(f"{exc} (answers given so far are saved: continue with --resume)") from None
+    except PresentationError as exc:  # no display, keyboard backend not ptb, an unreadable frame, ...
+        raise PresentationError(f"{exc} (answers given so far are saved: continue with --resume)") from None
     catch = ""
     if summary.catch_total:
         verdict = {True: "passed", False: "FAILED", None: "pending"}[summary.catch_passed]
@@ -278,7 +258,7 @@ def demo_step(out_dir: Path, progress) -> list[Path]:
             if progress:
                 progress(f"{name}: simulated participant {pid}")
             run_session(p, pid, db, lambda st, d, pid=pid, p=p: SimulatedObserver(
-                p, pid, 0, ground_truth_stimuli(p, st), display=d), seed=0, scale=DEMO_SCALE)
+                p, pid, 0, ground_truth_stimuli(p, st)), seed=0, scale=DEMO_SCALE)
         written += [db, store.export_csv(db, out / f"{name}_trials.csv")]
         if p.family == "2afc":
             written.append(store.export_pwcmp(db, out / f"{name}_pwcmp.csv"))

@@ -11,20 +11,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal, Protocol, Sequence
 
-Family = Literal["2afc", "preference", "yes_no"]
+from data_schema.errors import UserError
+from data_schema.geometry import Display
 
 
-@dataclass(frozen=True)
-class DisplaySettings:
-    """The display a protocol is run on (also what the stimuli were rendered and foveated for)."""
+class PresentationError(UserError):
+    """A window could not be opened or used as required (no display, keyboard backend not psychtoolbox, an
+    unreadable stimulus frame): one line, and the way out where there is one."""
 
-    width_px: int
-    height_px: int
-    width_cm: float
-    distance_cm: float
-    refresh_hz: float = 60.0
-    fullscreen: bool = False
-    screen: int = 0
+Family = str  # a trial family name (data_schema.families)
 
 
 @dataclass(frozen=True)
@@ -84,8 +79,9 @@ class TrialResult:
 class Presenter(Protocol):
     """A window (or a simulation) that shows trials and returns answers."""
 
-    def open(self, display: DisplaySettings) -> dict:
-        """Open the window; return measured facts (``refresh_hz``, ``keyboard_backend``, ...)."""
+    def open(self, display: Display) -> dict:
+        """Open a window covering ``display`` (the participant's physical display); return measured facts
+        (``refresh_hz``, ``keyboard_backend``, ...)."""
 
     def instructions(self, text: str) -> None:
         """Show ``text`` until the participant presses a key."""

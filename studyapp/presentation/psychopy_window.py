@@ -45,24 +45,25 @@ from typing import Callable, Literal
 
 import numpy as np
 
-from .base import DisplaySettings, TrialDisplay, TrialResult
+from data_schema import families
+from data_schema.errors import UserError
+from data_schema.geometry import Display
+
+from .base import PresentationError, TrialDisplay, TrialResult
 
 ESCAPE = "escape"
 RESUME_KEY, END_KEY = "r", "e"
 EventHook = Callable[[str, dict], None]
 
 
-class PresentationError(RuntimeError):
-    """A window could not be opened or used as required (one-line message)."""
-
-
 @dataclass(frozen=True)
 class Placement:
     """Where a ``img_w`` x ``img_h`` stimulus lands in a ``win_w`` x ``win_h`` window.
 
-    The image is centred and shown at its own pixel size (``scale = 1``) when it fits, else shrunk to fit
-    (``scale < 1``). ``left``/``top`` are whole window pixels from the window's top-left corner, so that at
-    ``scale = 1`` every image pixel maps onto exactly one window pixel.
+    The window is the participant's display and a stimulus subtends the display's visual angle, so the image
+    is scaled to cover the window (up from a smaller render, e.g. seed 003's 256x144 stimuli on a 1920x1080
+    display), keeping its aspect ratio, and centred. ``left``/``top`` are whole window pixels from the window's
+    top-left corner, so that at ``scale = 1`` every image pixel maps onto exactly one window pixel.
     """
 
     win_w: int
@@ -75,9 +76,11 @@ class Placement:
 
     @classmethod
     def fit(cls, win_w: int, win_h: int, img_w: int, img_h: int) -> "Placement":
-        scale = min(1.0, win_w / img_w, win_h / img_h)
+        scale = min(win_w / img_w, win_h / img_h)
+        if abs(scale - 1.0) < 1e-12:
+            scale = 1.0
         w, h = img_w * scale, img_h * scale
-        # 1e-9 absorbs the round-off of w = img_w * (win_w / img_w) when the image is shrunk to fit
+        # 1e-9 absorbs the round-off of w = img_w * (win_w / img_w)
         return cls(
             win_w,
             win_h,
@@ -109,15 +112,6 @@ class Placement:
         return (wx - self.win_w / 2.0, self.win_h / 2.0 - wy)
 
 
-def pixels_per_degree(display: DisplaySettings) -> float:
-    """Pixels per degree of visual angle at the screen centre.
-
-    ``ppd = width_px / width_cm * distance_cm * tan(1°)``: the size in pixels of 1° seen from ``distance_cm``
-    on a flat screen, as PsychoPy's ``deg2pix(1, monitor, correctFlat=True)``.
-    """
-    return display.width_px / display.width_cm * display.distance_cm * math.tan(math.radians(1.0))
-
-
 def sequence_frame(elapsed_s: float, fps: float, n_frames: int, loop: bool) -> int:
     """Index of the frame of an ``n_frames``-frame sequence at ``fps`` to show ``elapsed_s`` after onset.
 
@@ -130,57 +124,44 @@ def sequence_frame(elapsed_s: float, fps: float, n_frames: int, loop: bool) -> i
     return k % n_frames if loop else min(k, n_frames - 1)
 
 
-def validate_display(display: DisplaySettings) -> None:
-    """One-line errors for impossible display settings."""
-    for name in ("width_px", "height_px"):
-        v = getattr(display, name)
-        if isinstance(v, bool) or not isinstance(v, int) or v < 16:
-            raise ValueError(f"display.{name}={v!r} is out of range: must be a whole number of pixels >= 16")
-    for name in ("width_cm", "distance_cm", "refresh_hz"):
-        v = getattr(display, name)
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise ValueError(f"display.{name}={v!r} is out of range: must be a finite number > 0")
-    if not isinstance(display.screen, int) or display.screen < 0:
-        raise ValueError(f"display.screen={display.screen!r} is out of range: must be an integer >= 0")
-
-
 def validate_trial(trial: TrialDisplay) -> None:
     """One-line errors for a trial the window cannot show."""
     n = len(trial.stimuli)
-    need = {"yes_no": (1, 1), "2afc": (2, 2), "preference": (2, 64)}[trial.family]
+    fam = families.get(trial.family)
+    need = fam.stimuli_range(n)
     if not need[0] <= n <= need[1]:
-        raise ValueError(
+        raise UserError(
             f"trial {trial.index}: family {trial.family!r} needs {need[0]}..{need[1]} stimuli, got {n}"
         )
     for s in trial.stimuli:
         if not s.frames:
-            raise ValueError(f"trial {trial.index}: stimulus {s.condition!r} has no frames")
+            raise UserError(f"trial {trial.index}: stimulus {s.condition!r} has no frames")
         if s.is_sequence and not s.fps > 0:
-            raise ValueError(f"trial {trial.index}: sequence {s.condition!r} needs fps > 0, got {s.fps!r}")
+            raise UserError(f"trial {trial.index}: sequence {s.condition!r} needs fps > 0, got {s.fps!r}")
     both = sorted(
         set(trial.switch_keys) & set(trial.answer_keys)
         | {ESCAPE} & (set(trial.switch_keys) | set(trial.answer_keys))
     )
     if both:
-        raise ValueError(
+        raise UserError(
             f"trial {trial.index}: key {both[0]!r} cannot both switch and answer (escape pauses)"
         )
     for key, idx in trial.switch_keys.items():
         if not 0 <= idx < n:
-            raise ValueError(f"trial {trial.index}: switch key {key!r} -> {idx} is out of range 0..{n - 1}")
-    if trial.family == "preference" and not 1 <= trial.n_picks <= n:
-        raise ValueError(f"trial {trial.index}: n_picks={trial.n_picks} is out of range 1..{n}")
-    if trial.family == "preference":
+            raise UserError(f"trial {trial.index}: switch key {key!r} -> {idx} is out of range 0..{n - 1}")
+    if fam.has_picks and not 1 <= trial.n_picks <= n:
+        raise UserError(f"trial {trial.index}: n_picks={trial.n_picks} is out of range 1..{n}")
+    if fam.has_picks:
         for key, ans in trial.answer_keys.items():
             if ans != "" and not (ans.isdigit() and int(ans) < n):
-                raise ValueError(
+                raise UserError(
                     f"trial {trial.index}: answer key {key!r} -> {ans!r} must be a stimulus index "
                     f"0..{n - 1} or '' (stop picking)"
                 )
     if trial.black_before_s < 0 or (trial.duration_s is not None and not trial.duration_s > 0):
-        raise ValueError(f"trial {trial.index}: black_before_s must be >= 0 and duration_s > 0 or None")
+        raise UserError(f"trial {trial.index}: black_before_s must be >= 0 and duration_s > 0 or None")
     if not trial.answer_keys and trial.duration_s is None:
-        raise ValueError(f"trial {trial.index}: a trial without answer keys needs a duration_s")
+        raise UserError(f"trial {trial.index}: a trial without answer keys needs a duration_s")
 
 
 @dataclass
@@ -218,7 +199,7 @@ class AnswerState:
         if name not in t.answer_keys:
             return None
         ans = t.answer_keys[name]
-        if t.family != "preference":
+        if not families.get(t.family).has_picks:
             if ans == "":
                 return None
             self.picks, self.rt_s = [ans], float(rt_s)
@@ -238,11 +219,7 @@ class AnswerState:
 
 
 def _stim_labels(trial: TrialDisplay) -> list[str]:
-    if trial.family == "2afc":
-        return ["A", "B"]
-    if trial.family == "preference":
-        return [str(i + 1) for i in range(len(trial.stimuli))]
-    return [""]
+    return families.get(trial.family).labels(len(trial.stimuli))
 
 
 class _TextureRef:
@@ -343,12 +320,12 @@ class PsychoPyPresenter:
         screenshot_dir: str | Path | None = None,
         gaze_log: str | Path | None = None,
         on_event: EventHook | None = None,
-        text_height_px: int = 24,
+        text_height_px: int | None = None,
     ):
         if eyetracker not in (None, "mousegaze"):
-            raise ValueError(f"eyetracker={eyetracker!r} is not supported: use None or 'mousegaze'")
+            raise UserError(f"eyetracker={eyetracker!r} is not supported: use None or 'mousegaze'")
         if not (math.isfinite(fovea_deg) and fovea_deg > 0):
-            raise ValueError(f"fovea_deg={fovea_deg!r} is out of range: must be > 0")
+            raise UserError(f"fovea_deg={fovea_deg!r} is out of range: must be > 0")
         self.fixation_rgb = fixation_rgb
         self.fixation_size_px = int(fixation_size_px)
         self.fixation_line_px = int(fixation_line_px)
@@ -358,11 +335,12 @@ class PsychoPyPresenter:
         self.screenshot_dir = Path(screenshot_dir) if screenshot_dir is not None else None
         self.gaze_log = Path(gaze_log) if gaze_log is not None else None
         self.on_event = on_event
-        self.text_height_px = int(text_height_px)
+        self.text_height_px = None if text_height_px is None else int(text_height_px)
         self.win = None
-        self.display: DisplaySettings | None = None
+        self.display: Display | None = None
         self.facts: dict = {}
         self.trial_info: list[dict] = []  # one dict per presented trial: load time, overrun, onsets, gaze...
+        self.text_layout: dict[int, dict] = {}  # trial -> the black interval's text: height, box, window
         self._loaded: dict[int, _Loaded] = {}
         self._handled = collections.deque(maxlen=256)  # key presses already acted on (see _poll_keys)
         self._prefetched: dict[int, list] = {}  # trial index -> futures of decoded frames, in order
@@ -373,13 +351,12 @@ class PsychoPyPresenter:
         self._n_shots = 0
 
     # ------------------------------------------------------------------ window
-    def open(self, display: DisplaySettings) -> dict:
+    def open(self, display: Display) -> dict:
         """Open the window and the psychtoolbox keyboard; return measured facts.
 
         Raises :class:`PresentationError` if PsychoPy cannot open a window or if the keyboard backend is not
         psychtoolbox (PsychoPy silently falls back to a polling backend whose key names and times differ).
         """
-        validate_display(display)
         try:
             import psychopy
             from psychopy import core, logging, monitors, visual
@@ -456,7 +433,8 @@ class PsychoPyPresenter:
             == [display.width_px, display.height_px],
             "fullscreen": bool(display.fullscreen),
             "screen": int(display.screen),
-            "pixels_per_degree": pixels_per_degree(display),
+            "pixels_per_degree": display.ppd,
+            "fov_y_deg": display.fov_y_deg,
             "gl_renderer": pyglet.gl.gl_info.get_renderer(),
             "eyetracker": None,
         }
@@ -467,9 +445,13 @@ class PsychoPyPresenter:
 
     def _make_stims(self) -> None:
         visual, win = self._visual, self.win
-        h = self.text_height_px
+        ww, wh = (int(v) for v in win.size)
+        # Text is laid out for the window: a height that reads at the viewing distance of the display (about
+        # 1/36 of its height), wrapped inside it, and shrunk until the whole text fits (see _fit_text).
+        h = self.text_height_px or max(14, min(40, round(wh / 36)))
+        self._text_h = h
         self._text = visual.TextStim(
-            win, text="", height=h, color=(0.8, 0.8, 0.8), wrapWidth=win.size[0] * 0.8, units="pix"
+            win, text="", height=h, color=(0.8, 0.8, 0.8), wrapWidth=ww * 0.9, units="pix"
         )
         self._dim = visual.TextStim(
             win,
@@ -477,10 +459,11 @@ class PsychoPyPresenter:
             height=h * 0.75,
             color=(-0.3, -0.3, -0.3),
             units="pix",
-            pos=(0, -win.size[1] / 2 + h),
+            wrapWidth=ww * 0.9,
+            pos=(0, -wh / 2 + h),
         )
         self._question = visual.TextStim(
-            win, text="", height=h, color=(0.8, 0.8, 0.8), units="pix", wrapWidth=win.size[0] * 0.9
+            win, text="", height=h, color=(0.8, 0.8, 0.8), units="pix", wrapWidth=ww * 0.9
         )
         self._corner = visual.TextStim(
             win,
@@ -491,7 +474,7 @@ class PsychoPyPresenter:
             anchorHoriz="left",
             alignText="left",
             anchorVert="top",
-            pos=(-win.size[0] / 2 + 8, win.size[1] / 2 - 8),
+            pos=(-ww / 2 + 8, wh / 2 - 8),
         )
         self._fix = []
         if self.fixation_rgb is not None:
@@ -579,19 +562,34 @@ class PsychoPyPresenter:
         return (float(g[0]) + sw / 2.0 - wx, sh / 2.0 - float(g[1]) - wy)
 
     # ------------------------------------------------------------------ drawing helpers
+    def _fit_text(self, stim, text: str, max_h: float) -> None:
+        """Set ``text`` on ``stim`` at the window's text height, shrunk until the wrapped text is at most
+        ``max_h`` pixels high (never clipped by the window). Re-laid out only when the text changes."""
+        if stim.text == text:
+            return
+        stim.height = self._text_h * (0.75 if stim is self._dim else 1.0)
+        stim.text = text
+        while text and stim.boundingBox[1] > max_h and stim.height > 6:
+            stim.height = stim.height * 0.85
+            stim.text = text + " "  # force a new layout at the new height
+            stim.text = text
+
     def _draw_text(self, text: str, dim: str = "") -> None:
-        _set_text(self._text, text)
+        wh = int(self.win.size[1])
+        self._fit_text(self._text, text, 0.8 * wh)
         self._text.draw()
         if dim:
-            _set_text(self._dim, dim)
+            self._fit_text(self._dim, dim, 2.5 * self._text_h)
+            self._dim.pos = (0, -wh / 2 + 0.5 * self._dim.boundingBox[1] + 4)
             self._dim.draw()
 
     def _draw_question_in_margin(self, question: str, placement: Placement) -> None:
         """Draw ``question`` centred in the margin below the stimulus if that margin is at least 2 lines high
-        (never over the stimulus; in a full-screen stimulus the question shows only after a sequence)."""
+        (never over the stimulus; the question also shows in the black interval before each trial and after a
+        sequence)."""
         margin = placement.win_h - (placement.top + placement.size[1])
-        if question and margin >= 2 * self.text_height_px:
-            _set_text(self._question, question)
+        if question and margin >= 2 * self._text_h:
+            self._fit_text(self._question, question, margin)
             self._question.pos = (0, -placement.win_h / 2.0 + margin / 2.0)
             self._question.draw()
 
@@ -608,13 +606,14 @@ class PsychoPyPresenter:
         self.win.movieFrames.clear()
         return np.asarray(im.convert("RGB"))
 
-    def _save_shot(self, trial: TrialDisplay, stim: int) -> None:
+    def _save_shot(self, trial: TrialDisplay, stim: int | str) -> None:
         from PIL import Image
 
         from data_schema.atomic import atomic_path
 
         self.screenshot_dir.mkdir(parents=True, exist_ok=True)
-        path = self.screenshot_dir / f"trial{trial.index:04d}_stim{stim}_{self._n_shots}.png"
+        what = stim if isinstance(stim, str) else f"stim{stim}"
+        path = self.screenshot_dir / f"trial{trial.index:04d}_{what}_{self._n_shots}.png"
         self._n_shots += 1
         with atomic_path(path) as tmp:
             Image.fromarray(self.screenshot()).save(tmp, format="PNG")
@@ -732,7 +731,13 @@ class PsychoPyPresenter:
         self._loaded.clear()
 
     def _start_black(self, trial: TrialDisplay) -> None:
-        self._draw_text(trial.label, self._progress_text(trial))
+        lead = "\n\n".join(t for t in (trial.label, trial.question) if t)
+        self._draw_text(lead, self._progress_text(trial))
+        self.text_layout[trial.index] = {"text_height_px": float(self._text.height),
+                                         "text_box_px": [float(v) for v in self._text.boundingBox],
+                                         "window_px": [int(v) for v in self.win.size]}
+        if self.screenshot_dir is not None:
+            self._save_shot(trial, "black")
         self.win.flip()
         self._black_since = self._now()
         self._emit("black", trial=trial.index)
@@ -775,7 +780,7 @@ class PsychoPyPresenter:
         stimulus label with the picks so far, and the question if there is a margin for it."""
         current = state.current
         seq, placement = loaded.frames[current], loaded.placements[current]
-        seq[sequence_frame(elapsed_s, trial.stimuli[current].fps, len(seq), trial.family != "yes_no")].draw()
+        seq[sequence_frame(elapsed_s, trial.stimuli[current].fps, len(seq), families.get(trial.family).loops)].draw()
         if trial.fixation_px is not None:
             fx, fy = placement.image_to_pix(*trial.fixation_px)
             for r in self._fix:
@@ -797,7 +802,7 @@ class PsychoPyPresenter:
         if trial.fixation_px is None:
             return False
         fx, fy = placement.image_to_window(*trial.fixation_px)
-        return math.hypot(g[0] - fx, g[1] - fy) > self.fovea_deg * pixels_per_degree(self.display)
+        return math.hypot(g[0] - fx, g[1] - fy) > self.fovea_deg * self.display.ppd
 
     def present(self, trial: TrialDisplay) -> TrialResult:
         """Black interval (stimuli loaded in it), then the stimulus until answered; see the module
@@ -821,7 +826,7 @@ class PsychoPyPresenter:
 
         keys_wanted = sorted({*trial.answer_keys, *trial.switch_keys, ESCAPE})
         # a yes/no (or unanswered) stimulus with a duration plays once, then the question stays up
-        timed_once = trial.duration_s is not None and (trial.family == "yes_no" or not trial.answer_keys)
+        timed_once = trial.duration_s is not None and (not families.get(trial.family).loops or not trial.answer_keys)
         state = AnswerState(trial)
         onset = stim_onset = None  # first stimulus onset (the RT origin); current stimulus onset (its t = 0)
         onset_pending, shot_pending, playback_over = True, self.screenshot_dir is not None, False
@@ -956,7 +961,7 @@ class PsychoPyPresenter:
         """Show ``text`` for ``seconds`` (breaks, end of session)."""
         self._require_open()
         if not (math.isfinite(seconds) and seconds >= 0):
-            raise ValueError(f"seconds={seconds!r} is out of range: must be >= 0")
+            raise UserError(f"seconds={seconds!r} is out of range: must be >= 0")
         self._draw_text(text)
         self.win.flip()
         self._emit("message", text=text)

@@ -42,10 +42,14 @@ from typing import Literal
 
 import numpy as np
 
-from studyapp.presentation.base import DisplaySettings, Stimulus, TrialDisplay, TrialResult
+from data_schema import families
+from data_schema.errors import UserError
+from data_schema.families import Observer
+from data_schema.geometry import Display
+from studyapp.presentation.base import Stimulus, TrialDisplay, TrialResult
 
-from .protocol import Display, Protocol
-from .stimuli import eccentricity_map, load_gray
+from .images import load_gray
+from .protocol import Protocol
 
 E2_DEG = 2.3
 DECLARED_SCALE_JND = 5.0
@@ -83,15 +87,11 @@ def participant_params(simulation: dict, participant: str, seed: int) -> Observe
 def foveated_difference(img: np.ndarray, gt: np.ndarray, ecc: np.ndarray) -> float:
     """Eccentricity-weighted RMS difference ``sqrt(sum w (I - G)^2 / sum w)``, ``w = e2 / (e + e2)``."""
     if img.shape != gt.shape or img.shape != ecc.shape:
-        raise ValueError(f"image shapes differ: stimulus {img.shape}, ground truth {gt.shape}, "
+        raise UserError(f"image shapes differ: stimulus {img.shape}, ground truth {gt.shape}, "
                          f"eccentricity map {ecc.shape}")
     w = E2_DEG / (ecc + E2_DEG)
     diff = (img.astype(np.float64) - gt.astype(np.float64)) ** 2
     return float(math.sqrt(float((w * diff).sum()) / float(w.sum())))
-
-
-def phi(x: float) -> float:
-    return 0.5 * math.erfc(-x / math.sqrt(2.0))
 
 
 class SimulatedObserver:
@@ -104,19 +104,16 @@ class SimulatedObserver:
     seed : int
     ground_truth : dict
         Scene -> the ground-truth :class:`Stimulus` of that scene (frames may be empty when not rendered).
-    display : Display, optional
-        The (possibly scaled) display the images were made for; default the protocol's.
     delay_s : float
         Wall-clock seconds to spend per trial (tests that kill a session mid-way).
     """
 
     def __init__(self, protocol: Protocol, participant: str, seed: int, ground_truth: dict[str, Stimulus],
-                 display: Display | None = None, delay_s: float = 0.0) -> None:
+                 delay_s: float = 0.0) -> None:
         self.protocol = protocol
         self.participant = participant
         self.seed = seed
         self.ground_truth = ground_truth
-        self.display = display or protocol.display
         self.params = participant_params(protocol.simulation, participant, seed)
         self.delay_s = float(delay_s)
         self._ecc: dict[tuple, np.ndarray] = {}
@@ -125,7 +122,7 @@ class SimulatedObserver:
         self.shown: list[int] = []
 
     # -- Presenter interface ------------------------------------------------------------------------------
-    def open(self, display: DisplaySettings) -> dict:
+    def open(self, display: Display) -> dict:
         return {"refresh_hz": float(display.refresh_hz), "keyboard_backend": "simulated", "presenter": "simulated",
                 "dropped_frames_total": 0}
 
@@ -157,32 +154,10 @@ class SimulatedObserver:
         if trial.kind == "reference":
             answers = ["seen"] if trial.answer_keys else []
             margin = 0.0
-        elif trial.family == "yes_no":
-            d = self.impairment(trial.stimuli[0], trial.scene)
-            x = p.sensitivity * (p.criterion - d) + p.bias
-            yes = rng.random() < 0.5 if lapse else rng.random() < phi(x)
-            answers, margin = ["yes" if yes else "no"], abs(x)
-        elif trial.family == "2afc":
-            da = self.impairment(trial.stimuli[0], trial.scene)
-            db = self.impairment(trial.stimuli[1], trial.scene)
-            x = p.sensitivity * (db - da) / math.sqrt(2.0) + p.bias
-            a = rng.random() < 0.5 if lapse else rng.random() < phi(x)
-            answers, margin = ["A" if a else "B"], abs(x)
-            switches = int(rng.poisson(1.0 + 2.0 * math.exp(-margin)))
         else:
-            n = len(trial.stimuli)
-            if lapse:
-                u = rng.standard_normal(n)
-            else:
-                u = np.array([-p.sensitivity * self.impairment(s, trial.scene) for s in trial.stimuli])
-                u = u + rng.standard_normal(n)
-            order = [int(i) for i in np.argsort(-u, kind="stable")]
-            picks = order[:trial.n_picks]
-            if trial.n_picks >= 2 and n >= 3 and u[order[1]] - u[order[2]] < 0.15:
-                picks = picks[:1]
-            answers = [str(i) for i in picks]
-            margin = float(u[order[0]] - u[order[1]])
-            switches = int(rng.poisson(n + 1.0))
+            impairments = [self.impairment(st, trial.scene) for st in trial.stimuli]
+            answers, margin, switches = families.get(trial.family).simulate(
+                impairments, Observer(p.sensitivity, p.bias, p.criterion), rng, lapse, trial.n_picks)
         rt = (trial.duration_s or 0.0) + max(0.15, p.rt_mu_s * (1.0 + 0.3 * math.exp(-margin))
                                               + rng.normal(0.0, p.rt_sigma_s) + rng.exponential(p.rt_tau_s))
         self._clock += rt
@@ -192,12 +167,11 @@ class SimulatedObserver:
 
     # -- the image model ----------------------------------------------------------------------------------
     def _eccentricity(self, shape: tuple[int, int]) -> np.ndarray:
+        """Eccentricity of every pixel of an image of ``shape``: the stimuli's viewing geometry (the display's
+        visual angle, the fixation point) at that resolution."""
         if shape not in self._ecc:
             h, w = shape
-            d = self.display
-            disp = Display(w, h, d.width_cm, d.distance_cm, d.refresh_hz, d.fov_y_deg)
-            self._ecc[shape] = eccentricity_map(disp, (self.protocol.fixation[0] * w,
-                                                       self.protocol.fixation[1] * h))
+            self._ecc[shape] = self.protocol.render_geometry().resized(w, h).eccentricity_map()
         return self._ecc[shape]
 
     def impairment(self, stim: Stimulus, scene: str) -> float:
@@ -208,8 +182,7 @@ class SimulatedObserver:
         gt = self.ground_truth.get(scene)
         shared = None
         if stim.frames and gt is not None and gt.frames:
-            d = self.display
-            shared = (stim.frames, gt.frames, d.width_cm, d.distance_cm, self.protocol.fixation,
+            shared = (stim.frames, gt.frames, self.protocol.display.fov_y_deg, self.protocol.fixation,
                       float(self.protocol.simulation["jnd"]))
             if shared in _SHARED:  # the measure does not depend on the participant
                 self._impairment[key] = _SHARED[shared]
@@ -226,7 +199,7 @@ class SimulatedObserver:
         else:
             q = self.protocol.conditions[stim.condition].quality
             if q is None:
-                raise ValueError(f"condition {stim.condition}: no stimuli for scene {scene} and no declared "
+                raise UserError(f"condition {stim.condition}: no stimuli for scene {scene} and no declared "
                                  "quality for the simulated observer")
             value = DECLARED_SCALE_JND * (1.0 - float(q))
         self._impairment[key] = value

@@ -3,38 +3,27 @@
 :func:`load_protocol` returns a frozen :class:`Protocol` with every default filled in. Errors are
 :class:`~data_schema.protocol_schema.ProtocolError` with one line ``FILE:LINE: FIELD: problem``.
 
-Display geometry
+Viewing geometry
 ----------------
-Pixels per degree at the screen centre, for a flat screen seen from ``distance_cm`` in front of its centre::
-
-    ppd = (width_px / width_cm) * distance_cm * tan(1 deg)
-
-and the eccentricity of a pixel relative to the gaze point ``g`` is the angle between the rays from the eye to
-``g`` and to the pixel (exact for a flat screen, not the small-angle ``r / ppd``).
+The protocol's ``display`` (pixels, physical width, viewing distance) is a :class:`data_schema.geometry.Display`:
+the only source of the visual angle the stimuli subtend. Every stimulus is rendered at ``stimulus.render_px``
+(default: the display's pixels) with a camera of the display's vertical visual angle, and shown over the
+whole display (:meth:`Protocol.render_geometry`).
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from data_schema import families
+from data_schema.geometry import Display, ViewingGeometry
 from data_schema.protocol_schema import LoadedYAML, load_yaml, validate_document
 
-DEFAULT_KEYS = {
-    "2afc": {"answer": {"1": "A", "2": "B"}, "switch": {"left": 0, "right": 1}},
-    "yes_no": {"answer": {"y": "yes", "n": "no"}, "switch": {}},
-}
 DEFAULT_SIMULATION = {"jnd": 0.02, "sensitivity_sd": 0.25, "bias_sd": 0.25, "lapse": 0.02, "criterion_jnd": 1.0,
                       "rt_mu_s": 0.55, "rt_sigma_s": 0.08, "rt_tau_s": 0.25}
-
-
-def preference_keys(n: int) -> dict:
-    """Preference defaults: digits 1..N show stimulus i, F1..FN pick it, ``return`` ends picking early (answer "")."""
-    return {"answer": {**{f"f{i + 1}": str(i) for i in range(n)}, "return": ""},
-            "switch": {str(i + 1): i for i in range(n)}}
 
 
 @dataclass(frozen=True)
@@ -58,29 +47,6 @@ class Condition:
 
 
 @dataclass(frozen=True)
-class Display:
-    width_px: int
-    height_px: int
-    width_cm: float
-    distance_cm: float
-    refresh_hz: float = 60.0
-    fov_y_deg: float = 90.0
-    fullscreen: bool = False
-    screen: int = 0
-
-    @property
-    def ppd(self) -> float:
-        """Pixels per degree at the screen centre: ``(width_px / width_cm) * distance_cm * tan(1 deg)``."""
-        return self.width_px / self.width_cm * self.distance_cm * math.tan(math.radians(1.0))
-
-    def scaled(self, scale: float) -> Display:
-        """The same physical display shown with ``scale`` times the pixels (dry runs, the demo)."""
-        return Display(max(16, round(self.width_px * scale)), max(16, round(self.height_px * scale)),
-                       self.width_cm, self.distance_cm, self.refresh_hz, self.fov_y_deg, self.fullscreen,
-                       self.screen)
-
-
-@dataclass(frozen=True)
 class Protocol:
     """A validated protocol with defaults filled in (see ``data_schema/protocol.schema.json``)."""
 
@@ -93,6 +59,7 @@ class Protocol:
     instructions: str
     block: str
     display: Display
+    render_size: tuple[int, int]
     fixation: tuple[float, float]
     fixation_mark: bool
     scenes: tuple[str, ...]
@@ -130,10 +97,12 @@ class Protocol:
             return 1
         return max(1, round(self.duration_s * self.fps))
 
-    def gaze_px(self, display: Display | None = None) -> tuple[float, float]:
-        """Fixation point in pixels of ``display`` (default: the protocol's)."""
-        d = display or self.display
-        return (self.fixation[0] * d.width_px, self.fixation[1] * d.height_px)
+    def render_geometry(self, scale: float = 1.0) -> ViewingGeometry:
+        """The viewing geometry of the stimuli: ``render_px`` (times ``scale``), the display's vertical visual
+        angle, the gaze at the fixation point."""
+        w, h = self.render_size
+        g = ViewingGeometry.create(w, h, self.display.fov_y_deg, (self.fixation[0] * w, self.fixation[1] * h))
+        return g if scale == 1.0 else g.scaled(scale)
 
     @property
     def ground_truth(self) -> str | None:
@@ -151,9 +120,10 @@ class Protocol:
 
     def describe(self) -> str:
         n = len(self.design_conditions)
+        d, (w, h) = self.display, self.render_size
         return (f"{self.name} {self.version}: {self.family}, {len(self.scenes)} scene(s), {n} condition(s), "
-                f"{self.repetitions} repetition(s), display {self.display.width_px}x{self.display.height_px} "
-                f"({self.display.ppd:.1f} px/deg)")
+                f"{self.repetitions} repetition(s), display {d.width_px}x{d.height_px} ({d.fov_y_deg:.1f}° high, "
+                f"{d.ppd:.1f} px/deg), stimuli rendered at {w}x{h}")
 
 
 def content_hash(data: dict) -> str:
@@ -209,6 +179,40 @@ def _conditions(doc: LoadedYAML, data: dict, base: Path, check_renderers: bool) 
                               noise=float(derive.get("noise", 0)), label=spec.get("label", name),
                               quality=spec.get("quality"), role=spec.get("role", "main"))
     return out
+
+
+def _display(doc: LoadedYAML, data: dict) -> tuple[Display, tuple[int, int]]:
+    """The display, and the render size of the stimuli (same aspect ratio: a stimulus covers the display)."""
+    disp = dict(data["display"])
+    stated = disp.pop("fov_y_deg", None)
+    display = Display(**disp)
+    if stated is not None and abs(stated - display.fov_y_deg) > 0.1:
+        raise doc.error(("display", "fov_y_deg"), f"{stated:g}° disagrees with the display's size: "
+                        f"{display.width_px}x{display.height_px} px, {display.width_cm:g} cm wide, seen from "
+                        f"{display.distance_cm:g} cm subtend {display.fov_y_deg:.2f}° (remove fov_y_deg, or fix "
+                        "width_cm/distance_cm)")
+    w, h = (data.get("stimulus") or {}).get("render_px", (display.width_px, display.height_px))
+    if abs(w * display.height_px / display.width_px - h) > 1.0:
+        raise doc.error(("stimulus", "render_px"), f"{w}x{h} has not the display's aspect ratio "
+                        f"({display.width_px}x{display.height_px}): a stimulus covers the whole display")
+    return display, (int(w), int(h))
+
+
+def _check_renderers_on_display(doc, conditions, display, render_size, fixation) -> None:
+    """Each renderer condition must work on this display (e.g. LaFR's fovea must fit inside it)."""
+    reg = _registry()
+    if reg is None:
+        return
+    fix = fixation or {"x": 0.5, "y": 0.5}
+    w, h = render_size
+    geometry = ViewingGeometry.create(w, h, display.fov_y_deg, (fix["x"] * w, fix["y"] * h))
+    for name, cond in conditions.items():
+        if cond.renderer:
+            try:
+                reg.check_geometry(cond.renderer, cond.params, geometry)
+            except ValueError as exc:
+                raise doc.error(("conditions", name, "renderer"), f"{cond.renderer} cannot render for this "
+                                f"display ({w}x{h} px, {display.fov_y_deg:.1f}°): {exc}") from None
 
 
 def _inside(doc: LoadedYAML, base: Path, field: tuple, relative: str) -> Path:
@@ -276,17 +280,18 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Proto
         design_conditions = tuple(design["conditions"])
     else:
         design_conditions = tuple(n for n, c in conditions.items() if c.role == "main")
-    need = 2 if family in ("2afc", "preference") else 1
+    fam = families.get(family)
+    need = fam.min_conditions
     if len(design_conditions) < need:
         raise doc.error(("design",), f"{family} needs at least {need} conditions in the design, has "
                         f"{len(design_conditions)}")
-    n_picks = int(design.get("n_picks", 2 if family == "preference" else 1))
-    if family == "preference" and n_picks >= len(design_conditions):
+    n_picks = int(design.get("n_picks", fam.default_n_picks(len(design_conditions))))
+    if fam.has_picks and n_picks >= len(design_conditions):
         raise doc.error(("design", "n_picks"), f"{n_picks} picks of {len(design_conditions)} conditions: "
                         f"allowed 1..{len(design_conditions) - 1}")
-    if family != "preference" and "n_picks" in design:
+    if not fam.has_picks and "n_picks" in design:
         raise doc.error(("design", "n_picks"), "only the preference family picks favourites")
-    if family != "2afc" and design.get("position_balance"):
+    if not fam.has_positions and design.get("position_balance"):
         raise doc.error(("design", "position_balance"), "only 2afc trials have positions to balance")
     reference = design.get("reference", {})
     if reference:
@@ -299,21 +304,21 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Proto
     if kind == "image" and "fps" in stim:
         raise doc.error(("stimulus", "fps"), "still images have no frame rate (use kind: sequence)")
 
-    disp = dict(data["display"])
-    display = Display(**{"refresh_hz": 60.0, "fov_y_deg": 90.0, **disp})
+    display, render_size = _display(doc, data)
+    if check_renderers:
+        _check_renderers_on_display(doc, conditions, display, render_size, data.get("fixation"))
 
     keys = data.get("keys", {})
-    default = preference_keys(len(design_conditions)) if family == "preference" else DEFAULT_KEYS[family]
+    default = fam.default_keys(len(design_conditions))
     answer_keys = dict(keys.get("answer", default["answer"]))
     switch_keys = dict(keys.get("switch", default["switch"]))
-    allowed = {"2afc": {"A", "B"}, "yes_no": {"yes", "no"},
-               "preference": {str(i) for i in range(len(design_conditions))} | {""}}[family]
+    allowed = fam.answer_values(len(design_conditions))
     for k, v in answer_keys.items():
         if v not in allowed:
             raise doc.error(("keys", "answer", k), f"answer {v!r} is not one of "
                             f"{', '.join(repr(a) for a in sorted(allowed))}")
     for k, v in switch_keys.items():
-        if v >= len(design_conditions) or (family == "2afc" and v > 1):
+        if v > fam.max_switch(len(design_conditions)):
             raise doc.error(("keys", "switch", k), f"stimulus index {v} is out of range")
     overlap = set(answer_keys) & set(switch_keys)
     if overlap:
@@ -328,14 +333,15 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Proto
     if practice:
         for i, c in enumerate(practice["conditions"]):
             _check_condition(doc, conditions, ("practice", "conditions", i), c)
-        if family == "2afc" and len(practice["conditions"]) < 2:
-            raise doc.error(("practice", "conditions"), "2afc practice needs at least two conditions")
-        if family == "preference" and len(practice["conditions"]) != len(design_conditions):
-            raise doc.error(("practice", "conditions"), f"preference practice offers as many conditions as "
-                            f"the design ({len(design_conditions)})")
+        problem = fam.practice_problem(practice["conditions"], len(design_conditions))
+        if problem:
+            raise doc.error(("practice", "conditions"), problem)
     catch = data.get("catch")
-    if catch and family == "preference":
-        raise doc.error(("catch",), "catch trials are for the 2afc and yes_no families")
+    if catch and not fam.catch_kinds:
+        allowed_by = ", ".join(f.name for f in families.FAMILIES.values() if f.catch_kinds)
+        raise doc.error(("catch",), f"catch trials are for the {allowed_by} families")
+    if catch and catch["kind"] not in fam.catch_kinds:
+        raise doc.error(("catch", "kind"), f"{family} catch trials are {' or '.join(fam.catch_kinds)}")
     if catch:
         catch = {"pass_fraction": 0.75, **catch}
         if catch["kind"] == "degraded":
@@ -343,8 +349,6 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Proto
                 if key not in catch:
                     raise doc.error(("catch",), f"degraded catch trials need {key!r}")
                 _check_condition(doc, conditions, ("catch", key), catch[key])
-        elif family != "2afc":
-            raise doc.error(("catch", "kind"), "repeat catch trials are for 2afc (a repeated pair)")
     simulation = {**DEFAULT_SIMULATION, **data.get("simulation", {})}
     if "ground_truth" in simulation:
         _check_condition(doc, conditions, ("simulation", "ground_truth"), simulation["ground_truth"])
@@ -352,9 +356,9 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Proto
     if "reference" in analysis and analysis["reference"] not in design_conditions:
         raise doc.error(("analysis", "reference"), f"unknown condition {analysis['reference']!r}: the design "
                         f"has {', '.join(design_conditions)}")
-    want_dv = {"yes_no": "response", "2afc": "chosen", "preference": "votes"}[family]
-    if analysis["dv"] != want_dv:
-        raise doc.error(("analysis", "dv"), f"{family} trials record {want_dv!r}, not {analysis['dv']!r}")
+    if analysis["dv"] not in fam.dvs:
+        raise doc.error(("analysis", "dv"), f"{family} trials record {' or '.join(map(repr, fam.dvs))}, not "
+                        f"{analysis['dv']!r}")
 
     fix = data.get("fixation", {"x": 0.5, "y": 0.5})
     timing = data.get("timing", {})
@@ -363,7 +367,7 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Proto
     return Protocol(
         path=path, data=data, name=data["name"], version=data["version"], family=family,
         question=data["question"], instructions=data.get("instructions", ""), block=data.get("block", ""),
-        display=display, fixation=(float(fix["x"]), float(fix["y"])), fixation_mark=fix.get("mark", True),
+        display=display, render_size=render_size, fixation=(float(fix["x"]), float(fix["y"])), fixation_mark=fix.get("mark", True),
         scenes=tuple(data["scenes"]), conditions=conditions, design_conditions=design_conditions,
         stimulus_kind=kind, duration_s=stim.get("duration_s"), fps=float(stim.get("fps", 0.0)),
         camera_path=tuple(stim.get("camera_path", ())), black_s=float(timing.get("black_s", 0.5)),
@@ -371,7 +375,7 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Proto
         repetitions=int(design["repetitions"]), scene_order=design.get("scene_order", "fixed"),
         trial_order=design.get("trial_order", "blocked"), max_run=int(design.get("max_run", 0)),
         min_repeat_distance=int(design.get("min_repeat_distance", 0)),
-        position_balance=bool(design.get("position_balance", family == "2afc")), n_picks=n_picks,
+        position_balance=bool(design.get("position_balance", fam.has_positions)), n_picks=n_picks,
         reference=reference.get("condition"), reference_label=reference.get("label", "This is the reference"),
         practice=practice, breaks=data.get("breaks"), catch=catch, simulation=simulation, analysis=analysis,
         stimuli_dir=sdir, content_hash=content_hash(data))

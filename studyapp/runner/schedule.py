@@ -23,10 +23,13 @@ participants therefore get consecutive Latin-square rows.
 from __future__ import annotations
 
 import hashlib
-import itertools
 import json
 import re
 from dataclasses import asdict, dataclass
+
+from data_schema import families
+from data_schema.errors import UserError
+from data_schema.ranges import SEED
 
 from .protocol import Protocol
 
@@ -73,7 +76,7 @@ class _Stream:
     def below(self, n: int) -> int:
         """Uniform integer in ``[0, n)`` (rejection sampling, no modulo bias)."""
         if n <= 0:
-            raise ValueError(f"n={n} is out of range: must be >= 1")
+            raise UserError(f"n={n} is out of range: must be >= 1")
         limit = (1 << 64) - ((1 << 64) % n)
         while True:
             x = self._next64()
@@ -105,7 +108,7 @@ def balanced_latin_square_row(n: int, row: int) -> list[int]:
     odd ``r`` are reversed, and the ``2n`` rows do the same twice over.
     """
     if n < 1:
-        raise ValueError(f"n={n} is out of range: must be >= 1")
+        raise UserError(f"n={n} is out of range: must be >= 1")
     seq, j, h = [], 0, 0
     for i in range(n):
         if i < 2 or i % 2 == 1:
@@ -165,7 +168,7 @@ def constrained_shuffle(items: list[dict], stream: _Stream, max_run: int = 0, mi
                 r -= len(b)
         if len(out) == len(items):
             return out
-    raise ValueError(f"design: no trial order satisfies max_run={max_run} and min_repeat_distance="
+    raise UserError(f"design: no trial order satisfies max_run={max_run} and min_repeat_distance="
                      f"{min_distance} for {len(items)} trials; relax the constraints")
 
 
@@ -179,39 +182,17 @@ def scene_order(protocol: Protocol, cb: int, stream: _Stream) -> list[str]:
 
 
 def _main_items(protocol: Protocol, scene: str, scene_idx: int, cb: int, stream: _Stream) -> list[dict]:
-    """The answered trials of one scene (before ordering)."""
-    reps, fam = protocol.repetitions, protocol.family
-    items = []
-    if fam == "yes_no":
-        for c in protocol.design_conditions:
-            items += [{"scene": scene, "conditions": (c,), "run": c, "item": f"{scene}/{c}"} for _ in range(reps)]
-    elif fam == "2afc":
-        for k, (a, b) in enumerate(itertools.combinations(protocol.design_conditions, 2)):
-            if protocol.position_balance:
-                flips = [0, 1] * (reps // 2) + ([(k + cb + scene_idx) % 2] if reps % 2 else [])
-            else:
-                flips = [stream.below(2) for _ in range(reps)]
-            for f in flips:
-                items.append({"scene": scene, "conditions": (b, a) if f else (a, b), "run": f"{a}|{b}",
-                              "item": f"{scene}/{a}|{b}"})
-    else:
-        for _ in range(reps):
-            items.append({"scene": scene, "conditions": tuple(stream.shuffle(list(protocol.design_conditions))),
-                          "run": scene, "item": f"{scene}/pref"})
-    return items
+    """The answered trials of one scene (before ordering): the family's items."""
+    return families.get(protocol.family).main_items(
+        protocol.design_conditions, scene, protocol.repetitions, position_balance=protocol.position_balance,
+        flip_seed=cb + scene_idx, stream=stream)
 
 
 def _practice(protocol: Protocol) -> list[dict]:
     p = protocol.practice
     if not p:
         return []
-    conds = list(p["conditions"])
-    if protocol.family == "yes_no":
-        groups = [(c,) for c in conds]
-    elif protocol.family == "2afc":
-        groups = [(conds[0], c) if i % 2 == 0 else (c, conds[0]) for i, c in enumerate(conds[1:])]
-    else:
-        groups = [tuple(conds)]
+    groups = families.get(protocol.family).practice_groups(list(p["conditions"]))
     return [{"kind": "practice", "scene": p["scene"], "conditions": g} for g in groups]
 
 
@@ -228,10 +209,7 @@ def _insert_catch(protocol: Protocol, main: list[dict], stream: _Stream) -> list
             lo, hi = (i * len(main)) // n + 1, ((i + 1) * len(main)) // n
             pos = min(len(out), lo + stream.below(max(1, hi - lo + 1)))
             scene = out[min(pos, len(out) - 1)]["scene"]
-            if protocol.family == "2afc":
-                conds, expected = ((good, bad), "A") if i % 2 == 0 else ((bad, good), "B")
-            else:
-                conds, expected = ((bad,), "no") if i % 2 == 0 else ((good,), "yes")
+            conds, expected = families.get(protocol.family).catch_item(i, good, bad)
             out.insert(pos, {"kind": "catch", "scene": scene, "conditions": conds, "expected": expected})
     else:  # repeat: a 2afc trial shown again later, same order; the known answer is the earlier choice
         n = min(n, len(main) // 2)
@@ -260,10 +238,9 @@ def build_schedule(protocol: Protocol, participant: str, seed: int) -> list[Plan
     list of PlannedTrial
         Indexed 0..n-1 in presentation order. Same inputs -> identical list (and :func:`schedule_bytes`).
     """
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ValueError(f"seed={seed!r} is out of range: must be a whole number >= 0")
+    seed = SEED.check("seed", seed)
     if not participant or not isinstance(participant, str):
-        raise ValueError(f"participant={participant!r} is invalid: must be a non-empty string")
+        raise UserError(f"participant={participant!r} is invalid: must be a non-empty string")
     cb = counterbalance_index(participant)
     stream = _Stream(SCHEDULE_FORMAT, protocol.content_hash, participant, seed)
     scenes = scene_order(protocol, cb, stream)

@@ -24,12 +24,14 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from data_schema import families
+from data_schema.errors import UserError
 from data_schema.store import PlannedRow, Store, StoreError, open_store, remove_database
-from studyapp.presentation.base import DisplaySettings, Stimulus, TrialDisplay, TrialResult
+from studyapp.presentation.base import Stimulus, TrialDisplay, TrialResult
 
 from .protocol import Protocol
 from .schedule import PlannedTrial, build_schedule, counterbalance_index, schedule_hash
-from .stimuli import frame_paths, missing_stimuli, scaled_display
+from .stimuli import frame_paths, missing_stimuli
 
 
 @dataclass
@@ -70,7 +72,7 @@ class StimulusSet:
                 continue
             hint = ("declare a quality for --simulate, or " if allow_declared else "") + \
                 f"run `studyapp prepare {protocol.path}`"
-            raise ValueError(f"missing stimulus file {path} (condition {need.condition}, scene {need.scene}): "
+            raise UserError(f"missing stimulus file {path} (condition {need.condition}, scene {need.scene}): "
                              f"{hint}")
 
     def stimulus(self, condition: str, scene: str) -> Stimulus:
@@ -95,31 +97,21 @@ def trial_display(protocol: Protocol, t: PlannedTrial | PlannedRow, stimuli: Sti
         switch_keys={} if ref else dict(protocol.switch_keys), fixation_px=display_px,
         duration_s=protocol.duration_s if protocol.stimulus_kind == "sequence" else None,
         black_before_s=protocol.black_s, label=protocol.reference_label if ref else "",
-        n_picks=protocol.n_picks if protocol.family == "preference" else 1,
+        n_picks=protocol.n_picks if families.get(protocol.family).has_picks else 1,
         progress=None if ref else (number, total), scene=t.scene, kind=kind)
 
 
 def interpret(protocol: Protocol, t: PlannedRow, result: TrialResult) -> dict:
-    """Map the presenter's answers to the logged chosen / chosen_2 / response; check them."""
-    ans = [a for a in result.answers if a != ""]
-    where = f"trial {t.idx}"
+    """Map the presenter's answers to the logged chosen / chosen_2 / response (the family's rules)."""
     if t.kind == "reference":
         return {"chosen": "", "chosen_2": "", "response": None}
+    ans = [a for a in result.answers if a != ""]
     if not ans:
-        raise RuntimeError(f"presenter returned no answer for {where}")
-    if t.family == "yes_no":
-        if ans[0] not in ("yes", "no") or len(ans) != 1:
-            raise RuntimeError(f"presenter answer {result.answers!r} for {where} is not yes/no")
-        return {"chosen": "", "chosen_2": "", "response": int(ans[0] == "yes")}
-    if t.family == "2afc":
-        if ans[0] not in ("A", "B") or len(ans) != 1:
-            raise RuntimeError(f"presenter answer {result.answers!r} for {where} is not A/B")
-        return {"chosen": t.conditions[0 if ans[0] == "A" else 1], "chosen_2": "", "response": None}
-    idx = [int(a) for a in ans]
-    if len(idx) > protocol.n_picks or len(set(idx)) != len(idx) or any(not 0 <= i < len(t.conditions) for i in idx):
-        raise RuntimeError(f"presenter answer {result.answers!r} for {where} is not a valid pick")
-    return {"chosen": t.conditions[idx[0]], "chosen_2": t.conditions[idx[1]] if len(idx) > 1 else "",
-            "response": None}
+        raise RuntimeError(f"presenter returned no answer for trial {t.idx}")
+    try:
+        return families.get(t.family).interpret(t.conditions, result.answers, protocol.n_picks)
+    except ValueError as exc:
+        raise RuntimeError(f"presenter answer for trial {t.idx}: {exc}") from None
 
 
 def _correct(store: Store, pid: str, t: PlannedRow, answers: list[str], derived: dict) -> bool | None:
@@ -143,7 +135,7 @@ def run_session(protocol: Protocol, participant: str, db_path, presenter_factory
     called after every check has passed, so a refused run opens no window.
     """
     if not re.fullmatch(r"[A-Za-z0-9_.-]{1,64}", participant or ""):
-        raise ValueError(f"--participant={participant!r} is invalid: a pseudonymous id of 1-64 letters, digits, "
+        raise UserError(f"--participant={participant!r} is invalid: a pseudonymous id of 1-64 letters, digits, "
                          "'_', '.' or '-' (no names or e-mail addresses)")
     db_path = Path(db_path)
     created = not db_path.exists()
@@ -194,12 +186,10 @@ def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_r
             store.end_session(sid, "completed")
         return _summary(store, protocol, pid, open_ids[-1], "completed")
     stimuli = StimulusSet(protocol, scale, stimuli_root, allow_declared)
-    disp = scaled_display(protocol, scale)
-    settings = DisplaySettings(width_px=disp.width_px, height_px=disp.height_px, width_cm=disp.width_cm,
-                               distance_cm=disp.distance_cm, refresh_hz=disp.refresh_hz,
-                               fullscreen=disp.fullscreen, screen=disp.screen)
-    presenter = presenter_factory(stimuli, disp)
-    measured = presenter.open(settings)
+    # The window is the participant's display at any --scale: a smaller render is shown upscaled over it.
+    display = protocol.display
+    presenter = presenter_factory(stimuli, display)
+    measured = presenter.open(display)
     try:
         if not existing:
             store.bind_protocol(protocol.name, protocol.version, protocol.content_hash, protocol.data)
@@ -207,15 +197,16 @@ def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_r
                                t.break_before) for t in schedule]
             store.enrol(pid, counterbalance_index(pid), seed, s_hash, rows)
         previous = store.last_session(pid) if resume else None
-        display_info = {**asdict(settings), "ppd": disp.ppd, "fov_y_deg": disp.fov_y_deg, "scale": scale,
-                        "fixation": list(protocol.fixation)}
+        rendered = protocol.render_geometry(scale)
+        display_info = {**asdict(display), "ppd": display.ppd, "fov_y_deg": display.fov_y_deg, "scale": scale,
+                        "render_px": [rendered.width, rendered.height], "fixation": list(protocol.fixation)}
         sid = store.start_session(pid, protocol.content_hash, seed, software_versions(measured.get("software")),
                                   display_info, measured, str(measured.get("presenter", type(presenter).__name__)),
                                   resumed_from=previous)
         if on_started:
             on_started(sid)
         try:
-            status = _loop(store, protocol, pid, sid, presenter, stimuli, disp, resume, progress)
+            status = _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress)
         except BaseException as exc:  # Ctrl-C, SIGTERM, a full disk: committed answers stay; the session says so
             with contextlib.suppress(StoreError):
                 store.event(sid, "interrupted", "Ctrl-C or SIGTERM" if isinstance(exc, KeyboardInterrupt)
@@ -237,12 +228,12 @@ def _summary(store, protocol, pid, sid, status) -> SessionSummary:
                           prog["catch_planned"], passed)
 
 
-def _loop(store, protocol, pid, sid, presenter, stimuli, disp, resume, progress) -> str:
+def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress) -> str:
     planned = store.planned(pid)
     answered = store.answered(pid)
     total = sum(t.kind != "reference" for t in planned)
     number = sum(1 for t in planned if t.kind != "reference" and t.idx in answered)
-    gaze = protocol.gaze_px(disp) if protocol.fixation_mark else None
+    gaze = protocol.render_geometry(scale).gaze if protocol.fixation_mark else None
     text = protocol.instructions or protocol.question
     presenter.instructions(("Welcome back. " if resume else "") + text)
     todo = [t for t in planned if t.idx not in answered]

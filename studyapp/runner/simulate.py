@@ -9,13 +9,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from data_schema.errors import UserError
 from data_schema.store import tidy_frame, tidy_row
 
 from .observer import SimulatedObserver
 from .protocol import Protocol
 from .schedule import build_schedule
 from .session import StimulusSet, ground_truth_stimuli, interpret, trial_display
-from .stimuli import scaled_display
 
 
 def simulate_log(protocol: Protocol, participants: int | list[str], seed: int = 0, scale: float = 1.0,
@@ -35,14 +35,13 @@ def simulate_log(protocol: Protocol, participants: int | list[str], seed: int = 
     """
     ids = [f"P{i + 1:02d}" for i in range(participants)] if isinstance(participants, int) else list(participants)
     if not ids:
-        raise ValueError("participants must name at least one participant")
+        raise UserError("participants must name at least one participant")
     stimuli = StimulusSet(protocol, scale, stimuli_root, allow_declared=True)
-    disp = scaled_display(protocol, scale)
     gt = ground_truth_stimuli(protocol, stimuli)
-    gaze = protocol.gaze_px(disp) if protocol.fixation_mark else None
+    gaze = protocol.render_geometry(scale).gaze if protocol.fixation_mark else None
     rows = []
     for pid in ids:
-        obs = SimulatedObserver(protocol, pid, seed, gt, display=disp)
+        obs = SimulatedObserver(protocol, pid, seed, gt)
         sched = build_schedule(protocol, pid, seed)
         total = sum(t.kind != "reference" for t in sched)
         for t in sched:

@@ -25,8 +25,11 @@ from pathlib import Path
 import numpy as np
 
 from data_schema.atomic import atomic_path
+from data_schema.errors import UserError
+from data_schema.ranges import SCALE
 
-from .protocol import Display, Protocol
+from .images import gaussian_blur, load_rgb, save_png
+from .protocol import Protocol
 
 
 @dataclass(frozen=True)
@@ -35,10 +38,6 @@ class Needed:
 
     condition: str
     scene: str
-
-
-def scaled_display(protocol: Protocol, scale: float) -> Display:
-    return protocol.display if scale == 1.0 else protocol.display.scaled(scale)
 
 
 def stimulus_root(protocol: Protocol, scale: float = 1.0, root: Path | None = None) -> Path:
@@ -126,16 +125,16 @@ def camera_at(protocol: Protocol, frame: int) -> dict | None:
     return {k: path[-1][k] for k in keys if k in path[-1]}
 
 
-def frame_camera(protocol: Protocol, scene: str, frame: int) -> dict | None:
-    """The renderer's camera of ``frame``, with the previous frame's camera under ``previous`` (frames after
-    the first of a moving sequence), so renderers that use screen-space velocity see the camera motion."""
-    cam = absolute_camera(protocol.scene_ref(scene), camera_at(protocol, frame))
-    if cam is None or frame == 0:
+def frame_camera(protocol: Protocol, scene: str, frame: int) -> dict:
+    """The renderer's camera of ``frame``: the display's vertical visual angle (``fov_y``; the scene's own
+    field of view never applies to a study's stimuli), the camera path's pose, and the previous frame's camera
+    under ``previous`` (frames after the first of a moving sequence) for screen-space velocity."""
+    fov = {"fov_y": protocol.display.fov_y_deg}
+    cam = {**(absolute_camera(protocol.scene_ref(scene), camera_at(protocol, frame)) or {}), **fov}
+    if frame == 0:
         return cam
-    prev = absolute_camera(protocol.scene_ref(scene), camera_at(protocol, frame - 1))
-    if prev is None or prev == cam:
-        return cam
-    return {**cam, "previous": prev}
+    prev = {**(absolute_camera(protocol.scene_ref(scene), camera_at(protocol, frame - 1)) or {}), **fov}
+    return cam if prev == cam else {**cam, "previous": prev}
 
 
 def absolute_camera(scene: str, camera: dict | None) -> dict | None:
@@ -160,36 +159,6 @@ def absolute_camera(scene: str, camera: dict | None) -> dict | None:
     return out
 
 
-# -- images ------------------------------------------------------------------------------------------------
-def load_gray(path: Path) -> np.ndarray:
-    """Rec. 709 luma of an 8-bit image in [0, 1], float32 (H, W)."""
-    from PIL import Image
-
-    with Image.open(path) as im:
-        a = np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
-    return a @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
-
-
-def save_png(path: Path, rgb: np.ndarray) -> Path:
-    """Write a float RGB image in [0, 1] as an 8-bit PNG, atomically."""
-    from PIL import Image
-
-    a = np.clip(np.rint(np.asarray(rgb) * 255.0), 0, 255).astype(np.uint8)
-    with atomic_path(path) as tmp:
-        Image.fromarray(a).save(tmp, format="PNG")
-    return Path(path)
-
-
-def gaussian_blur(img: np.ndarray, sigma: float) -> np.ndarray:
-    """Separable Gaussian blur (reflect borders) of an (H, W[, C]) float image."""
-    if sigma <= 0:
-        return img
-    from scipy.ndimage import gaussian_filter
-
-    s = (sigma, sigma) + ((0,) if img.ndim == 3 else ())
-    return gaussian_filter(img, s, mode="reflect")
-
-
 def _seed_of(*parts) -> int:
     return int.from_bytes(hashlib.sha256("|".join(map(str, parts)).encode()).digest()[:8], "little")
 
@@ -200,13 +169,6 @@ def degrade(rgb: np.ndarray, blur_sigma_px: float, noise: float, seed: int) -> n
     if noise > 0:
         out = out + np.random.default_rng(seed).normal(0.0, noise, out.shape).astype(np.float32)
     return np.clip(out, 0.0, 1.0)
-
-
-def _load_rgb(path: Path) -> np.ndarray:
-    from PIL import Image
-
-    with Image.open(path) as im:
-        return np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
 
 
 def make_derived(protocol: Protocol, need: Needed, scale: float = 1.0, root: Path | None = None,
@@ -226,7 +188,7 @@ def make_derived(protocol: Protocol, need: Needed, scale: float = 1.0, root: Pat
             shutil.copyfile(out[-1], d)
             out.append(d)
             continue
-        out.append(save_png(d, degrade(_load_rgb(s), sigma, cond.noise, _seed_of(need.condition, need.scene, i))))
+        out.append(save_png(d, degrade(load_rgb(s), sigma, cond.noise, _seed_of(need.condition, need.scene, i))))
     return out
 
 
@@ -236,7 +198,7 @@ def render_function():
     try:
         from renderers.stimuli import render_stimulus
     except Exception as exc:  # noqa: BLE001 - any import failure: the renderers are not usable
-        raise ValueError(f"the renderers are not usable here ({type(exc).__name__}: {exc}): render the stimuli "
+        raise UserError(f"the renderers are not usable here ({type(exc).__name__}: {exc}): render the stimuli "
                          "elsewhere and use folder conditions, or use run --simulate (declared qualities)") from None
     return render_stimulus
 
@@ -248,10 +210,8 @@ def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, ca
     ``progress(done_frames, total_frames, seconds_left)`` is called after every frame; the time left is the
     mean seconds per rendered frame so far times the frames left. Returns counts and the elapsed time.
     """
-    if not 0.0 < scale <= 1.0:
-        raise ValueError(f"--scale={scale:g} is out of range: allowed (0, 1]")
-    disp = scaled_display(protocol, scale)
-    gaze = protocol.gaze_px(disp)
+    SCALE.check("--scale", scale)
+    geometry = protocol.render_geometry(scale)
     root_dir = stimulus_root(protocol, scale, root)
     cache = Path(cache_dir) if cache_dir is not None else root_dir.parent / ".cache"
     todo = []
@@ -262,7 +222,7 @@ def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, ca
             continue
         if cond.folder is not None:
             missing = next(f for f in frames if not f.is_file())
-            raise ValueError(f"missing stimulus file {missing} (condition {need.condition}, scene {need.scene}): "
+            raise UserError(f"missing stimulus file {missing} (condition {need.condition}, scene {need.scene}): "
                              "folder conditions are rendered elsewhere")
         todo.append((need, cond, frames))
     n_render = sum(len(fr) for _, c, fr in todo if c.renderer)
@@ -277,8 +237,9 @@ def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, ca
                     done += 1
                     continue
                 t1 = time.perf_counter()
-                png = render(protocol.scene_ref(need.scene), cond.renderer, dict(cond.params), disp.width_px,
-                             disp.height_px, gaze, camera=frame_camera(protocol, need.scene, i), cache_dir=cache)
+                png = render(protocol.scene_ref(need.scene), cond.renderer, dict(cond.params), geometry.width,
+                             geometry.height, geometry.gaze, camera=frame_camera(protocol, need.scene, i),
+                             cache_dir=cache)
                 dst.parent.mkdir(parents=True, exist_ok=True)
                 with atomic_path(dst) as tmp:
                     shutil.copyfile(png, tmp)
@@ -297,27 +258,6 @@ def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, ca
 
 
 # -- synthetic stimulus sets (demo, tests, dry runs without renderers) --------------------------------------
-def eccentricity_map(display: Display, gaze: tuple[float, float]) -> np.ndarray:
-    """Eccentricity in degrees of every pixel centre relative to ``gaze`` on a flat screen.
-
-    The eye sits ``distance_cm`` in front of the screen centre; a pixel at ``(x, y)`` is the point
-    ``p = ((x - W/2) s, (y - H/2) s, D)`` with ``s = width_cm / width_px`` and
-    ``e = atan2(|p x g|, p . g)``, the angle between the rays to the pixel and to the gaze point.
-    """
-    s = display.width_cm / display.width_px
-    d = display.distance_cm
-    x = (np.arange(display.width_px, dtype=np.float64) + 0.5 - display.width_px / 2) * s
-    y = (np.arange(display.height_px, dtype=np.float64) + 0.5 - display.height_px / 2) * s
-    gx, gy = (gaze[0] - display.width_px / 2) * s, (gaze[1] - display.height_px / 2) * s
-    X, Y = np.meshgrid(x, y)
-    dot = X * gx + Y * gy + d * d
-    cx = Y * d - d * gy
-    cy = d * gx - X * d
-    cz = X * gy - Y * gx
-    cross = np.sqrt(cx * cx + cy * cy + cz * cz)
-    return np.degrees(np.arctan2(cross, dot))
-
-
 def synthetic_scene(width: int, height: int, scene: str, frame: int = 0) -> np.ndarray:
     """A procedural 'ground truth' image with fine detail everywhere (gratings, checks, edges), RGB in [0, 1]."""
     rng = np.random.default_rng(_seed_of("scene", scene))
@@ -361,8 +301,8 @@ def write_synthetic_stimuli(protocol: Protocol, scale: float = 1.0, root: Path |
     """
     from .observer import DECLARED_SCALE_JND, foveated_difference
 
-    disp = scaled_display(protocol, scale)
-    ecc = eccentricity_map(disp, protocol.gaze_px(disp))
+    geometry = protocol.render_geometry(scale)
+    ecc = geometry.eccentricity_map()
     jnd = float(protocol.simulation["jnd"])
     luma = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
 
@@ -391,6 +331,6 @@ def write_synthetic_stimuli(protocol: Protocol, scale: float = 1.0, root: Path |
                 f.parent.mkdir(parents=True, exist_ok=True)
                 shutil.copyfile(frames[j], f)
                 continue
-            gt = synthetic_scene(disp.width_px, disp.height_px, need.scene, j)
+            gt = synthetic_scene(geometry.width, geometry.height, need.scene, j)
             save_png(f, calibrated(gt, foveated_degrade(gt, ecc, q, _seed_of(need.condition, need.scene, j)), q))
     return base

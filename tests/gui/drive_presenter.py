@@ -1,6 +1,6 @@
 """Drive a real PsychoPyPresenter from a JSON spec (run under Xvfb by the GUI tests).
 
-Spec: ``{"display": {...DisplaySettings}, "presenter": {...kwargs}, "steps": [...], "result": path}``; a step
+Spec: ``{"display": {...Display}, "presenter": {...kwargs}, "steps": [...], "result": path}``; a step
 is ``{"instructions": text}``, ``{"trial": {...TrialDisplay}}`` (stimuli as ``{"condition", "frames",
 "fps"}``), ``{"preload": {...}}``, ``{"prefetch": {...}}`` or ``{"message": text, "seconds": s}``. A trial
 that comes back escaped is followed by ``pause()`` and, on "resume", shown again. Every presenter event is
@@ -17,7 +17,8 @@ import math
 import sys
 from pathlib import Path
 
-from studyapp.presentation.base import DisplaySettings, Stimulus, TrialDisplay
+from data_schema.geometry import Display
+from studyapp.presentation.base import Stimulus, TrialDisplay
 from studyapp.presentation.psychopy_window import PsychoPyPresenter
 
 
@@ -46,7 +47,7 @@ def main(spec_path: str) -> int:
     faulthandler.dump_traceback_later(20, exit=True)  # a hung window shows where it hangs, then exits
     spec = json.loads(Path(spec_path).read_text())
     pres = PsychoPyPresenter(on_event=emit, **spec.get("presenter", {}))
-    out = {"facts": pres.open(DisplaySettings(**spec["display"])), "trials": [], "pauses": []}
+    out = {"facts": pres.open(Display(**spec["display"])), "trials": [], "pauses": []}
     emit("opened", out["facts"])
     try:
         for step in spec["steps"]:
@@ -74,6 +75,7 @@ def main(spec_path: str) -> int:
                 if out["pauses"][-1:] == ["end"]:
                     break
         out["trial_info"] = pres.trial_info
+        out["text_layout"] = {str(k): v for k, v in pres.text_layout.items()}
     finally:
         pres.close()
     Path(spec["result"]).write_text(json.dumps(out))

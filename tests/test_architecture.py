@@ -1,0 +1,92 @@
+"""Architecture rules that code review alone does not keep: no import cycles, one home per concept."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _imports(path: Path, modules: set[str] | None = None) -> set[str]:
+    """Every module ``path`` imports, anywhere in the file (function-level imports count: a cycle through a
+    lazy import is still a cycle of concepts). ``from pkg import sub`` names the submodule ``pkg.sub`` when
+    it is one of ``modules``, else ``pkg``."""
+    name = _module_name(path)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - (node.level - 1)]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            for a in node.names:
+                sub = f"{mod}.{a.name}"
+                out.add(sub if modules is not None and sub in modules else mod)
+    return out
+
+
+def _graph(top: str) -> dict[str, set[str]]:
+    files = {_module_name(p): p for p in (ROOT / top.replace(".", "/")).rglob("*.py")}
+    return {m: {i for i in _imports(p, set(files)) if i in files and i != m} for m, p in files.items()}
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan)."""
+    index, low, stack, on, out = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    return out
+
+
+@pytest.mark.parametrize("package", ["renderers", "studyapp", "data_schema", "analysis"])
+def test_no_import_cycles(package):
+    assert _cycles(_graph(package)) == []
+
+
+def test_the_cycle_finder_finds_cycles():
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+def test_data_schema_is_a_leaf():
+    """The shared layer (errors, ranges, geometry, schemas, store) imports none of the packages built on it."""
+    for path in (ROOT / "data_schema").rglob("*.py"):
+        bad = {i.split(".")[0] for i in _imports(path)} & {"studyapp", "renderers", "analysis"}
+        assert not bad, f"{path.name} imports {bad}"
