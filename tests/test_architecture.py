@@ -90,3 +90,29 @@ def test_data_schema_is_a_leaf():
     for path in (ROOT / "data_schema").rglob("*.py"):
         bad = {i.split(".")[0] for i in _imports(path)} & {"studyapp", "renderers", "analysis"}
         assert not bad, f"{path.name} imports {bad}"
+
+
+def test_the_wheel_ships_the_protocols_and_schemas(tmp_path):
+    """A wheel install can `studyapp validate seed001_2afc`: the protocols and the schemas are package data."""
+    import subprocess
+    import sys
+    import zipfile
+
+    res = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", str(ROOT),
+                          "-w", str(tmp_path)], capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr
+    [wheel] = tmp_path.glob("studyapp-*.whl")
+    names = set(zipfile.ZipFile(wheel).namelist())
+    for name in ("seed001_2afc", "seed001_pilot", "seed003_task1", "seed003_task2"):
+        assert f"studyapp/protocols/{name}.yaml" in names
+    assert {"data_schema/protocol.schema.json", "data_schema/scene.schema.json"} <= names
+    assert "data_schema/families/two_afc.py" in names
+
+
+def test_shipped_protocols_by_name_keep_their_stimuli_in_the_current_folder(tmp_path, monkeypatch):
+    from studyapp.commands.study import SHIPPED, _protocol
+
+    monkeypatch.chdir(tmp_path)
+    p = _protocol("seed001_2afc", check_renderers=False)
+    assert p.path == SHIPPED / "seed001_2afc.yaml" and SHIPPED.parent.name == "studyapp"
+    assert p.stimuli_dir == tmp_path / "stimuli" / "seed001"

@@ -14,15 +14,19 @@ from pathlib import Path
 from data_schema.errors import CLIError
 from studyapp.progress import Bar
 
-SHIPPED = Path(__file__).resolve().parents[2] / "protocols"
+#: The shipped replications (package data: a wheel install has them too).
+SHIPPED = Path(__file__).resolve().parents[1] / "protocols"
 
 
 def _protocol(path: str, stimuli: str | None = None, check_renderers: bool = True):
+    """A protocol file, or a shipped protocol by name (``studyapp run seed001_2afc ...``); a shipped one keeps
+    its stimuli under the current folder (``./stimuli/<name>``), not inside the installed package."""
     from studyapp.runner.protocol import load_protocol
 
     p = Path(path)
     if not p.exists() and not p.suffix and (SHIPPED / f"{path}.yaml").exists():
-        p = SHIPPED / f"{path}.yaml"  # shipped protocols by name: `studyapp run seed001_2afc ...`
+        return load_protocol(SHIPPED / f"{path}.yaml", stimuli_dir=stimuli, check_renderers=check_renderers,
+                             output_base=Path.cwd())
     return load_protocol(p, stimuli_dir=stimuli, check_renderers=check_renderers)
 
 

@@ -247,7 +247,7 @@ def _check_condition(doc, conditions, field_path, name, allow_roles=("main", "ca
         raise doc.error(field_path, f"condition {name!r} has role {conditions[name].role}")
 
 
-def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Protocol:
+def load_protocol(path, stimuli_dir=None, check_renderers: bool = True, output_base: Path | None = None) -> Protocol:
     """Read, validate and complete a protocol file.
 
     Parameters
@@ -256,6 +256,9 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Proto
         The YAML file.
     stimuli_dir : str or Path, optional
         Override of the protocol's ``stimuli_dir`` (default ``stimuli/<name>`` next to the protocol file).
+    output_base : Path, optional
+        Folder the protocol's ``stimuli_dir`` is relative to (default: the protocol's own folder; the CLI
+        gives the current folder for the shipped protocols, which live inside the installed package).
     check_renderers : bool
         When ``renderers.registry`` is importable, renderer names and parameters are checked against it
         (default); False skips the check (simulated runs, which render nothing, and do not import the
@@ -363,7 +366,8 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True) -> Proto
     fix = data.get("fixation", {"x": 0.5, "y": 0.5})
     timing = data.get("timing", {})
     sdir = Path(stimuli_dir) if stimuli_dir is not None else _inside(
-        doc, base, ("stimuli_dir",), data.get("stimuli_dir", f"stimuli/{data['name']}"))
+        doc, Path(output_base).resolve() if output_base is not None else base, ("stimuli_dir",),
+        data.get("stimuli_dir", f"stimuli/{data['name']}"))
     return Protocol(
         path=path, data=data, name=data["name"], version=data["version"], family=family,
         question=data["question"], instructions=data.get("instructions", ""), block=data.get("block", ""),

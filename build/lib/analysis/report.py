@@ -1,0 +1,184 @@
+"""Writing a study's analysis to a folder: report.md, tables (md, tex, csv), figures (png), analysis.json.
+
+Layout of ``out_dir``::
+
+    report.md                 every table and figure with the plan and the notes
+    analysis.json             the tidy tables as lists of records (what ``--json`` prints)
+    tables/<name>.csv         tidy results, full precision
+    tables/<name>.md|.tex     the paper layouts (seed 001 Tables 2-3, seed 003 Tables 5-6, ...)
+    figures/<name>.png        votes, scale and score plots
+
+The same log and plan give byte-identical files (no dates, no software versions, fixed seeds).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from data_schema import families
+
+from .study import ALL, StudyAnalysis
+from .tables import (
+    Table,
+    gee_table,
+    omnibus_table,
+    pairwise_p_table,
+    scale_table,
+    summary_vs_reference_table,
+    to_csv,
+    to_latex,
+    to_markdown,
+    votes_table,
+)
+
+__all__ = ["report_json", "write_report"]
+
+_FAMILY_TITLE = {name: fam.title for name, fam in families.FAMILIES.items()}
+
+
+def _json_value(v):
+    if isinstance(v, (np.floating, float)):
+        v = float(v)
+        if math.isnan(v):
+            return None
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return v
+    if isinstance(v, (np.integer,)):
+        return int(v)
+    if isinstance(v, (np.bool_,)):
+        return bool(v)
+    return v
+
+
+def report_json(res: StudyAnalysis) -> dict:
+    """The analysis as plain JSON-able data: plan, counts, notes and every tidy table as records."""
+    tables = {}
+    for name, df in res.tables.items():
+        if name.endswith("_units"):
+            continue  # one row per unit: in the CSV, not in the JSON summary
+        tables[name] = [{k: _json_value(v) for k, v in rec.items()} for rec in df.to_dict("records")]
+    return {"plan": res.plan.to_dict(), "families": res.families, "conditions": res.conditions,
+            "n_trials": res.n_trials, "n_participants": res.n_participants, "notes": res.notes,
+            "tables": tables}
+
+
+def _group_title(block: str, scene: str) -> str:
+    if block == ALL and scene == ALL:
+        return "all trials"
+    if scene == ALL:
+        return f"block {block}"
+    return f"scene {scene}"
+
+
+def write_report(res: StudyAnalysis, out_dir, title: str = "Study analysis", figures: bool = True,
+                 progress=None) -> list[Path]:
+    """Write every table and figure of ``res`` into ``out_dir``; return the paths written."""
+    from data_schema.atomic import write_text
+
+    say = progress or (lambda msg: None)
+    out = Path(out_dir)
+    tdir, fdir = out / "tables", out / "figures"
+    written: list[Path] = []
+    labels = res.plan.labels
+    md = [f"# {title}", ""]
+    fam_counts = ", ".join(f"{_FAMILY_TITLE[f]}: {res.n_trials[f]:,} trials from {res.n_participants[f]} "
+                           "participants" for f in res.families)
+    md += [f"Log: {fam_counts}.", "", "Plan: " + ", ".join(
+        f"{k}={' '.join(map(str, v)) if isinstance(v, list) else v}" for k, v in res.plan.to_dict().items()
+        if k not in ("labels",) and v not in (None, {})), ""]
+    md += [f"- {n}" for n in res.notes] + [""]
+
+    def emit(name: str, table: Table | None, tidy: pd.DataFrame | None) -> None:
+        if tidy is not None:
+            written.append(write_text(tdir / f"{name}.csv", to_csv(tidy)))
+        if table is not None:
+            written.append(write_text(tdir / f"{name}.md", to_markdown(table)))
+            written.append(write_text(tdir / f"{name}.tex", to_latex(table)))
+            md.extend([to_markdown(table), ""])
+
+    for fam in res.families:
+        order = res.conditions[fam]
+        reference = res.plan.reference or order[0]
+        md += [f"## {_FAMILY_TITLE[fam]}", ""]
+        say(f"{fam}: tables")
+        t = res.tables
+        if f"{fam}_votes" in t:
+            votes = t[f"{fam}_votes"]
+            emit(f"{fam}_votes", votes_table(votes, order, f"Votes per condition and scene ({fam})", labels), votes)
+            if figures:
+                p = fdir / f"{fam}_votes.png"
+                from .figures import votes_figure
+
+                written.append(votes_figure(votes, order, p, f"User preference ({fam})", labels))
+                md += [f"![votes]({p.relative_to(out).as_posix()})", ""]
+        emit(f"{fam}_omnibus", omnibus_table(t[f"{fam}_omnibus"], f"Kruskal-Wallis over all conditions ({fam})"),
+             t[f"{fam}_omnibus"])
+        for name, what in (("pairwise", "Kruskal-Wallis test for pairwise comparisons"),
+                           ("dunn", "Dunn's test after Kruskal-Wallis")):
+            if f"{fam}_{name}" not in t:
+                continue
+            pw = t[f"{fam}_{name}"]
+            written.append(write_text(tdir / f"{fam}_{name}.csv", to_csv(pw)))
+            for (block, scene), grp in pw.groupby(["block", "scene"], sort=False):
+                present = [c for c in order if c in set(grp["A"]) | set(grp["B"])]
+                suffix = "" if (block, scene) == (ALL, ALL) else "_" + _slug(block if scene == ALL else scene)
+                cap = f"{what}, Holm-adjusted p ({fam}, {_group_title(block, scene)})"
+                emit(f"{fam}_{name}_matrix{suffix}", pairwise_p_table(grp, present, cap, labels), None)
+        if f"{fam}_summary" in t:
+            sm = t[f"{fam}_summary"]
+            written.append(write_text(tdir / f"{fam}_summary.csv", to_csv(sm)))
+            for (block, scene), grp in sm.groupby(["block", "scene"], sort=False):
+                suffix = "" if (block, scene) == (ALL, ALL) else "_" + _slug(block if scene == ALL else scene)
+                cap = f"Scores against {labels.get(reference, reference)} ({fam}, {_group_title(block, scene)})"
+                emit(f"{fam}_summary_table{suffix}", summary_vs_reference_table(grp, reference, cap, labels), None)
+        if f"{fam}_units" in t:
+            written.append(write_text(tdir / f"{fam}_units.csv", to_csv(t[f"{fam}_units"])))
+            if fam == "yes_no" and figures:
+                from .figures import scores_figure
+
+                p = fdir / "yes_no_scores.png"
+                written.append(scores_figure(t["yes_no_units"], order, p, "Mean score per condition", labels))
+                md += [f"![scores]({p.relative_to(out).as_posix()})", ""]
+        if f"{fam}_gee" in t:
+            g = t[f"{fam}_gee"]
+            what = ("odds of a yes against" if fam == "yes_no" else
+                    "odds of choosing each condition over")
+            cap = (f"Logistic GEE ({fam}): {what} {labels.get(reference, reference)}, 95 % Wald intervals "
+                   "(participants as clusters, exchangeable working correlation, robust SEs)")
+            emit(f"{fam}_gee", gee_table(g, cap, labels), g)
+        scale_name = f"{fam}_scale"
+        if scale_name in t:
+            sc = t[scale_name]
+            if fam == "2afc":
+                what = " and ".join(n for c, n in (("jod", "Thurstone Case V (JOD)"), ("bt", "Bradley-Terry"))
+                                    if c in sc.columns)
+            else:
+                what = "Plackett-Luce"
+            ci = f", {res.plan.n_boot} bootstrap replicates over participants" if res.plan.n_boot else ""
+            prior = f", prior {res.plan.prior}" if fam == "2afc" and "jod" in sc.columns else ""
+            emit(scale_name, scale_table(sc, f"{what} scores, reference {reference} = 0{prior}{ci}", labels), sc)
+            if figures:
+                from .figures import scale_figure
+
+                p = fdir / f"{fam}_scale.png"
+                fig_title = ("Plackett-Luce scale" if fam != "2afc" else
+                             "Thurstone Case V scale" if "jod" in sc.columns else "Bradley-Terry scale")
+                if res.plan.n_boot:
+                    fig_title += f" (95 % bootstrap intervals, {res.plan.n_boot} replicates)"
+                written.append(scale_figure(sc, p, fig_title, labels))
+                md += [f"![scale]({p.relative_to(out).as_posix()})", ""]
+    say("report")
+    written.append(write_text(out / "analysis.json", json.dumps(report_json(res), indent=2, sort_keys=False)
+                              + "\n"))
+    written.append(write_text(out / "report.md", "\n".join(md).rstrip("\n") + "\n"))
+    return written
+
+
+def _slug(s: str) -> str:
+    return "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in str(s)).strip("_") or "x"

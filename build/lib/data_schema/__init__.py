@@ -1,0 +1,1 @@
+"""Schemas and durable storage for study data (session store, protocol schema)."""

@@ -1,0 +1,205 @@
+"""The viewing geometry: the one place that relates pixels to degrees of visual angle.
+
+Two types, both plain data:
+
+- :class:`Display` — the participant's physical display as a protocol declares it: pixels, physical width,
+  viewing distance (hence the vertical visual angle ``fov_y_deg`` it subtends), refresh rate, window
+  settings. It is the only source of the visual angle a study's stimuli subtend: renderers render with a
+  camera of that vertical field of view, and the window shows each stimulus over the whole display.
+- :class:`ViewingGeometry` — pixels, vertical visual angle and gaze point of one image (a render at any
+  resolution of the same display, a stimulus on screen, an image to score). Renderers, the foveation mappings,
+  the FPSM, the runner, the simulated observer, the presenter and the image-quality metrics all take this
+  type; eccentricity and pixels per degree are computed here only.
+
+Conventions. Screen coordinates are continuous pixels: pixel ``(i, j)`` covers ``[i, i+1) x [j, j+1)``, its
+centre is ``(i + 0.5, j + 0.5)``, ``y`` grows downwards. The display is flat and seen from in front of its
+centre; pixels are square. The eccentricity of a point ``r`` pixels from the gaze follows seed 001 Eq 3,
+``e = atan(c_r r)`` with ``c_r = 2 tan(fov_y / 2) / H`` (the gaze taken to lie on the optical axis, as in the
+seed; exact when the gaze is at the display centre), and pixels per degree at the gaze are
+``ppd = tan(1°) / c_r``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .errors import UserError
+from .ranges import Range
+
+RAD_PER_DEG = math.pi / 180.0
+DEG_PER_RAD = 180.0 / math.pi
+PIXELS = Range(1, 32768, integer=True)
+DISPLAY_PIXELS = Range(16, 16384, integer=True)
+FOV = Range(0.0, 180.0, low_open=True, high_open=True)
+
+
+def fov_from_size(height_cm: float, distance_cm: float) -> float:
+    """Vertical visual angle (degrees) of a flat display ``height_cm`` high seen from ``distance_cm``."""
+    return 2.0 * math.degrees(math.atan(0.5 * height_cm / distance_cm))
+
+
+def check_gaze(gaze, width: int, height: int) -> tuple[float, float]:
+    """Validate a gaze point in pixels: two finite numbers inside ``[0, width] x [0, height]``."""
+    try:
+        gx, gy = (float(g) for g in gaze)
+    except (TypeError, ValueError):
+        raise UserError(f"gaze={gaze!r} is invalid: must be a pair X,Y of pixel coordinates") from None
+    if not (math.isfinite(gx) and math.isfinite(gy) and 0 <= gx <= width and 0 <= gy <= height):
+        raise UserError(f"gaze=({gx:g}, {gy:g}) is outside the display: allowed x in [0, {width}], "
+                        f"y in [0, {height}]")
+    return gx, gy
+
+
+@dataclass(frozen=True)
+class ViewingGeometry:
+    """An image of ``width`` x ``height`` pixels subtending ``fov_y_deg`` vertically, looked at ``gaze``.
+
+    ``c_r`` is seed 001's constant of Eq 3 (film height over focal length, divided by the height in pixels):
+    ``r = tan(e) / c_r`` is the distance in pixels from the gaze of a point at eccentricity ``e``.
+    """
+
+    width: int
+    height: int
+    fov_y_deg: float
+    gaze_x: float
+    gaze_y: float
+
+    @classmethod
+    def create(cls, width, height, fov_y_deg, gaze=None) -> ViewingGeometry:
+        """Checked construction; ``gaze`` defaults to the centre and may lie anywhere (also off the image)."""
+        w = PIXELS.check("width", width)
+        h = PIXELS.check("height", height)
+        fov = FOV.check("fov_y_deg", fov_y_deg)
+        if gaze is None:
+            gx, gy = w / 2.0, h / 2.0
+        else:
+            try:
+                gx, gy = (float(g) for g in gaze)
+            except (TypeError, ValueError):
+                raise UserError(f"gaze={gaze!r} is invalid: must be a pair (x, y) of pixel coordinates") from None
+            if not (math.isfinite(gx) and math.isfinite(gy)):
+                raise UserError(f"gaze={gaze!r} is invalid: must be finite")
+        return cls(w, h, fov, gx, gy)
+
+    # -- derived views ----------------------------------------------------------------------------------------
+    def with_gaze(self, gaze) -> ViewingGeometry:
+        return ViewingGeometry.create(self.width, self.height, self.fov_y_deg, gaze)
+
+    def resized(self, width: int, height: int) -> ViewingGeometry:
+        """The same view at another resolution: same visual angle, the gaze at the same place of the image."""
+        w, h = PIXELS.check("width", width), PIXELS.check("height", height)
+        return replace(self, width=w, height=h, gaze_x=self.gaze_x * w / self.width,
+                       gaze_y=self.gaze_y * h / self.height)
+
+    def scaled(self, scale: float) -> ViewingGeometry:
+        """``scale`` times the pixels (at least 16 a side), same visual angle (dry runs, ``--scale``)."""
+        return self.resized(max(16, round(self.width * scale)), max(16, round(self.height * scale)))
+
+    # -- pixels <-> degrees (seed 001 Eq 3) ------------------------------------------------------------------
+    @property
+    def gaze(self) -> tuple[float, float]:
+        return (self.gaze_x, self.gaze_y)
+
+    @property
+    def c_r(self) -> float:
+        """Seed 001 Eq 3: ``c_r = (film height / focal length) / H = 2 tan(fov_y / 2) / H``."""
+        return 2.0 * math.tan(0.5 * self.fov_y_deg * RAD_PER_DEG) / self.height
+
+    @property
+    def ppd(self) -> float:
+        """Pixels per degree at the gaze (the centre of projection): ``tan(1°) / c_r``."""
+        return math.tan(RAD_PER_DEG) / self.c_r
+
+    @property
+    def pixels(self) -> int:
+        return self.width * self.height
+
+    def radius(self, e_deg):
+        """Pixel distance from the gaze of eccentricity ``e_deg`` (seed 001 Eq 3, ``r = tan e / c_r``)."""
+        return np.tan(np.asarray(e_deg, dtype=np.float64) * RAD_PER_DEG) / self.c_r
+
+    def eccentricity(self, r_px):
+        """Eccentricity in degrees of a point ``r_px`` pixels from the gaze (``e = atan(c_r r)``)."""
+        return np.arctan(self.c_r * np.asarray(r_px, dtype=np.float64)) * DEG_PER_RAD
+
+    def eccentricity_map(self, rows: slice | None = None) -> np.ndarray:
+        """Eccentricity (degrees, float64) of every pixel centre, ``(height, width)`` (or the given rows)."""
+        rows = rows or slice(0, self.height)
+        x = np.arange(self.width, dtype=np.float64) + 0.5 - self.gaze_x
+        y = np.arange(self.height, dtype=np.float64)[rows] + 0.5 - self.gaze_y
+        return self.eccentricity(np.hypot(x[None, :], y[:, None]))
+
+    def dr_de(self, e_deg):
+        """Radial pixels per degree at eccentricity ``e``: the inverse of seed 001 Eq 7."""
+        c = np.cos(np.asarray(e_deg, dtype=np.float64) * RAD_PER_DEG)
+        return RAD_PER_DEG / (self.c_r * c * c)
+
+    def corner_distance(self) -> float:
+        """Largest distance in pixels from the gaze to a corner of the image."""
+        xs = (0.0, float(self.width))
+        ys = (0.0, float(self.height))
+        return max(math.hypot(x - self.gaze_x, y - self.gaze_y) for x in xs for y in ys)
+
+    def max_eccentricity(self) -> float:
+        return float(self.eccentricity(self.corner_distance()))
+
+    def contains(self, x, y):
+        """Boolean mask of the points that fall on the image."""
+        x = np.asarray(x)
+        y = np.asarray(y)
+        return (x >= 0) & (x < self.width) & (y >= 0) & (y < self.height)
+
+    def pixel_centres(self):
+        """Coordinates of every pixel centre, shape ``(height, width)`` each."""
+        x = np.arange(self.width, dtype=np.float64) + 0.5
+        y = np.arange(self.height, dtype=np.float64) + 0.5
+        return np.meshgrid(x, y)
+
+
+@dataclass(frozen=True)
+class Display:
+    """The participant's physical display: ``width_px`` x ``height_px`` pixels, ``width_cm`` wide, seen from
+    ``distance_cm``; the window covers it (``fullscreen``, or a window of its size on ``screen``).
+
+    The vertical visual angle it subtends, ``fov_y_deg = 2 atan(height_cm / 2 / distance_cm)`` with
+    ``height_cm = width_cm * height_px / width_px`` (square pixels), is the angle every stimulus of the study
+    subtends.
+    """
+
+    width_px: int
+    height_px: int
+    width_cm: float
+    distance_cm: float
+    refresh_hz: float = 60.0
+    fullscreen: bool = False
+    screen: int = 0
+
+    def __post_init__(self):
+        # The ranges of the protocol schema's display block, for displays made in code too.
+        for name, rng in (("width_px", DISPLAY_PIXELS), ("height_px", DISPLAY_PIXELS),
+                          ("width_cm", Range(0.0, 1000.0, low_open=True)),
+                          ("distance_cm", Range(0.0, 10000.0, low_open=True)), ("refresh_hz", Range(20.0, 1000.0)),
+                          ("screen", Range(0, 16, integer=True))):
+            object.__setattr__(self, name, rng.check(f"display.{name}", getattr(self, name)))
+        if not isinstance(self.fullscreen, bool):
+            raise UserError(f"display.fullscreen={self.fullscreen!r} is invalid: must be true or false")
+
+    @property
+    def height_cm(self) -> float:
+        return self.width_cm * self.height_px / self.width_px
+
+    @property
+    def fov_y_deg(self) -> float:
+        return fov_from_size(self.height_cm, self.distance_cm)
+
+    def geometry(self, gaze=None) -> ViewingGeometry:
+        """The display's own pixels and visual angle, looked at ``gaze`` (default: the centre)."""
+        return ViewingGeometry.create(self.width_px, self.height_px, self.fov_y_deg, gaze)
+
+    @property
+    def ppd(self) -> float:
+        """Pixels per degree at the screen centre, ``width_px / width_cm * distance_cm * tan(1°)``."""
+        return self.geometry().ppd

@@ -1,0 +1,54 @@
+"""The tidy trial log: one row per answered trial, the contract between the study runner and the analysis.
+
+The session store exports it (``studyapp export --format csv|parquet``) and ``studyapp analyze`` reads it,
+from a CSV/Parquet file or straight from a study database. Column names and meanings are stable.
+
+Columns (``REQUIRED`` must be present in every log; the others as the trial family needs):
+
+========================  =====================================================================================
+column                    meaning
+========================  =====================================================================================
+participant               pseudonymous participant id (str)
+family                    trial family: ``2afc``, ``preference`` (top two of N) or ``yes_no`` (is this the GT? /
+                          is the quality acceptable?)
+scene                     scene name (str)
+block                     grouping above the scene, e.g. the headset or the task (str; ``""`` if none)
+session                   session id (str; ``""`` if not known)
+trial                     0-based index of the trial in the participant's schedule (int)
+condition                 ``yes_no``: the condition shown (str)
+condition_a, condition_b  ``2afc``: the conditions shown first/left and second/right (str)
+chosen                    ``2afc``: the condition chosen; ``preference``: the first choice (str)
+chosen_2                  ``preference``: the second choice, ``""`` when the participant picked only one
+conditions                ``preference``: the conditions offered, joined by ``|`` (str)
+response                  ``yes_no``: 1 for yes/acceptable, 0 for no (int)
+rt_s                      reaction time in seconds from stimulus onset (float; NaN if not measured)
+practice, catch           1 for practice / catch trials (excluded from the analysis), else 0
+========================  =====================================================================================
+"""
+
+from __future__ import annotations
+
+from .families import FAMILIES as _FAMILIES
+from .families import NAMES
+
+#: The trial families a log may hold (data_schema.families).
+FAMILIES = NAMES
+REQUIRED = ("participant", "family", "scene")
+
+#: Family -> the columns it fills (declared by each family, :mod:`data_schema.families`).
+FAMILY_COLUMNS = {name: fam.log_columns for name, fam in _FAMILIES.items()}
+
+OPTIONAL = ("block", "session", "trial", "chosen_2", "rt_s", "practice", "catch")
+
+ALL_COLUMNS = ("participant", "session", "block", "scene", "trial", "family", "condition", "condition_a",
+               "condition_b", "conditions", "chosen", "chosen_2", "response", "rt_s", "practice", "catch")
+
+
+
+def missing_columns(columns, family: str | None = None) -> list[str]:
+    """Names of the required columns (for ``family`` if given) absent from ``columns``."""
+    need = list(REQUIRED)
+    if family is not None:
+        need += FAMILY_COLUMNS[family]
+    have = set(columns)
+    return [c for c in need if c not in have]

@@ -1,0 +1,239 @@
+"""Compiled LP-buffer kernels: the bilinear inverse mapping (LP buffer -> screen) and its footprint.
+
+LP layout: column ``c`` holds ``n[c]`` shaded rows; row ``j`` of column ``c`` is the polar angle
+``theta = 2 pi (j + 0.5) / L[c]`` (VaFR: ``L[c] = l(e(c + 0.5))``, seed 001 Eq 8-9; LMFR/LaFR: ``L[c] = h``,
+Eq 1), at the eccentricity of column centre ``c + 0.5``. A screen pixel with forward-mapped column ``u``
+(seed 001 Eq 5 / Eq 1, 14-15) and polar angle ``theta`` is the bilinear blend of its two neighbouring columns
+``c0 = floor(u - 0.5)``, ``c1 = c0 + 1``, and in each column of the two rows around
+``t = theta L[c] / (2 pi) - 0.5``, rows wrapping around modulo ``n[c]`` (the angular seam).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .foveation._kernels import FORWARD, angle, point
+
+TWO_PI = 2.0 * math.pi
+
+
+@njit(cache=True, inline="always")
+def _rows(theta, Lc, nc):
+    t = theta * Lc / TWO_PI - 0.5
+    r0 = math.floor(t)
+    f = t - r0
+    r0 = int(r0) % nc
+    r1 = (r0 + 1) % nc
+    return r0, r1, f
+
+
+@njit(cache=True, inline="always")
+def footprint(method, P, dx, dy, L, n, w_eff):
+    """Columns, rows and weights of the bilinear fetch of screen offset ``(dx, dy)`` from the gaze."""
+    u, _ = point(method, FORWARD, dx, dy, P)
+    theta = angle(dx, dy)
+    uc = min(max(u - 0.5, 0.0), w_eff - 1.0)
+    c0 = int(math.floor(uc))
+    fu = uc - c0
+    c1 = min(c0 + 1, w_eff - 1)
+    a0, a1, fa = _rows(theta, L[c0], n[c0])
+    b0, b1, fb = _rows(theta, L[c1], n[c1])
+    return c0, c1, fu, a0, a1, fa, b0, b1, fb
+
+
+@njit(cache=True, parallel=True)
+def inverse_map(lp, method, P, gx, gy, L, n, w_eff, x0, y0, out):
+    """Screen tile ``out[(y0 + j), (x0 + i)]`` sampled bilinearly from the LP buffer ``lp`` (h, w, 3)."""
+    th, tw = out.shape[0], out.shape[1]
+    for j in prange(th):
+        dy = y0 + j + 0.5 - gy
+        for i in range(tw):
+            dx = x0 + i + 0.5 - gx
+            c0, c1, fu, a0, a1, fa, b0, b1, fb = footprint(method, P, dx, dy, L, n, w_eff)
+            for ch in range(3):
+                va = lp[a0, c0, ch] * (1.0 - fa) + lp[a1, c0, ch] * fa
+                vb = lp[b0, c1, ch] * (1.0 - fb) + lp[b1, c1, ch] * fb
+                out[j, i, ch] = va * (1.0 - fu) + vb * fu
+
+
+@njit(cache=True)
+def mark_footprint(method, P, gx, gy, L, n, w_eff, xs, ys, need):
+    """Mark in ``need`` (h, w) the LP pixels that the bilinear fetch of screen points ``(xs, ys)`` reads."""
+    for q in range(xs.size):
+        c0, c1, fu, a0, a1, fa, b0, b1, fb = footprint(method, P, xs[q] - gx, ys[q] - gy, L, n, w_eff)
+        need[a0, c0] = True
+        need[a1, c0] = True
+        need[b0, c1] = True
+        need[b1, c1] = True
+
+
+@njit(cache=True, parallel=True)
+def wrap_pad(lp, n, pad, out):
+    """``out[pad + j, c] = lp[j mod n[c], c]`` for ``j`` in ``[-pad, h + pad)``: rows continued around the seam."""
+    H = out.shape[0]
+    for c in prange(lp.shape[1]):
+        nc = n[c]
+        for jj in range(H):
+            j = (jj - pad) % nc
+            for ch in range(lp.shape[2]):
+                out[jj, c, ch] = lp[j, c, ch]
+
+
+@njit(cache=True, inline="always")
+def fast_angle(dx, dy):
+    """``atan2(dy, dx)`` in ``[0, 2 pi)`` by a minimax polynomial (|error| < 1.2e-5 rad)."""
+    ax, ay = abs(dx), abs(dy)
+    mx = max(ax, ay)
+    if mx == 0.0:
+        return 0.0
+    z = min(ax, ay) / mx
+    s = z * z
+    a = ((-0.0464964749 * s + 0.15931422) * s - 0.327622764) * s * z + z
+    if ay > ax:
+        a = 0.5 * math.pi - a
+    if dx < 0.0:
+        a = math.pi - a
+    if dy < 0.0:
+        a = TWO_PI - a
+    if a >= TWO_PI:
+        a -= TWO_PI
+    return a
+
+
+@njit(cache=True, inline="always")
+def _rows_fast(t, nc):
+    """Rows around ``t`` (>= -0.5) wrapped modulo ``nc``, and the weight of the second; no integer modulo
+    unless ``t`` lies past the column's last row (the seam)."""
+    if t < 0.0:
+        return nc - 1, 0, t + 1.0
+    r0 = int(t)
+    f = t - r0
+    if r0 >= nc - 1:
+        r0 = r0 % nc
+        return r0, (r0 + 1) % nc, f
+    return r0, r0 + 1, f
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def inverse_map_table(lp, utab, inv_step, exact, method, P, gx, gy, Lr, n, w_eff, y0, out):
+    """:func:`inverse_map` with ``u(r)`` read from a table (``utab[k] = u(k / inv_step)``, linear
+    interpolation) except in the intervals flagged in ``exact`` (exact kernel there), and a polynomial polar angle;
+    ``Lr = L / (2 pi)``. Every mapping's column depends on the distance from the gaze only (seed 001 Eq 5;
+    Eq 1, 14-15), so the table is exact up to interpolation."""
+    th, tw = out.shape[0], out.shape[1]
+    kmax = utab.size - 2
+    # Blocks of 64 columns x the tile's rows: a compact screen block reads a compact part of the LP buffer.
+    nb = (tw + 63) // 64
+    for blk in prange(nb * th):
+        b = blk // th
+        j = blk - b * th
+        dy = y0 + j + 0.5 - gy
+        for i in range(b * 64, min(tw, b * 64 + 64)):
+            dx = i + 0.5 - gx
+            s = math.sqrt(dx * dx + dy * dy) * inv_step
+            k = min(int(s), kmax)
+            if exact[k] == 0:
+                f = s - k
+                u = utab[k] * (1.0 - f) + utab[k + 1] * f
+            else:
+                u, _ = point(method, FORWARD, dx, dy, P)
+            theta = fast_angle(dx, dy)
+            uc = min(max(u - 0.5, 0.0), w_eff - 1.0)
+            c0 = int(uc)
+            fu = uc - c0
+            c1 = min(c0 + 1, w_eff - 1)
+            a0, a1, fa = _rows_fast(theta * Lr[c0] - 0.5, n[c0])
+            b0, b1, fb = _rows_fast(theta * Lr[c1] - 0.5, n[c1])
+            w00 = (1.0 - fu) * (1.0 - fa)
+            w01 = (1.0 - fu) * fa
+            w10 = fu * (1.0 - fb)
+            w11 = fu * fb
+            for ch in range(3):
+                out[j, i, ch] = (w00 * lp[a0, c0, ch] + w01 * lp[a1, c0, ch] + w10 * lp[b0, c1, ch]
+                                 + w11 * lp[b1, c1, ch])
+
+
+@njit(cache=True)
+def _raster_triangle(pu, pp, pz, pc, L, n, w_eff, w, zbuf, out, covered, max_extent):
+    """Rasterise one warped triangle (LP coordinates u, phi; depth z; colours c) into the LP buffer: every LP
+    pixel centre inside it takes the barycentric colour if its interpolated depth is the nearest so far."""
+    two_pi = 2.0 * math.pi
+    umin = min(pu[0], min(pu[1], pu[2]))
+    umax = max(pu[0], max(pu[1], pu[2]))
+    if umax - umin > max_extent:
+        return
+    c0 = max(0, int(math.ceil(umin - 0.5)))
+    c1 = min(w_eff - 1, int(math.floor(umax - 0.5)))
+    det = (pu[1] - pu[0]) * (pp[2] - pp[0]) - (pu[2] - pu[0]) * (pp[1] - pp[0])
+    if abs(det) < 1e-18:
+        return
+    pmin = min(pp[0], min(pp[1], pp[2]))
+    pmax = max(pp[0], max(pp[1], pp[2]))
+    for c in range(c0, c1 + 1):
+        if n[c] <= 0:
+            continue
+        per = L[c] / two_pi  # rows per radian in this column
+        if (pmax - pmin) * per > max_extent:
+            continue
+        uc = c + 0.5
+        j0 = int(math.ceil(pmin * per - 0.5))
+        j1 = int(math.floor(pmax * per - 0.5))
+        for j in range(j0, j1 + 1):
+            pc_ = (j + 0.5) / per
+            b1 = ((uc - pu[0]) * (pp[2] - pp[0]) - (pu[2] - pu[0]) * (pc_ - pp[0])) / det
+            b2 = ((pu[1] - pu[0]) * (pc_ - pp[0]) - (uc - pu[0]) * (pp[1] - pp[0])) / det
+            b0 = 1.0 - b1 - b2
+            if b0 < -1e-9 or b1 < -1e-9 or b2 < -1e-9:
+                continue
+            jm = j % n[c]
+            idx = jm * w + c
+            z = b0 * pz[0] + b1 * pz[1] + b2 * pz[2]
+            if z < zbuf[idx]:
+                zbuf[idx] = z
+                for k in range(3):
+                    out[idx, k] = b0 * pc[0, k] + b1 * pc[1, k] + b2 * pc[2, k]
+                covered[idx] = True
+
+
+@njit(cache=True)
+def grid_warp(grid, u, phi, z, col, L, n, w_eff, w, zbuf, out, covered, max_ratio, max_extent):
+    """Forward grid warping (Wissmann et al. 2020) in the LP buffer: the left LP samples ``grid[j, c]`` (index
+    into ``u, phi, z, col``, or -1) form quads with their row and column neighbours; each quad whose corners
+    are all valid and whose depths differ by at most ``max_ratio`` (no depth discontinuity) is split into two
+    triangles, warped to the right view's LP coordinates and rasterised with a depth test."""
+    h = grid.shape[0]
+    two_pi = 2.0 * math.pi
+    pu = np.empty(3)
+    pp = np.empty(3)
+    pz = np.empty(3)
+    pc = np.empty((3, 3))
+    tri = np.empty((2, 3), dtype=np.int64)
+    for c in range(w_eff - 1):
+        for j in range(h - 1):
+            a, b = grid[j, c], grid[j, c + 1]
+            cc, d = grid[j + 1, c], grid[j + 1, c + 1]
+            if a < 0 or b < 0 or cc < 0 or d < 0:
+                continue
+            zmin = min(min(z[a], z[b]), min(z[cc], z[d]))
+            zmax = max(max(z[a], z[b]), max(z[cc], z[d]))
+            if not (zmax < np.inf) or zmin <= 0.0 or zmax > zmin * max_ratio:
+                continue
+            tri[0, 0], tri[0, 1], tri[0, 2] = a, b, d
+            tri[1, 0], tri[1, 1], tri[1, 2] = a, d, cc
+            for t in range(2):
+                for k in range(3):
+                    s = tri[t, k]
+                    pu[k] = u[s]
+                    pp[k] = phi[s]
+                    pz[k] = z[s]
+                    for ch in range(3):
+                        pc[k, ch] = col[s, ch]
+                # unwrap a triangle that straddles the angle seam
+                if max(pp[0], max(pp[1], pp[2])) - min(pp[0], min(pp[1], pp[2])) > math.pi:
+                    for k in range(3):
+                        if pp[k] < math.pi:
+                            pp[k] += two_pi
+                _raster_triangle(pu, pp, pz, pc, L, n, w_eff, w, zbuf, out, covered, max_extent)

@@ -1,0 +1,111 @@
+"""The built-in renderer plug-ins: ``gt``, ``vafr``, ``lmfr``, ``lafr`` (seed 001 §5.2.1, §6, §7).
+
+Common parameters: ``shadows`` (cast shadow rays; the scene and each light may also opt out), ``light_cull``
+(the culling fraction ``eps`` of :mod:`._shade`), ``stereo`` (``mono``: the scene camera; ``dup``: both eyes
+rendered, cameras ``-/+ ipd/2`` along the right vector; VaFR also ``rep``: right eye reprojected, seed §5.1) and
+``eye`` (which eye's image is returned; both are rendered and timed). Foveated renderers add ``pipeline``
+(``raycast``, seed §6.1, or ``deferred``, §3.4).
+"""
+
+from __future__ import annotations
+
+from . import pipeline as pl
+from .foveation import PRESETS, mapping_for
+from .plugin_types import Param, RendererPlugin
+
+COMMON = {
+    "shadows": Param(bool, True, help="cast shadow rays"),
+    "light_cull": Param(float, 0.01, 0.0, 1.0, high_open=True,
+                        help="drop lights whose summed unshadowed share is <= this fraction"),
+    "stereo": Param(str, "mono", choices=("mono", "dup"), help="mono, or both eyes rendered (dup)"),
+    "eye": Param(str, "left", choices=("left", "right"), help="eye returned when stereo"),
+}
+FOVEATED = {"pipeline": Param(str, "raycast", choices=("raycast", "deferred"), help="ray casting or deferred")}
+
+
+def _eyes(ctx):
+    """Cameras of the eyes to render: ``[scene camera]`` or ``[left, right]``."""
+    if ctx.params["stereo"] == "mono":
+        return [ctx.camera]
+    ipd = ctx.scene.display.ipd
+    return [ctx.camera.eye(-ipd / 2.0), ctx.camera.eye(ipd / 2.0)]
+
+
+def _pick(ctx, images):
+    ctx.extra["eyes"] = len(images)
+    return images[-1] if (ctx.params["eye"] == "right" and len(images) > 1) else images[0]
+
+
+def run_gt(ctx):
+    return _pick(ctx, [pl.render_gt(ctx.tracer, cam, ctx.width, ctx.height) for cam in _eyes(ctx)])
+
+
+def _mapping_params(method: str, p: dict) -> dict:
+    if method == "vafr":
+        return {"preset": p["preset"], "e_max": p["e_max"]}
+    if method == "lmfr":
+        return {"delta": p["delta"], "alpha": p["alpha"]}
+    return {"delta": p["delta"], "alpha": p["alpha"], "beta": p["beta"], "a": p["a"]}
+
+
+def _checker(method: str):
+    def check(params: dict, geometry) -> None:
+        mapping_for(method, geometry, **_mapping_params(method, params))  # raises where it is undefined
+    return check
+
+
+def run_foveated(method: str):
+    def run(ctx):
+        p = ctx.params
+        t = ctx.tracer
+        mapping = mapping_for(method, ctx.geometry, **_mapping_params(method, p))
+        layout = pl.LPLayout(mapping)
+        ctx.extra["lp_shape"] = [layout.w, layout.h]
+        ctx.extra["lp_pixels"] = int(layout.mask.sum())
+        ctx.extra["finite_checked"] = True  # finish() checks the LP buffers
+        exposure = ctx.exposure  # FXAA's luma only: the image stays unexposed
+        eyes = _eyes(ctx)
+        images = []
+        if p["stereo"] == "rep":
+            lp, jj, ii, xs, ys, prim, tfar = pl.render_lp(t, eyes[0], layout, p["pipeline"], ctx.width, ctx.height)
+            right_lp, reshaded = pl.reproject(t, layout, lp, jj, ii, xs, ys, prim, tfar, eyes[0], eyes[1],
+                                              ctx.width, ctx.height)
+            t.counters.reshaded_pixels += reshaded
+            ctx.extra["reshaded_share"] = reshaded / max(1, len(jj))
+            for buf in (lp, right_lp):
+                images.append(pl.finish(t, layout, buf, p, ctx.width, ctx.height, exposure, (jj, ii)))
+        else:
+            for cam in eyes:
+                lp, jj, ii = pl.render_lp(t, cam, layout, p["pipeline"], ctx.width, ctx.height)[:3]
+                images.append(pl.finish(t, layout, lp, p, ctx.width, ctx.height, exposure, (jj, ii)))
+        return _pick(ctx, images)
+    return run
+
+
+GT = RendererPlugin("gt", "ground truth: one ray per pixel, every pixel shaded", dict(COMMON), run_gt)
+VAFR = RendererPlugin(
+    "vafr", "visual-acuity-consistent foveated rendering (seed 001): constant LP buffer, FXAA in the LP buffer",
+    {**COMMON, **FOVEATED,
+     "stereo": Param(str, "mono", choices=("mono", "dup", "rep"), help="mono, dup (both eyes) or rep "
+                     "(right eye reprojected from the left LP buffer)"),
+     "fxaa": Param(bool, True, help="FXAA 3.11 (preset 12) in the LP buffer"),
+     "preset": Param(str, "default", choices=tuple(PRESETS), help="acuity curve"),
+     "e_max": Param(float, 60.0, 0.0, 90.0, low_open=True, high_open=True, help="largest eccentricity (deg)")},
+    run_foveated("vafr"), bytes_per_pixel=40.0, check=_checker("vafr"))
+_AA = {"aa": Param(bool, True, help="LMFR anti-aliasing: 3x3 Gaussian in the LP buffer + foveal Gaussian")}
+LMFR = RendererPlugin(
+    "lmfr", "kernel log-polar foveated rendering (Meng et al.), u = w z^alpha",
+    {**COMMON, **FOVEATED, **_AA,
+     "delta": Param(float, 1.8, 1.0, 16.0, low_open=True, help="LP buffer = screen / delta per axis"),
+     "alpha": Param(float, 4.0, 0.0, 16.0, low_open=True, help="kernel exponent")},
+    run_foveated("lmfr"), bytes_per_pixel=40.0, check=_checker("lmfr"))
+LAFR = RendererPlugin(
+    "lafr", "locomotion-aware foveated rendering (Shi et al.), two-part kernel",
+    {**COMMON, **FOVEATED, **_AA,
+     "delta": Param(float, 1.8, 1.0, 16.0, low_open=True, help="LP buffer = screen / delta per axis"),
+     "alpha": Param(float, 0.85, 0.0, 1.0, low_open=True, high_open=True, help="foveal kernel parameter"),
+     "beta": Param(float, 0.7, 0.0, 10.0, low_open=True, help="peripheral kernel parameter"),
+     "a": Param(float, 0.25, 0.0, 1.0, low_open=True, high_open=True, help="LMFR exponent in LaFR convention")},
+    run_foveated("lafr"), bytes_per_pixel=40.0, check=_checker("lafr"))
+
+

@@ -1,0 +1,79 @@
+"""The scene catalogue: built-in scene names, and :func:`resolve` (a name, a YAML file or a Scene -> Scene).
+
+Built-in scenes are registered here by name as ``"module:function"`` references, loaded on first use, so that
+listing the names (protocol validation, ``studyapp scenes``) imports no scene code, and no scene module needs
+to import another's catalogue (no import cycles between the scene generators).
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib
+from pathlib import Path
+
+from data_schema.errors import UserError
+
+from .scene import Scene, load_yaml
+
+#: name -> generator ("module:function" returning a Scene).
+BUILTIN_SCENES = {
+    "cornell": "renderers.procedural:cornell",
+    "temple": "renderers.procedural:temple",
+    "street_night": "renderers.procedural:street_night",
+    "interior": "renderers.procedural:interior",
+    "street_day": "renderers.procedural:street_day",
+    "cornell_many": "renderers.lightcuts.scenes:cornell_many",
+    "study": "renderers.lightcuts.scenes:study",
+    "yard": "renderers.lightcuts.scenes:yard",
+    "sponza_vpl": "renderers.lightcuts.scenes:sponza_vpl",
+}
+
+
+def _load(ref: str):
+    module, _, name = ref.partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
+@functools.lru_cache(maxsize=None)
+def builtin(name: str) -> Scene:
+    """The built-in scene ``name`` (generated once per process)."""
+    if name not in BUILTIN_SCENES:
+        raise UserError(f"scene={name!r} is unknown: built-in scenes are {', '.join(BUILTIN_SCENES)}")
+    return _load(BUILTIN_SCENES[name])()
+
+
+def scene_exists(name: str, folder: Path | None = None) -> bool:
+    """Whether ``name`` is a built-in scene or a scene file (``name``, ``name.yaml``) in ``folder``."""
+    if name in BUILTIN_SCENES:
+        return True
+    return scene_file(name, folder) is not None
+
+
+def scene_file(name: str, folder: Path | None = None) -> Path | None:
+    """The scene file ``name`` or ``name.yaml``/``.yml`` (relative to ``folder``, default the current folder)."""
+    base = Path(folder) if folder is not None else Path.cwd()
+    for cand in (base / name, base / f"{name}.yaml", base / f"{name}.yml"):
+        if cand.is_file():
+            return cand
+    return None
+
+
+def resolve(scene, folder: Path | None = None) -> Scene:
+    """A :class:`Scene` from a built-in name, a YAML path (absolute, or relative to ``folder``) or a Scene."""
+    if isinstance(scene, Scene):
+        s = scene
+    elif isinstance(scene, (str, Path)):
+        if str(scene) in BUILTIN_SCENES:
+            s = builtin(str(scene))
+        else:
+            path = scene_file(str(scene), folder) or (Path(scene) if str(scene).endswith((".yaml", ".yml"))
+                                                      else None)
+            if path is None:
+                raise UserError(f"scene={str(scene)!r} is neither a built-in scene ({', '.join(BUILTIN_SCENES)}) "
+                                "nor a scene file")
+            s = load_yaml(path)
+    else:
+        raise UserError(f"scene={scene!r} is invalid: give a built-in name, a YAML path or a Scene")
+    if s.light_count() == 0:
+        raise UserError(f"scene {s.name!r} has no lights: add a point, directional or emissive light")
+    return s

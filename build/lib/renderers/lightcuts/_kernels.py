@@ -1,0 +1,346 @@
+"""numba kernels of stochastic lightcuts (Lin & Yuksel 2020): bounds, cuts, hierarchical importance sampling.
+
+All kernels take the tree as plain arrays (``bmin``, ``bmax``, ``intensity``, ``light_pos``, ``light_rgb``,
+``n_leaves``) and shading points as ``(P, 3)`` arrays, so they do not depend on any scene class.
+
+Conservative bounds. The geometry bound of a node box seen from ``p`` with normal ``N`` is
+
+    geom = nrm_max / sqrt(nrm_max^2 + tng_min^2),   0 if nrm_max <= 0,
+
+with ``nrm_max = max_box N.(x - p)`` and ``tng_min^2 = min_box (T.(x - p))^2 + min_box (B.(x - p))^2`` for an
+orthonormal frame ``(T, B, N)``; it is an upper bound of ``cos(theta)`` over the box. ``N.(x - p)`` is always
+summed as ``sum_a N_a (x_a - p_a)`` in axis order, so a parent's ``nrm_max`` is >= every leaf's (IEEE
+rounding is monotone) and a node with ``geom = 0`` holds only lights whose contribution is exactly 0:
+skipping such nodes, or giving them probability 0, keeps the estimator unbiased.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+_M1 = np.uint64(0x9E3779B97F4A7C15)
+_M2 = np.uint64(0xBF58476D1CE4E5B9)
+_M3 = np.uint64(0x94D049BB133111EB)
+_INV53 = 1.0 / 9007199254740992.0
+ONE_MINUS = 1.0 - 2.0 ** -53
+
+
+@njit(cache=True)
+def uniform(seed, pixel, slot):
+    """Counter-based uniform number in [0, 1) from (seed, pixel, slot): splitmix64 of a mixed key."""
+    x = np.uint64(seed) * _M1 + np.uint64(pixel) * _M2 + np.uint64(slot) * _M3 + _M1
+    x ^= x >> np.uint64(30)
+    x *= _M2
+    x ^= x >> np.uint64(27)
+    x *= _M3
+    x ^= x >> np.uint64(31)
+    return float(x >> np.uint64(11)) * _INV53
+
+
+@njit(cache=True)
+def frame(n0, n1, n2):
+    """Orthonormal tangents (T, B) of a unit normal (Duff et al. 2017)."""
+    sign = 1.0 if n2 >= 0.0 else -1.0
+    a = -1.0 / (sign + n2)
+    b = n0 * n1 * a
+    return (1.0 + sign * n0 * n0 * a, sign * b, -sign * n0), (b, sign + n1 * n1 * a, -n1)
+
+
+@njit(cache=True)
+def dot_interval(v0, v1, v2, p, bmin, bmax, k):
+    """Range ``[lo, hi]`` of ``v.(x - p)`` over the box of node ``k``."""
+    lo = 0.0
+    hi = 0.0
+    for a in range(3):
+        va = v0 if a == 0 else (v1 if a == 1 else v2)
+        x0 = va * (bmin[k, a] - p[a])
+        x1 = va * (bmax[k, a] - p[a])
+        if x0 < x1:
+            lo += x0
+            hi += x1
+        else:
+            lo += x1
+            hi += x0
+    return lo, hi
+
+
+@njit(cache=True)
+def geom_bound(p, n, t, b, bmin, bmax, k):
+    """Upper bound of ``cos(theta)`` over the box of node ``k`` (0 if the box is behind the surface)."""
+    _, nrm_max = dot_interval(n[0], n[1], n[2], p, bmin, bmax, k)
+    if nrm_max <= 0.0:
+        return 0.0
+    lo_t, hi_t = dot_interval(t[0], t[1], t[2], p, bmin, bmax, k)
+    lo_b, hi_b = dot_interval(b[0], b[1], b[2], p, bmin, bmax, k)
+    tt = 0.0 if lo_t <= 0.0 <= hi_t else min(abs(lo_t), abs(hi_t))
+    bb = 0.0 if lo_b <= 0.0 <= hi_b else min(abs(lo_b), abs(hi_b))
+    return nrm_max / math.sqrt(nrm_max * nrm_max + tt * tt + bb * bb)
+
+
+@njit(cache=True)
+def box_dist2(p, bmin, bmax, k):
+    """Squared distances from ``p`` to the closest and the farthest point of node ``k``'s box."""
+    dmin = 0.0
+    dmax = 0.0
+    for a in range(3):
+        lo = bmin[k, a] - p[a]
+        hi = bmax[k, a] - p[a]
+        if lo > 0.0:
+            dmin += lo * lo
+        elif hi < 0.0:
+            dmin += hi * hi
+        m = max(abs(lo), abs(hi))
+        dmax += m * m
+    return dmin, dmax
+
+
+@njit(cache=True)
+def box_terms(p, n, t, b, bmin, bmax, k):
+    """``(geom_bound, dmin^2, dmax^2)`` of node ``k`` in one pass over its box (see ``geom_bound``)."""
+    nlo = 0.0
+    nhi = 0.0
+    tlo = 0.0
+    thi = 0.0
+    blo = 0.0
+    bhi = 0.0
+    dmin = 0.0
+    dmax = 0.0
+    for a in range(3):
+        lo = bmin[k, a] - p[a]
+        hi = bmax[k, a] - p[a]
+        x0 = n[a] * lo
+        x1 = n[a] * hi
+        nlo += min(x0, x1)
+        nhi += max(x0, x1)
+        x0 = t[a] * lo
+        x1 = t[a] * hi
+        tlo += min(x0, x1)
+        thi += max(x0, x1)
+        x0 = b[a] * lo
+        x1 = b[a] * hi
+        blo += min(x0, x1)
+        bhi += max(x0, x1)
+        c = max(lo, 0.0) + min(hi, 0.0)  # lo if lo > 0, hi if hi < 0, else 0
+        dmin += c * c
+        m = max(-lo, hi)
+        dmax += m * m
+    if nhi <= 0.0:
+        return 0.0, dmin, dmax
+    tt = 0.0 if tlo <= 0.0 <= thi else min(abs(tlo), abs(thi))
+    bb = 0.0 if blo <= 0.0 <= bhi else min(abs(blo), abs(bhi))
+    return nhi / math.sqrt(nhi * nhi + tt * tt + bb * bb), dmin, dmax
+
+
+@njit(cache=True)
+def error_bound(p, n, t, b, bmin, bmax, inten, n_leaves, k, clamp2):
+    """Cut-refinement error ``I geom / max(dmin^2, clamp^2)``; 0 for leaves and empty nodes."""
+    if k >= n_leaves or inten[k] <= 0.0:
+        return 0.0
+    g, dmin, _ = box_terms(p, n, t, b, bmin, bmax, k)
+    if g <= 0.0:
+        return 0.0
+    return inten[k] * g / max(dmin, clamp2)
+
+
+@njit(cache=True)
+def prob_left(p, n, t, b, bmin, bmax, inten, k, clamp2):
+    """Probability of descending from node ``k`` to its left child ``2k``.
+
+    Weight ``w = I geom``; the probability averages the normalised weights divided by the closest-point and by
+    the farthest-point squared distances (both clamped below by ``clamp2``). It is > 0 whenever the left
+    subtree can contribute and 0 when it cannot.
+    """
+    c0 = 2 * k
+    c1 = c0 + 1
+    i0 = inten[c0]
+    i1 = inten[c1]
+    if i0 <= 0.0:
+        return 0.0
+    if i1 <= 0.0:
+        return 1.0
+    g0, dmin0, dmax0 = box_terms(p, n, t, b, bmin, bmax, c0)
+    g1, dmin1, dmax1 = box_terms(p, n, t, b, bmin, bmax, c1)
+    w0 = i0 * g0
+    w1 = i1 * g1
+    if w0 + w1 <= 0.0:
+        return i0 / (i0 + i1)
+    if w0 <= 0.0:
+        return 0.0
+    if w1 <= 0.0:
+        return 1.0
+    a0 = w0 / max(dmin0, clamp2)
+    a1 = w1 / max(dmin1, clamp2)
+    f0 = w0 / max(dmax0, clamp2)
+    f1 = w1 / max(dmax1, clamp2)
+    return 0.5 * (a0 / (a0 + a1) + f0 / (f0 + f1))
+
+
+@njit(cache=True)
+def descend(p, n, t, b, bmin, bmax, inten, n_leaves, node, u, clamp2):
+    """Hierarchical importance sampling from ``node`` to a leaf with one uniform ``u`` rescaled per level.
+
+    Returns ``(leaf_node, pdf)`` where ``pdf`` is the product of the branch probabilities.
+    """
+    pdf = 1.0
+    while node < n_leaves:
+        pl = prob_left(p, n, t, b, bmin, bmax, inten, node, clamp2)
+        if u < pl:
+            node = 2 * node
+            u = u / pl
+            pdf *= pl
+        else:
+            node = 2 * node + 1
+            u = (u - pl) / (1.0 - pl)
+            pdf *= 1.0 - pl
+        u = min(u, ONE_MINUS)
+    return node, pdf
+
+
+@njit(cache=True)
+def leaf_pdf(p, n, t, b, bmin, bmax, inten, n_leaves, node, leaf, clamp2):
+    """Probability that ``descend`` from ``node`` ends at ``leaf`` (0 if ``leaf`` is not below ``node``)."""
+    depth_node = 0
+    x = node
+    while x > 1:
+        x >>= 1
+        depth_node += 1
+    depth_leaf = 0
+    x = leaf
+    while x > 1:
+        x >>= 1
+        depth_leaf += 1
+    shift = depth_leaf - depth_node
+    if shift < 0 or (leaf >> shift) != node:
+        return 0.0
+    pdf = 1.0
+    k = node
+    for s in range(shift - 1, -1, -1):
+        pl = prob_left(p, n, t, b, bmin, bmax, inten, k, clamp2)
+        if (leaf >> s) & 1:
+            pdf *= 1.0 - pl
+            k = 2 * k + 1
+        else:
+            pdf *= pl
+            k = 2 * k
+    return pdf
+
+
+@njit(cache=True, parallel=True)
+def build_cuts(pos, nrm, budget, bmin, bmax, inten, n_leaves, clamp2, cut, err):
+    """Refine each pixel's cut from the root to ``budget[i]`` nodes by the largest error bound.
+
+    ``cut`` (P, B) receives the node ids sorted ascending (heap offsets), ``err`` (P, B) is scratch.
+    Refinement stops early when every cut node has error 0 (leaves, empty or back-facing nodes).
+    Returns the cut sizes (P,).
+    """
+    n_pix = pos.shape[0]
+    size = np.zeros(n_pix, dtype=np.int32)
+    for i in prange(n_pix):
+        nb = budget[i]
+        if nb <= 0:
+            continue
+        p = pos[i]
+        nn = nrm[i]
+        t, b = frame(nn[0], nn[1], nn[2])
+        cut[i, 0] = 1
+        err[i, 0] = error_bound(p, nn, t, b, bmin, bmax, inten, n_leaves, 1, clamp2)
+        m = 1
+        while m < nb:
+            j = 0
+            for q in range(1, m):
+                if err[i, q] > err[i, j]:
+                    j = q
+            if err[i, j] <= 0.0:
+                break
+            k = cut[i, j]
+            cut[i, j] = 2 * k
+            err[i, j] = error_bound(p, nn, t, b, bmin, bmax, inten, n_leaves, 2 * k, clamp2)
+            cut[i, m] = 2 * k + 1
+            err[i, m] = error_bound(p, nn, t, b, bmin, bmax, inten, n_leaves, 2 * k + 1, clamp2)
+            m += 1
+        for q in range(1, m):  # insertion sort by heap offset
+            v = cut[i, q]
+            r = q - 1
+            while r >= 0 and cut[i, r] > v:
+                cut[i, r + 1] = cut[i, r]
+                r -= 1
+            cut[i, r + 1] = v
+        size[i] = m
+    return size
+
+
+@njit(cache=True)
+def node_live(p, n, t, b, bmin, bmax, inten, k):
+    """True if node ``k`` can contribute at ``p`` (non-zero intensity and geometry bound)."""
+    return inten[k] > 0.0 and geom_bound(p, n, t, b, bmin, bmax, k) > 0.0
+
+
+@njit(cache=True, parallel=True)
+def sample_cuts(pos, nrm, pix_id, cut, size, bmin, bmax, inten, n_leaves, clamp2, seed, leaf, pdf):
+    """One light per cut node by hierarchical importance sampling; ``leaf = -1`` where a node cannot contribute."""
+    for i in prange(pos.shape[0]):
+        p = pos[i]
+        nn = nrm[i]
+        t, b = frame(nn[0], nn[1], nn[2])
+        for s in range(size[i]):
+            k = cut[i, s]
+            if not node_live(p, nn, t, b, bmin, bmax, inten, k):
+                leaf[i, s] = -1
+                pdf[i, s] = 0.0
+                continue
+            u = uniform(seed, pix_id[i], 2 * s)
+            lf, pr = descend(p, nn, t, b, bmin, bmax, inten, n_leaves, k, u, clamp2)
+            leaf[i, s] = lf
+            pdf[i, s] = pr
+        for s in range(size[i], leaf.shape[1]):
+            leaf[i, s] = -1
+            pdf[i, s] = 0.0
+
+
+@njit(cache=True, parallel=True)
+def shade_samples(pos, nrm, alb, leaf, pdf, light_pos, light_rgb, light_nrm, one_sided, n_leaves, clamp2,
+                  contrib):
+    """Unshadowed Lambertian estimate of each sample: ``albedo/pi * I_rgb * cos / max(d^2, clamp2) / pdf``,
+    times the emitter cosine ``max(0, n_l . (p - x_l) / d)`` when ``one_sided``.
+
+    Returns a boolean (P, S) mask of the samples that need a shadow ray (non-zero contribution).
+    """
+    n_pix, n_s = leaf.shape
+    need = np.zeros((n_pix, n_s), dtype=np.bool_)
+    for i in prange(n_pix):
+        p = pos[i]
+        nn = nrm[i]
+        for s in range(n_s):
+            contrib[i, s, 0] = 0.0
+            contrib[i, s, 1] = 0.0
+            contrib[i, s, 2] = 0.0
+            lf = leaf[i, s]
+            if lf < 0 or pdf[i, s] <= 0.0:
+                continue
+            j = lf - n_leaves
+            cosnum = 0.0
+            d2 = 0.0
+            for a in range(3):
+                d = light_pos[j, a] - p[a]
+                cosnum += nn[a] * d
+                d2 += d * d
+            if cosnum <= 0.0:
+                continue
+            g = cosnum / math.sqrt(d2) / max(d2, clamp2) / (math.pi * pdf[i, s])
+            if one_sided and (light_nrm[j, 0] != 0.0 or light_nrm[j, 1] != 0.0 or light_nrm[j, 2] != 0.0):
+                em = 0.0
+                for a in range(3):
+                    em -= light_nrm[j, a] * (light_pos[j, a] - p[a])
+                if em <= 0.0:
+                    continue
+                g *= em / math.sqrt(d2)
+            tot = 0.0
+            for c in range(3):
+                v = alb[i, c] * light_rgb[j, c] * g
+                contrib[i, s, c] = v
+                tot += v
+            need[i, s] = tot > 0.0
+    return need

@@ -1,0 +1,110 @@
+"""One-bounce glossy pass (seed 003 Algorithm 1 lines 16–17: ``FoveatedPT`` with ``rspp = MAX_rspp · map``).
+
+For a glossy or metallic pixel with specular colour ``k_s`` and Blinn-Phong exponent ``s`` (the scene model's
+``f_s = k_s (s + 8) / (8π) (n·h)^s``), ``count`` half-vectors are drawn with density
+``(s + 1)/(2π) (n·h)^s``; the reflected direction ``w_i = 2 (v·h) h − v`` has density
+``(s + 1)/(2π) (n·h)^s / (4 v·h)``, so each ray carries the weight
+
+    f_s cos θ_i / pdf(w_i) = k_s (s + 8) (n·w_i) (v·h) / (s + 1)          (0 below the surface)
+
+times the radiance found at its first hit: emission + ambient + direct diffuse light from stochastic
+lightcuts with ``lspp_bounce`` nodes (one bounce: the hit's own gloss is not followed). The pixel value is the
+mean over its rays. Pixels with ``count = 0`` cast no ray; an all-diffuse scene casts none at all.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from data_schema.errors import UserError
+
+from . import _kernels as K
+from .sampling import stochastic_lightcuts
+
+_STREAM = 1 << 24  # slot offset: glossy random numbers never reuse the light-sampling slots
+
+
+@njit(cache=True, parallel=True)
+def sample_lobe(P, N, V, ks, s_exp, counts, first, pix_id, seed, offset, orig, dirs, weight):
+    """Fill the rays of every pixel ``i`` at ``first[i] .. first[i] + counts[i]`` (see the module docstring)."""
+    for i in prange(P.shape[0]):
+        c = counts[i]
+        if c == 0:
+            continue
+        n = N[i]
+        t, b = K.frame(n[0], n[1], n[2])
+        s = s_exp[i]
+        for r in range(c):
+            j = first[i] + r
+            u1 = K.uniform(seed, pix_id[i], _STREAM + 2 * r)
+            u2 = K.uniform(seed, pix_id[i], _STREAM + 2 * r + 1)
+            cos_h = u1 ** (1.0 / (s + 1.0))
+            sin_h = math.sqrt(max(0.0, 1.0 - cos_h * cos_h))
+            phi = 2.0 * math.pi * u2
+            ct, st = math.cos(phi) * sin_h, math.sin(phi) * sin_h
+            voh = 0.0
+            h = np.empty(3)
+            for a in range(3):
+                h[a] = cos_h * n[a] + ct * t[a] + st * b[a]
+                voh += V[i, a] * h[a]
+            cos_i = 0.0
+            for a in range(3):
+                dirs[j, a] = 2.0 * voh * h[a] - V[i, a]
+                cos_i += n[a] * dirs[j, a]
+                orig[j, a] = P[i, a] + offset * n[a]
+            if voh <= 0.0 or cos_i <= 0.0:
+                for a in range(3):
+                    weight[j, a] = 0.0
+                    dirs[j, a] = n[a]
+                continue
+            g = (s + 8.0) * cos_i * voh / ((s + 1.0) * c)
+            for a in range(3):
+                weight[j, a] = ks[i, a] * g
+
+
+def glossy_pass(hits, counts, seed: int, trace, tree, occluded, lspp_bounce: int = 1,
+                max_rays: int = 1 << 20):
+    """Glossy radiance ``(n, 3)`` of the pixels of ``hits`` with ``counts`` rays each, and the rays cast.
+
+    ``trace(origins, dirs)`` returns the hits of the bounce rays (an object with ``gbuf`` and ``base``).
+    Pixels are processed in chunks of at most ``max_rays`` rays.
+    """
+    counts = np.asarray(counts, dtype=np.int64).reshape(-1)
+    if np.any(counts < 0):
+        raise UserError("rspp must be >= 0")
+    g = hits.gbuf
+    n = g.n
+    out = np.zeros((n, 3))
+    total = 0
+    offset = 1e-4 * max(tree.scene_radius, 1e-9)
+    idx = np.nonzero(counts)[0]
+    start = 0
+    while start < len(idx):
+        csum = np.cumsum(counts[idx[start:]])
+        stop = start + max(1, int(np.searchsorted(csum, max_rays, side="right")))
+        sel = idx[start:stop]
+        c = counts[sel]
+        m = int(c.sum())
+        first = np.concatenate([[0], np.cumsum(c)[:-1]]).astype(np.int64)
+        orig = np.empty((m, 3))
+        dirs = np.empty((m, 3))
+        weight = np.empty((m, 3))
+        sample_lobe(g.position[sel], g.normal[sel], hits.view[sel], hits.ks[sel], hits.s_exp[sel], c, first,
+                    sel.astype(np.int64), np.uint64(seed), offset, orig, dirs, weight)
+        live = np.any(weight > 0, axis=1)
+        if live.any():
+            bounce = trace(orig[live], dirs[live])
+            rad = bounce.base.copy()
+            if lspp_bounce > 0:
+                rad += stochastic_lightcuts(tree, bounce.gbuf, lspp_bounce, seed=seed + 7919,
+                                            occluded=occluded).radiance.reshape(-1, 3)
+            owner = np.repeat(np.arange(len(sel)), c)[live]
+            contrib = weight[live] * rad
+            for a in range(3):
+                out[sel, a] += np.bincount(owner, weights=contrib[:, a], minlength=len(sel))
+            total += int(live.sum())
+        start = stop
+    return out, total

@@ -1,0 +1,333 @@
+"""Renderer plug-ins of issue 6 on the scene model of ``renderers``: ``fsl``, ``sl_e``, ``sl_f``, ``sl_p``,
+``sl_as``, ``sl_gt``.
+
+Every plug-in renders one frame: primary rays through pixel centres (Embree via ``renderers.tracer``), a
+G-buffer (hit position, face normal turned towards the camera, textured albedo of the scene's materials),
+direct diffuse light from the scene's lights through a light tree (emissive triangles become one-sided point
+lights at their centroids with ``L_e · area``, large ones split first, ``mesh_lights``; point lights are
+isotropic; directional lights are not part of
+the many-light model and are ignored, counted in ``extra["directional_lights_ignored"]``), plus emission and
+ambient as in the built-in renderers. Glossy and metallic materials add the one-bounce glossy pass
+(``glossy.py``, seed 003 Algorithm 1 line 16–17), skipped when the scene has none.
+
+* ``fsl`` — ours: ``foveated_lightcuts`` (FPSM budgets, multi-resolution selection), ``rspp = ceil(MAX_rspp ·
+  map)`` glossy rays per glossy pixel.
+* ``sl_e``, ``sl_f``, ``sl_p`` — stochastic lightcuts with a uniform ``lspp`` and ``rspp`` per pixel (the
+  three differ only in how the tables choose the counts: equal time, equal foveal MSE, equal peripheral MSE).
+* ``sl_as`` — counts ``ceil(AFSM · MAX)`` with Stengel's adaptive foveated sampling map (``fb_st`` of Eq 1).
+* ``sl_gt`` — ground truth: ``passes`` independent SL estimates of ``MAX_lspp`` nodes averaged (2048 light
+  samples per pixel by default) and 2048 glossy rays, in tiles.
+
+The velocity buffer is zero (one frame, no previous camera in the render context).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from numba import njit, prange
+
+from renderers._shade import texture_weight
+from renderers.plugin_types import Param, RendererPlugin
+
+from .foveated import foveated_lightcuts
+from .fpsm import acuity_map, eccentricity_map, light_budget, screen_velocity, spatiotemporal_feature
+from .glossy import glossy_pass
+from .sampling import GBuffer, stochastic_lightcuts
+from .tree import LightTree, build_light_tree
+from .visibility import EmbreeOccluder
+
+_TREES: dict[str, LightTree] = {}
+_OCCLUDERS: dict[str, EmbreeOccluder] = {}
+
+
+def split_triangles(tri: np.ndarray, times: int) -> np.ndarray:
+    """Midpoint subdivision, ``times`` rounds: ``(m, 3, 3)`` triangles -> ``(m 4^times, 3, 3)``, same winding."""
+    for _ in range(times):
+        a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+        ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
+        tri = np.stack([np.stack(t, axis=1) for t in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))],
+                       axis=1).reshape(-1, 3, 3)
+    return tri
+
+
+def mesh_lights(vertices, faces, emission, max_edge: float, max_splits: int = 4):
+    """Point lights of emissive triangles: ``(positions, normals, intensities)``.
+
+    Triangles whose longest edge exceeds ``max_edge`` are split ``ceil(log2(edge / max_edge))`` times (at most
+    ``max_splits``: 4^k pieces); each piece is a one-sided light at its centroid with intensity
+    ``L_e · area`` along its normal (the scene model's emitter, so the total power is unchanged).
+    """
+    tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
+    emission = np.asarray(emission, dtype=np.float64).reshape(-1, 3)
+    edge = np.max(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2), axis=1) if len(tri) else np.zeros(0)
+    with np.errstate(divide="ignore"):
+        k = np.clip(np.ceil(np.log2(np.maximum(edge, 1e-300) / max_edge)), 0, max_splits).astype(int)
+    pos, nrm, rgb = [np.zeros((0, 3))], [np.zeros((0, 3))], [np.zeros((0, 3))]
+    for times in np.unique(k):
+        sel = k == times
+        sub = split_triangles(tri[sel], int(times))
+        cross = np.cross(sub[:, 1] - sub[:, 0], sub[:, 2] - sub[:, 0])
+        area2 = np.linalg.norm(cross, axis=1)
+        ok = area2 > 0
+        pos.append(sub[ok].mean(axis=1))
+        nrm.append(cross[ok] / area2[ok, None])
+        rgb.append(np.repeat(emission[sel], 4 ** int(times), axis=0)[ok] * 0.5 * area2[ok, None])
+    return np.concatenate(pos), np.concatenate(nrm), np.concatenate(rgb)
+
+
+def scene_light_tree(scene, max_edge_frac: float = 0.01) -> LightTree:
+    """Light tree of a ``renderers.scene.Scene`` (built once per scene content).
+
+    Emissive triangles become point lights (``mesh_lights``, split until their edges are below
+    ``max_edge_frac`` of the scene diagonal); point lights are isotropic; a ``VPLScene``'s VPLs are added.
+    """
+    key = f"{scene.content_hash()}:{max_edge_frac}"
+    tree = _TREES.get(key)
+    if tree is None:
+        em = np.array([m.emissive for m in scene.materials])[scene.material_ids]
+        emission = np.array([m.emission for m in scene.materials])[scene.material_ids[em]]
+        lights = [mesh_lights(scene.vertices, scene.faces[em], emission, max_edge_frac * scene.scale)]
+        if getattr(scene, "vpl", None) is not None:
+            lights.append(scene.vpl)
+        if scene.point_lights:
+            lights.append((np.array([L.position for L in scene.point_lights], dtype=np.float64),
+                           np.zeros((len(scene.point_lights), 3)),
+                           np.array([L.intensity for L in scene.point_lights], dtype=np.float64)))
+        pos, nrm, rgb = (np.concatenate([x[i] for x in lights]) for i in range(3))
+        tree = build_light_tree(pos, rgb, nrm)
+        _TREES.clear()
+        _TREES[key] = tree
+    return tree
+
+
+def scene_occluder(scene) -> EmbreeOccluder | None:
+    if not scene.shadows:
+        return None
+    key = scene.content_hash()
+    occ = _OCCLUDERS.get(key)
+    if occ is None:
+        occ = EmbreeOccluder(scene.vertices, scene.faces)
+        _OCCLUDERS.clear()
+        _OCCLUDERS[key] = occ
+    return occ
+
+
+@njit(cache=True, parallel=True)
+def _hit_materials(P, Ng, mid, mat_f, mat_i, ambient, albedo, base, ks, s_exp, glossy):
+    """Per hit: diffuse albedo (0 for metallic), emission + ambient, specular colour, exponent, glossy flag."""
+    for i in prange(P.shape[0]):
+        m = mid[i]
+        w = texture_weight(mat_i[m, 0], mat_f[m, 9], P[i, 0], P[i, 1], P[i, 2], Ng[i, 0], Ng[i, 1], Ng[i, 2])
+        metallic = mat_f[m, 12] > 0.5
+        gl = mat_f[m, 13] > 0.5 or metallic
+        for c in range(3):
+            a = w * mat_f[m, c] + (1.0 - w) * mat_f[m, 3 + c]
+            albedo[i, c] = 0.0 if metallic else a
+            base[i, c] = mat_f[m, 6 + c] + (0.0 if metallic else ambient[c] * a)
+            ks[i, c] = (a if metallic else mat_f[m, 11]) if gl else 0.0
+        s_exp[i] = mat_f[m, 10]
+        glossy[i] = gl
+
+
+class Hits:
+    """G-buffer of rays ``origin + t d``: ``gbuf`` (GBuffer), ``base`` emission + ambient, ``ks``, ``s_exp``,
+    ``glossy`` (bool), ``view`` (unit direction to the viewer) — flat arrays of the rays' count."""
+
+    def __init__(self, tracer, origins, dirs, shape=None):
+        sc = tracer.scene
+        d = np.ascontiguousarray(dirs, dtype=np.float64)
+        o = np.broadcast_to(np.asarray(origins, dtype=np.float64), d.shape)
+        res = tracer.es.run(np.ascontiguousarray(o, dtype=np.float32), np.ascontiguousarray(d, dtype=np.float32),
+                            output=1)
+        prim = np.asarray(res["primID"])
+        hit = prim >= 0
+        pi = np.where(hit, prim, 0)
+        t = np.asarray(res["tfar"], dtype=np.float64)
+        P = np.where(hit[:, None], o + d * t[:, None], 0.0)
+        tri = sc.vertices[sc.faces[pi]].astype(np.float64)
+        Ng = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        Ng /= np.maximum(np.linalg.norm(Ng, axis=1, keepdims=True), 1e-300)
+        Ng[np.einsum("ij,ij->i", Ng, d) > 0] *= -1.0
+        n = len(d)
+        self.albedo = np.zeros((n, 3))
+        self.base = np.zeros((n, 3))
+        self.ks = np.zeros((n, 3))
+        self.s_exp = np.zeros(n)
+        self.glossy = np.zeros(n, dtype=np.bool_)
+        _hit_materials(P, Ng, sc.material_ids[pi], tracer.mat_f, tracer.mat_i, tracer.ambient, self.albedo,
+                       self.base, self.ks, self.s_exp, self.glossy)
+        self.glossy &= hit
+        self.base[~hit] = tracer.background
+        self.hit = hit
+        self.view = -d
+        shape = (n,) if shape is None else tuple(shape)
+        self.gbuf = GBuffer.create(P.reshape(shape + (3,)), np.where(hit[:, None], Ng, 0.0).reshape(shape + (3,)),
+                                   self.albedo.reshape(shape + (3,)), valid=hit)
+        tracer.counters.rays_primary += n
+        tracer.counters.missed_rays += int(n - hit.sum())
+
+
+def primary_hits(tracer, camera, width: int, height: int) -> Hits:
+    from renderers.tracer import camera_rays
+
+    x, y = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
+    return Hits(tracer, np.asarray(camera.position, dtype=np.float64), camera_rays(camera, width, height, x, y),
+                (height, width))
+
+
+def _low_res(width: int, height: int) -> tuple[int, int]:
+    """Seed 003: ``(w', h') = (w/8, h/8)`` (at least one pixel)."""
+    return max(1, width // 8), max(1, height // 8)
+
+
+def _finish(ctx, hits: Hits, diffuse: np.ndarray, rspp, seed: int, lspp_bounce: int = 1) -> np.ndarray:
+    """Emission + ambient + diffuse + the glossy pass (only if the scene has a glossy or metallic material)."""
+    h, w = ctx.height, ctx.width
+    tree, occ = scene_light_tree(ctx.scene), scene_occluder(ctx.scene)
+    img = hits.base + diffuse.reshape(-1, 3)
+    ctx.tracer.counters.shading_points += int(hits.hit.sum())  # every primary hit is shaded (missed rays not)
+    has_glossy = any(m.kind in ("glossy", "metallic") for m in ctx.scene.materials)
+    rays = 0
+    if has_glossy and hits.glossy.any():
+        counts = np.where(hits.glossy, np.broadcast_to(np.asarray(rspp), (h, w)).reshape(-1), 0).astype(np.int64)
+        gl, rays = glossy_pass(hits, counts, seed, lambda o, d: Hits(ctx.tracer, o, d), tree, occ, lspp_bounce)
+        img = img + gl
+        ctx.extra["glossy_image"] = gl.reshape(h, w, 3).astype(np.float32)
+    ctx.extra["glossy_rays"] = int(rays)
+    ctx.extra["glossy_pass"] = bool(has_glossy)
+    ctx.extra["directional_lights_ignored"] = len(ctx.scene.directional_lights)
+    ctx.extra["diffuse_image"] = (hits.base + diffuse.reshape(-1, 3)).reshape(h, w, 3).astype(np.float32)
+    ctx.extra["glossy_mask"] = hits.glossy.reshape(h, w).copy()
+    return img.reshape(h, w, 3).astype(np.float32)  # linear, unexposed (the renderer output contract)
+
+
+def _sl(ctx, budget, seed: int):
+    tree, occ = scene_light_tree(ctx.scene), scene_occluder(ctx.scene)
+    hits = primary_hits(ctx.tracer, ctx.camera, ctx.width, ctx.height)
+    t0 = time.perf_counter()
+    res = stochastic_lightcuts(tree, hits.gbuf, budget, seed=seed, occluded=occ)
+    ctx.tracer.counters.add_time("shading", t0)
+    ctx.tracer.counters.rays_shadow += res.shadow_rays
+    ctx.extra["spp"] = res.samples.reshape(ctx.height, ctx.width)
+    return hits, res.radiance
+
+
+def run_sl_uniform(ctx):
+    p = ctx.params
+    hits, diffuse = _sl(ctx, int(p["lspp"]), p["seed"])
+    return _finish(ctx, hits, diffuse, int(p["rspp"]), p["seed"])
+
+
+def view_projection(camera, width: int, height: int) -> np.ndarray:
+    """World -> clip matrix (4x4, column vectors) of the tracer's pinhole camera (``camera_rays``).
+
+    With ``v = p - eye`` and the camera basis ``(f, r, u)``: ``clip = (r.v / (t a), u.v / t, 0, f.v)``,
+    ``t = tan(fov_y / 2)``, ``a = width / height``, so ``x = (ndc_x + 1) w / 2`` and ``y = (1 - ndc_y) h / 2`` are
+    the screen position whose ray ``camera_rays`` shoots through ``p``.
+    """
+    f, r, u = camera.basis()
+    e = np.asarray(camera.position, dtype=np.float64)
+    t = math.tan(math.radians(camera.fov_y) / 2.0)
+    a = width / height
+    m = np.zeros((4, 4))
+    m[0, :3], m[0, 3] = r / (t * a), -(r @ e) / (t * a)
+    m[1, :3], m[1, 3] = u / t, -(u @ e) / t
+    m[3, :3], m[3, 3] = f, -(f @ e)
+    return m
+
+
+def _velocity(ctx, hits) -> np.ndarray:
+    """Screen-space motion (pixels, (h, w, 2)) of the visible points from the previous frame's camera to this
+    one (seed 003 §3.1's velocity buffer); zero without a previous camera and for rays that missed."""
+    h, w = ctx.height, ctx.width
+    if ctx.previous_camera is None:
+        return np.zeros((h, w, 2))
+    pos = hits.gbuf.position.reshape(h, w, 3)
+    vel = screen_velocity(pos, view_projection(ctx.camera, w, h), view_projection(ctx.previous_camera, w, h),
+                          w, h)
+    return np.where(hits.hit.reshape(h, w, 1), vel, 0.0)
+
+
+def _eccentricity(ctx):
+    return eccentricity_map(ctx.geometry)
+
+
+def run_sl_as(ctx):
+    """Stengel's adaptive foveated sampling map (Eq 1 without the luminance term) drives both counts."""
+    p = ctx.params
+    hits = primary_hits(ctx.tracer, ctx.camera, ctx.width, ctx.height)
+    h, w = ctx.height, ctx.width
+    afsm = spatiotemporal_feature(acuity_map(_eccentricity(ctx)), hits.gbuf.normal.reshape(h, w, 3),
+                                  hits.albedo.reshape(h, w, 3), _velocity(ctx, hits))
+    ctx.extra["afsm"] = afsm.astype(np.float32)
+    lspp = light_budget(afsm, p["max_lspp"])
+    _, diffuse = _sl(ctx, lspp, p["seed"])
+    return _finish(ctx, hits, diffuse, light_budget(afsm, p["max_rspp"]), p["seed"])
+
+
+def run_fsl(ctx):
+    p = ctx.params
+    tree, occ = scene_light_tree(ctx.scene), scene_occluder(ctx.scene)
+    h, w = ctx.height, ctx.width
+    hits = primary_hits(ctx.tracer, ctx.camera, w, h)
+    wl, hl = _low_res(w, h)
+    from renderers.tracer import camera_rays
+
+    x, y = np.meshgrid((np.arange(wl) + 0.5) * w / wl, (np.arange(hl) + 0.5) * h / hl)
+    low = Hits(ctx.tracer, np.asarray(ctx.camera.position, dtype=np.float64), camera_rays(ctx.camera, w, h, x, y),
+               (hl, wl))
+    t0 = time.perf_counter()
+    res = foveated_lightcuts(tree, hits.gbuf, low.gbuf, _eccentricity(ctx), _velocity(ctx, hits), p["alpha"],
+                             p["max_lspp"], seed=p["seed"], occluded=occ, multires=p["multires"])
+    ctx.tracer.counters.add_time("shading", t0)
+    ctx.tracer.counters.rays_shadow += res.shadow_rays
+    ctx.extra.update(fpsm=res.fpsm.map.astype(np.float32), spp=res.samples, reused=int(res.reused.sum()),
+                     steps={k: round(v, 6) for k, v in res.timings.items()})
+    rspp = np.ceil(res.fpsm.map * p["max_rspp"] - 1e-9).astype(np.int64)
+    return _finish(ctx, hits, res.radiance, rspp, p["seed"])
+
+
+def run_sl_gt(ctx):
+    """Averages ``ceil(lspp / max_lspp)`` independent estimates of ``max_lspp`` nodes (progressive)."""
+    p = ctx.params
+    passes = max(1, math.ceil(p["lspp"] / p["max_lspp"]))
+    hits = None
+    acc = None
+    for k in range(passes):
+        hits, diffuse = _sl(ctx, int(p["max_lspp"]), p["seed"] * 100003 + k)
+        acc = diffuse if acc is None else acc + diffuse
+    ctx.extra["passes"] = passes
+    return _finish(ctx, hits, acc / passes, int(p["rspp"]), p["seed"], lspp_bounce=4)
+
+
+_SEED = {"seed": Param(int, 0, 0, 2 ** 31 - 1, help="random stream")}
+_MAXES = {"max_lspp": Param(int, 48, 1, 4096, help="MAX_lspp (seed 003: 48)"),
+          "max_rspp": Param(int, 48, 0, 4096, help="MAX_rspp (seed 003: 48)")}
+_BPP = 200.0  # full-frame float64 buffers; the per-sample arrays are tiled
+
+FSL = RendererPlugin(
+    "fsl", "foveated stochastic lightcuts (seed 003): FPSM budgets, multi-resolution selection",
+    {"alpha": Param(float, 0.1, 0.0, 1.0, low_open=True, high_open=True, help="maximum imperceptibility threshold"),
+     **_MAXES, "multires": Param(bool, True, help="multi-resolution light-sample selection"), **_SEED},
+    run_fsl, bytes_per_pixel=_BPP)
+#: Uniform counts; the presets differ only in how seed 003's tables choose the counts for a comparison with
+#: fsl: equal time (sl_e), equal foveal MSE (sl_f), equal peripheral MSE (sl_p).
+SL = RendererPlugin(
+    "sl", "stochastic lightcuts, uniform light and glossy samples per pixel",
+    {"lspp": Param(int, 8, 1, 4096, help="light samples (cut nodes) per pixel"),
+     "rspp": Param(int, 8, 0, 4096, help="glossy rays per glossy pixel"), **_SEED},
+    run_sl_uniform, bytes_per_pixel=_BPP,
+    presets={"sl_e": ("stochastic lightcuts, uniform counts (equal time to fsl)", {}),
+             "sl_f": ("stochastic lightcuts, uniform counts (equal foveal MSE to fsl)", {}),
+             "sl_p": ("stochastic lightcuts, uniform counts (equal peripheral MSE to fsl)", {})})
+SL_AS = RendererPlugin("sl_as", "stochastic lightcuts driven by Stengel's adaptive foveated sampling map",
+                       {**_MAXES, **_SEED}, run_sl_as, bytes_per_pixel=_BPP)
+SL_GT = RendererPlugin(
+    "sl_gt", "ground truth: 2048 light samples + 2048 glossy rays per pixel, progressive",
+    {"lspp": Param(int, 2048, 1, 1 << 20, help="light samples per pixel"),
+     "rspp": Param(int, 2048, 0, 1 << 20, help="glossy rays per glossy pixel"),
+     "max_lspp": Param(int, 48, 1, 4096, help="nodes per pass"), **_SEED},
+    run_sl_gt, bytes_per_pixel=_BPP)

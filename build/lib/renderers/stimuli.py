@@ -1,0 +1,163 @@
+"""Tone mapping, image output and the content-addressed stimulus cache.
+
+The cache key is the SHA-256 of: the scene's content hash (geometry, materials, lights, camera, display), the
+renderer name, its full parameter dict (defaults filled in), the resolution, the gaze, the camera overrides and
+the code version (a hash of every ``.py`` file of the ``renderers`` package). A stimulus is stored as
+``<cache_dir>/<key[:2]>/<key>.png`` (8-bit sRGB) with the linear float32 image ``<key>.npy`` and the stats
+``<key>.json`` next to it. Each file is written to a temporary name and renamed; the PNG is renamed last, so
+its presence means the entry is complete. A cached render costs one hash and one lookup.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+
+def to_srgb8(img: np.ndarray, exposure: float = 1.0) -> np.ndarray:
+    """Linear RGB -> 8-bit sRGB: ``clip(exposure * x, 0, 1)``, then the sRGB transfer curve, rounded.
+
+    Converted in row blocks so that the float64 temporaries stay small for any resolution.
+    """
+    img = np.asarray(img)
+    out = np.empty(img.shape, dtype=np.uint8)
+    step = max(1, (1 << 20) // max(1, img[0].size))
+    for r0 in range(0, img.shape[0], step):
+        x = np.clip(np.asarray(img[r0:r0 + step], dtype=np.float64) * exposure, 0.0, 1.0)
+        s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+        out[r0:r0 + step] = np.round(s * 255.0)
+    return out
+
+
+def save_png(fh_or_path, img: np.ndarray, exposure: float = 1.0) -> None:
+    """Write the tone-mapped sRGB PNG of a linear image to an open file or a path (deterministic bytes)."""
+    from PIL import Image
+
+    Image.fromarray(to_srgb8(img, exposure), "RGB").save(fh_or_path, format="PNG", optimize=False)
+
+
+def save_npy(path, img: np.ndarray) -> None:
+    """Write the linear float32 image as ``.npy``."""
+    with open(path, "wb") as fh:
+        np.save(fh, np.asarray(img, dtype=np.float32))
+
+
+def write_png(path, img: np.ndarray, exposure: float = 1.0) -> Path:
+    """Atomically write the tone-mapped sRGB PNG of a linear image (deterministic bytes)."""
+    from data_schema.atomic import atomic_path
+
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        save_png(tmp, img, exposure)
+    return path
+
+
+def write_npy(path, img: np.ndarray) -> Path:
+    from data_schema.atomic import atomic_path
+
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        save_npy(tmp, img)
+    return path
+
+
+def write_png_and_npy(png: Path, img: np.ndarray, exposure: float = 1.0) -> Path:
+    """The PNG and its linear image (``.npy`` next to it) as a pair: both appear, or neither does."""
+    from data_schema.atomic import atomic_files
+
+    png = Path(png)
+    with atomic_files([png.with_suffix(".npy"), png]) as (tmp_npy, tmp_png):
+        save_npy(tmp_npy, img)
+        save_png(tmp_png, img, exposure)
+    return png
+
+
+@functools.lru_cache(maxsize=1)
+def code_version() -> str:
+    """SHA-256 over the source files of the ``renderers`` package (any code change invalidates the cache)."""
+    root = Path(__file__).resolve().parent
+    h = hashlib.sha256()
+    for p in sorted(root.rglob("*.py")):
+        h.update(str(p.relative_to(root)).encode())
+        h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+def _canon(x):
+    if isinstance(x, dict):
+        return {str(k): _canon(v) for k, v in sorted(x.items())}
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return [_canon(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        return float(x)
+    if isinstance(x, (np.integer, int)) and not isinstance(x, bool):
+        return int(x)
+    return x
+
+
+def stimulus_key(scene, renderer: str, params: dict, width: int, height: int, gaze, camera=None) -> str:
+    """The cache key (hex SHA-256) of a stimulus; ``scene`` must be resolved (a Scene)."""
+    doc = {"scene": scene.content_hash(), "renderer": renderer, "params": _canon(params), "width": int(width),
+           "height": int(height), "gaze": _canon(list(gaze)), "camera": _canon(camera or {}),
+           "code": code_version()}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
+
+
+def render_stimulus(scene, renderer: str, params: dict | None, width: int, height: int, gaze=None,
+                    camera: dict | None = None, cache_dir: Path = Path("stimulus_cache")) -> Path:
+    """Render (or look up) a stimulus; returns the path of its cached sRGB PNG.
+
+    The linear float32 image is stored next to it as ``.npy`` and the stats as ``.json``. Bad input raises a
+    one-line ValueError before anything is written.
+    """
+    from data_schema.geometry import check_gaze
+
+    from .catalog import resolve
+    from .registry import check_resolution, get, render, resolve_params
+
+    sc = resolve(scene)
+    full = resolve_params(renderer, params)
+    check_resolution(width, height, get(renderer).bytes_per_pixel)
+    if gaze is None:
+        gaze = (width / 2.0, height / 2.0)
+    gaze = check_gaze(gaze, width, height)
+    if camera:
+        sc.camera.override(camera)
+    key = stimulus_key(sc, renderer, full, width, height, gaze, camera)
+    folder = Path(cache_dir) / key[:2]
+    png = folder / f"{key}.png"
+    if png.is_file():
+        return png
+    img, stats = render(sc, renderer, full, width, height, gaze=gaze, camera=camera)
+    from data_schema.atomic import write_text
+
+    write_npy(folder / f"{key}.npy", img)
+    write_text(folder / f"{key}.json", json.dumps({"key": key, **jsonable_stats(stats)}, indent=1, sort_keys=True)
+               + "\n")
+    write_png(png, img, sc.exposure)
+    return png
+
+
+def jsonable_stats(stats: dict) -> dict:
+    """The stats record with per-pixel arrays (e.g. the lightcuts' ``fpsm``, ``spp``) summarised for JSON."""
+    import numpy as np
+
+    def conv(v):
+        if isinstance(v, dict):
+            return {k: conv(x) for k, x in v.items()}
+        if isinstance(v, np.ndarray):
+            if v.size == 1:
+                return v.item()
+            return {"shape": list(v.shape), "mean": float(np.mean(v)), "min": float(np.min(v)),
+                    "max": float(np.max(v))}
+        if isinstance(v, np.generic):
+            return v.item()
+        if isinstance(v, (list, tuple)):
+            return [conv(x) for x in v]
+        return v
+
+    return conv(stats)

@@ -1,0 +1,252 @@
+"""``studyapp quality``: MSE, PSNR and SSIM of stimuli against ground truth, fovea vs periphery.
+
+One row per image x region (fovea, periphery, all); see :func:`analysis.quality.image_quality`.
+With ``--out DIR`` writes ``quality.csv``, ``quality.md`` and one ``heatmap_<name>.png`` per image.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from data_schema.errors import CLIError
+
+IMAGE_SUFFIXES = (".png", ".npy")
+#: Columns of the CLI's table: the image, then :data:`analysis.quality.QUALITY_COLUMNS`.
+TABLE_COLUMNS = ("image", "region", "mse", "psnr", "ssim", "n_pixels", "n_ssim_pixels", "note")
+
+
+def register(subparsers, parser_class) -> None:
+    from data_schema.ranges import FOV_Y, Range, argtype
+
+    q = subparsers.add_parser(
+        "quality", help="MSE, PSNR and SSIM of stimuli against GT in the fovea and the periphery",
+        description="Compare every stimulus (PNG or .npy) with the ground-truth image: MSE, PSNR and SSIM "
+                    "(scikit-image) inside the fovea (eccentricity <= --fovea-deg from the gaze, seed 001 "
+                    "Eq 3), in the periphery and over the whole image; one row per image x region. Values "
+                    "are compared as stored (sRGB PNG pixels are compared as sRGB values).")
+    q.add_argument("inputs", nargs="+", metavar="FOLDER_OR_FILE",
+                   help="stimuli: PNG or .npy files, or folders (their *.png and *.npy, not recursive; the "
+                        "GT itself is skipped)")
+    q.add_argument("--gt", required=True, metavar="GT", help="ground-truth image (PNG or .npy)")
+    q.add_argument("--fov-y", type=argtype("--fov-y", FOV_Y), required=True, metavar="DEG",
+                   help="vertical field of view of the display in degrees, in (0, 180)")
+    q.add_argument("--gaze", metavar="X,Y", default=None,
+                   help="gaze point in pixels, x right, y down (default: the image centre); write "
+                        "negative values as --gaze=-10,5")
+    q.add_argument("--fovea-deg", type=argtype("--fovea-deg", Range(0.0, 90.0, low_open=True, high_open=True)),
+                   default=5.0, metavar="DEG",
+                   help="fovea radius in degrees of eccentricity, in (0, 90) (default: 5)")
+    q.add_argument("--data-range", type=argtype("--data-range", Range(0.0, None, low_open=True)), default=None,
+                   metavar="L",
+                   help="peak-to-peak value range for PSNR/SSIM (default: 255 for 8-bit, 65535 for 16-bit, "
+                        "1 for float .npy)")
+    q.add_argument("--out", metavar="DIR",
+                   help="write quality.csv, quality.md and heatmap_<name>.png per image into DIR")
+    q.add_argument("--json", action="store_true",
+                   help="print a JSON list of records (one per image x region) instead of Markdown")
+    q.set_defaults(func=cmd_quality)
+
+
+# --- input --------------------------------------------------------------------------------------------------
+def parse_gaze(text: str | None) -> tuple[float, float] | None:
+    """``"X,Y"`` -> ``(x, y)``; None stays None."""
+    if text is None:
+        return None
+    parts = text.split(",")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        x, y = (float(p) for p in parts)
+    except ValueError:
+        raise CLIError(f"--gaze={text!r} is invalid: expected X,Y in pixels, e.g. 960,540") from None
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise CLIError(f"--gaze={text!r} is invalid: both coordinates must be finite")
+    return x, y
+
+
+def load_image(path: Path):
+    """Read a PNG (via Pillow) or a .npy array (no pickles).
+
+    PNG modes: grey (``L``, 16-bit ``I;16``/``I``) stays 2-D; everything else becomes 8-bit RGB
+    (an alpha channel is dropped, palettes are expanded).
+    """
+    import numpy as np
+
+    if not path.is_file():
+        raise CLIError(f"cannot read image {path}: no such file")
+    suffix = path.suffix.lower()
+    if suffix == ".npy":
+        try:
+            return np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise CLIError(f"cannot read image {path}: {str(exc).splitlines()[0]}") from None
+    if suffix != ".png":
+        raise CLIError(f"cannot read image {path}: unsupported type {path.suffix or '(none)'!r}, "
+                       "use .png or .npy")
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as im:
+            im.load()
+            if im.mode in ("I;16", "I;16B", "I;16L", "I"):
+                a = np.asarray(im)
+                if a.min() < 0 or a.max() > 65535:
+                    raise CLIError(f"cannot read image {path}: 32-bit integer values outside 0..65535")
+                return a.astype(np.uint16)
+            if im.mode in ("1", "L", "LA"):
+                return np.asarray(im.convert("L"))
+            return np.asarray(im.convert("RGB"))
+    except (OSError, UnidentifiedImageError, ValueError) as exc:
+        raise CLIError(f"cannot read image {path}: {str(exc).splitlines()[0]}") from None
+
+
+def collect_inputs(inputs, gt: Path) -> list[Path]:
+    """Expand folders to their sorted *.png / *.npy files; skip the GT; keep order, drop duplicates."""
+    gt_resolved = gt.resolve()
+    out: list[Path] = []
+    seen: set[Path] = set()
+    for item in inputs:
+        p = Path(item)
+        if p.is_dir():
+            found = sorted(f for f in p.iterdir() if f.is_file() and f.suffix.lower() in IMAGE_SUFFIXES)
+            if not found:
+                raise CLIError(f"folder {p} holds no .png or .npy images")
+        elif p.exists():
+            if p.suffix.lower() not in IMAGE_SUFFIXES:
+                raise CLIError(f"cannot read image {p}: unsupported type {p.suffix or '(none)'!r}, "
+                               "use .png or .npy")
+            found = [p]
+        else:
+            raise CLIError(f"cannot read image {p}: no such file or folder")
+        for f in found:
+            r = f.resolve()
+            if r != gt_resolved and r not in seen:
+                seen.add(r)
+                out.append(f)
+    if not out:
+        raise CLIError("no stimuli to compare: the inputs hold only the GT image")
+    return out
+
+
+def heatmap_names(paths: list[Path]) -> list[str]:
+    """``heatmap_<stem>.png`` per input, with ``_2``, ``_3`` ... appended to repeated stems."""
+    names, used = [], set()
+    for p in paths:
+        base = f"heatmap_{p.stem}"
+        name, k = f"{base}.png", 1
+        while name in used:
+            k += 1
+            name = f"{base}_{k}.png"
+        used.add(name)
+        names.append(name)
+    return names
+
+
+# --- output -------------------------------------------------------------------------------------------------
+def _fmt(value, spec: str) -> str:
+    import pandas as pd
+
+    if value is pd.NA or value is None:
+        return "—"
+    if math.isinf(value):
+        return "∞"
+    return format(value, spec)
+
+
+def quality_markdown(table, *, gt: str, fov_y: float, gaze, fovea_deg: float, shape) -> str:
+    """The table as Markdown with the parameters in a header."""
+    h, w = shape[:2]
+    gaze_txt = f"({gaze[0]:g}, {gaze[1]:g})" if gaze is not None else f"centre ({w / 2:g}, {h / 2:g})"
+    lines = [
+        "# Image quality against ground truth",
+        "",
+        (f"GT: `{gt}` ({w} x {h} px); vertical FOV {fov_y:g}°; gaze {gaze_txt} px; fovea: eccentricity "
+        f"<= {fovea_deg:g}° (seed 001 Eq 3)."),
+        ("MSE in the input's units squared; PSNR in dB (∞: identical); SSIM: scikit-image (7 x 7 window) "
+        "averaged over the region away from the 3-px border; — : empty region (see note)."),
+        "",
+        "| image | region | MSE | PSNR (dB) | SSIM | pixels | note |",
+        "|---|---|---:|---:|---:|---:|---|",
+    ]
+    for r in table.itertuples(index=False):
+        lines.append(f"| {r.image} | {r.region} | {_fmt(r.mse, '.6g')} | {_fmt(r.psnr, '.2f')} | "
+                     f"{_fmt(r.ssim, '.4f')} | {r.n_pixels} | {r.note} |")
+    return "\n".join(lines) + "\n"
+
+
+def quality_records(table) -> list[dict]:
+    """JSON-safe records: ``<NA>`` -> null, ``+inf`` PSNR -> null (the note says "PSNR +inf")."""
+    import pandas as pd
+
+    records = []
+    for row in table.to_dict(orient="records"):
+        rec = {}
+        for k, v in row.items():
+            if v is pd.NA or (isinstance(v, float) and not math.isfinite(v)):
+                v = None
+            elif hasattr(v, "item"):
+                v = v.item()
+            rec[k] = v
+        records.append(rec)
+    return records
+
+
+def quality_table(paths: list[Path], gt_image, *, fov_y: float, gaze, fovea_deg: float, data_range,
+                  out: Path | None = None) -> tuple[object, list[Path]]:
+    """Compute the table over ``paths``; write a heat map per image into ``out`` if given."""
+    import pandas as pd
+
+    from analysis.quality import error_heatmap, image_quality
+
+    frames, written = [], []
+    names = heatmap_names(paths)
+    for path, hm_name in zip(paths, names):
+        img = load_image(path)
+        try:
+            q = image_quality(img, gt_image, fov_y_deg=fov_y, gaze=gaze, fovea_deg=fovea_deg,
+                              data_range=data_range)
+            if out is not None:
+                written.append(error_heatmap(img, gt_image, out / hm_name, fov_y_deg=fov_y, gaze=gaze,
+                                             fovea_deg=fovea_deg, title=f"squared error: {path.name}"))
+        except ValueError as exc:
+            raise CLIError(f"{path}: {exc}") from None
+        q.insert(0, "image", str(path))
+        frames.append(q)
+    return pd.concat(frames, ignore_index=True), written
+
+
+def cmd_quality(args) -> int:
+    from data_schema.atomic import write_text
+
+    gaze = parse_gaze(args.gaze)
+    gt_path = Path(args.gt)
+    if not gt_path.exists():
+        raise CLIError(f"--gt {gt_path}: no such file")
+    gt_image = load_image(gt_path)
+    if gaze is not None:
+        from data_schema.geometry import check_gaze
+
+        h, w = gt_image.shape[:2]
+        try:
+            gaze = check_gaze(gaze, w, h)
+        except ValueError as exc:
+            raise CLIError(f"--gaze: {exc}") from None
+    paths = collect_inputs(args.inputs, gt_path)
+    out = Path(args.out) if args.out else None
+    table, written = quality_table(paths, gt_image, fov_y=args.fov_y, gaze=gaze, fovea_deg=args.fovea_deg,
+                                   data_range=args.data_range, out=out)
+    md = quality_markdown(table, gt=str(gt_path), fov_y=args.fov_y, gaze=gaze, fovea_deg=args.fovea_deg,
+                          shape=gt_image.shape)
+    if out is not None:
+        written = [write_text(out / "quality.csv", table.to_csv(index=False, lineterminator="\n")),
+                   write_text(out / "quality.md", md)] + written
+    if args.json:
+        print(json.dumps(quality_records(table), indent=2))
+    elif out is not None:
+        for p in written:
+            print(p)
+    else:
+        print(md, end="")
+    return 0

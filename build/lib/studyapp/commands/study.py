@@ -1,0 +1,283 @@
+"""Study commands: ``prepare``, ``run``, ``sessions``, ``export``, ``validate`` (and the demo step).
+
+``run`` without ``--simulate`` opens a PsychoPy window through
+``studyapp.presentation.psychopy_window.PsychoPyPresenter``; scheduling, logging and the simulated observer
+never import PsychoPy. Also runnable as ``python -m studyapp.commands.study ...`` (same exit codes).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+from data_schema.errors import CLIError
+from studyapp.progress import Bar
+
+#: The shipped replications (package data: a wheel install has them too).
+SHIPPED = Path(__file__).resolve().parents[1] / "protocols"
+
+
+def _protocol(path: str, stimuli: str | None = None, check_renderers: bool = True):
+    """A protocol file, or a shipped protocol by name (``studyapp run seed001_2afc ...``); a shipped one keeps
+    its stimuli under the current folder (``./stimuli/<name>``), not inside the installed package."""
+    from studyapp.runner.protocol import load_protocol
+
+    p = Path(path)
+    if not p.exists() and not p.suffix and (SHIPPED / f"{path}.yaml").exists():
+        return load_protocol(SHIPPED / f"{path}.yaml", stimuli_dir=stimuli, check_renderers=check_renderers,
+                             output_base=Path.cwd())
+    return load_protocol(p, stimuli_dir=stimuli, check_renderers=check_renderers)
+
+
+def _fmt_seconds(s: float) -> str:
+    if not math.isfinite(s):
+        return "?"
+    s = round(s)
+    return f"{s // 3600}h{s % 3600 // 60:02d}m" if s >= 3600 else (f"{s // 60}m{s % 60:02d}s" if s >= 60 else f"{s}s")
+
+
+# -- handlers ------------------------------------------------------------------------------------------------
+def cmd_validate(args) -> int:
+    from studyapp.runner.protocol import renderer_names
+    from studyapp.runner.schedule import build_schedule
+    from studyapp.runner.stimuli import missing_stimuli
+
+    p = _protocol(args.protocol)
+    print(f"{p.path}: valid")
+    print(p.describe())
+    sched = build_schedule(p, "P1", 0)
+    kinds = {k: sum(t.kind == k for t in sched) for k in ("practice", "reference", "trial", "catch")}
+    print("schedule (participant P1, seed 0): " + ", ".join(f"{v} {k}" for k, v in kinds.items() if v))
+    if renderer_names() is None and any(c.renderer for c in p.conditions.values()):
+        print("renderer names not checked: renderers.registry is not importable here")
+    missing = missing_stimuli(p)
+    print(f"stimuli: {'complete' if not missing else f'{len(missing)} stimulus set(s) missing'} in {p.stimuli_dir}")
+    return 0
+
+
+def cmd_prepare(args) -> int:
+    from studyapp.runner.stimuli import prepare, stimulus_root
+
+    p = _protocol(args.protocol, args.stimuli)
+    bar = Bar("frames")
+    res = prepare(p, scale=args.scale, progress=bar, cache_dir=Path(args.cache) if args.cache else None)
+    print(f"{p.name}: {res['frames']} frame(s) built ({res['rendered']} rendered) in {_fmt_seconds(res['seconds'])}"
+          f" -> {stimulus_root(p, args.scale)}")
+    return 0
+
+
+def _presenter_factory(args, protocol):
+    if args.simulate:
+        from studyapp.runner.observer import SimulatedObserver
+        from studyapp.runner.session import ground_truth_stimuli
+
+        def make(stimuli, display):
+            return SimulatedObserver(protocol, args.participant, args.seed if args.seed is not None else 0,
+                                     ground_truth_stimuli(protocol, stimuli), delay_s=args.sim_delay)
+        return make
+
+    def make_window(stimuli, display):
+        try:
+            from studyapp.presentation.psychopy_window import PsychoPyPresenter
+        except ImportError as exc:
+            raise CLIError(f"the PsychoPy presenter is not available ({exc}); use --simulate for a dry run") from None
+        return PsychoPyPresenter(eyetracker=args.eyetracker, gaze_log=args.gaze_log)
+    return make_window
+
+
+def cmd_run(args) -> int:
+    from studyapp.presentation.base import PresentationError
+    from studyapp.runner.session import run_session
+    from studyapp.runner.stimuli import missing_stimuli, prepare
+
+    notes: list[str] = []  # printed once the session has started (errors stay one line)
+    p = _protocol(args.protocol, args.stimuli, check_renderers=not args.simulate)
+    db = Path(args.db) if args.db else Path(f"{p.name}.db")
+    missing = missing_stimuli(p, args.scale)
+    if missing and args.simulate:
+        notes.append(f"note: {len(missing)} stimulus set(s) missing: the simulated observer uses the declared "
+                     "qualities for them (run `studyapp prepare` to simulate from images)")
+    elif missing:
+        renderable = all(p.conditions[n.condition].folder is None for n, _ in missing)
+        usable = True
+        try:
+            from studyapp.runner.stimuli import render_function
+            render_function()
+        except ValueError:
+            usable = False
+        if renderable and usable:
+            print(f"{len(missing)} stimulus set(s) missing: preparing them first", file=sys.stderr)
+            prepare(p, scale=args.scale, progress=Bar("frames"))
+    if args.seed is None and args.resume and db.exists():
+        from data_schema.store import open_store
+        with open_store(db) as st:
+            row = st.participant(args.participant)
+        if row:
+            args.seed = row["seed"]
+
+    def started(sid):
+        for note in notes:
+            print(note, file=sys.stderr)
+        print(f"session {sid} started ({db})", flush=True)
+
+    bar = Bar("trials") if not args.quiet else None
+    try:
+        summary = run_session(p, args.participant, db, _presenter_factory(args, p), seed=args.seed,
+                              resume=args.resume, scale=args.scale, stimuli_root=None, allow_declared=args.simulate,
+                              on_started=started, progress=(lambda d, t: bar(d, t)) if bar else None)
+    except PresentationError as exc:  # no display, keyboard backend not ptb, an unreadable frame, ...
+        raise PresentationError(f"{exc} (answers given so far are saved: continue with --resume)") from None
+    catch = ""
+    if summary.catch_total:
+        verdict = {True: "passed", False: "FAILED", None: "pending"}[summary.catch_passed]
+        catch = f"; catch trials {summary.catch_correct}/{summary.catch_total} correct ({verdict})"
+    print(f"session {summary.session}: {summary.status}, {summary.answered}/{summary.planned} trials answered{catch}")
+    return 0
+
+
+def cmd_sessions(args) -> int:
+    from data_schema.store import open_store
+
+    db = Path(args.db)
+    with open_store(db) as st:
+        meta = st.meta()
+        sessions = st.sessions()
+        prog = st.progress()
+        frac = ((st.protocol_json() or {}).get("catch") or {}).get("pass_fraction", 0.75)
+    print(f"{db}: protocol {meta.get('protocol_name')} {meta.get('protocol_version')} "
+          f"(sha256 {meta.get('protocol_hash', '')[:12]})")
+    print(f"{'session':<16} {'participant':<12} {'status':<12} {'answers':>7}  {'started (UTC)':<27} resumed from")
+    for s in sessions:
+        print(f"{s['id']:<16} {s['participant']:<12} {s['status']:<12} {s['responses']:>7}  {s['started_utc']:<27} "
+              f"{s['resumed_from'] or ''}")
+    print(f"{'participant':<12} {'answered':>8} {'planned':>8}  catch trials (pass: >= {frac:.0%} correct)")
+    for r in prog:
+        catch = "-"
+        if r["catch_planned"]:
+            verdict = "pending" if r["answered"] < r["planned"] else (
+                "passed" if r["catch_correct"] >= frac * r["catch_planned"] else "FAILED")
+            catch = f"{r['catch_correct']}/{r['catch_planned']} {verdict}"
+        print(f"{r['participant']:<12} {r['answered']:>8} {r['planned']:>8}  {catch}")
+    return 0
+
+
+def cmd_export(args) -> int:
+    from data_schema import store
+    from data_schema.atomic import check_target
+
+    check_target(args.out, inputs=[args.db])
+    fn = {"csv": store.export_csv, "parquet": store.export_parquet, "pwcmp": store.export_pwcmp}[args.format]
+    out = fn(args.db, args.out)
+    print(out)
+    return 0
+
+
+# -- registration -------------------------------------------------------------------------------------------
+def register(subparsers, parser_class) -> None:
+    from data_schema.ranges import SCALE, SEED, argtype
+
+    v = subparsers.add_parser("validate", help="check a study protocol (schema, references, schedule)",
+                              description="Check a protocol YAML file against data_schema/protocol.schema.json "
+                                          "and its cross-references; print its design and schedule size.")
+    v.add_argument("protocol", metavar="PROTOCOL", help="protocol YAML file (or the name of a shipped one)")
+    v.set_defaults(func=cmd_validate)
+
+    pr = subparsers.add_parser("prepare", help="render a protocol's whole stimulus set",
+                               description="Build every stimulus of a protocol through the renderer registry "
+                                           "and the stimulus cache, with a progress bar and the time left.")
+    pr.add_argument("protocol", metavar="PROTOCOL")
+    pr.add_argument("--scale", type=argtype("--scale", SCALE), default=1.0, metavar="F",
+                    help="shrink the resolution by F in (0, 1] for dry runs (default: 1)")
+    pr.add_argument("--stimuli", metavar="DIR", help="stimulus folder (default: the protocol's stimuli_dir)")
+    pr.add_argument("--cache", metavar="DIR", help="renderer cache folder (default: next to the stimuli)")
+    pr.set_defaults(func=cmd_prepare)
+
+    r = subparsers.add_parser("run", help="run (or resume) a participant's session",
+                              description="Run a participant's session of a protocol in a PsychoPy window, or "
+                                          "with the simulated observer (--simulate). Every answer is committed "
+                                          "to the study database before the next trial.")
+    r.add_argument("protocol", metavar="PROTOCOL")
+    r.add_argument("--participant", required=True, metavar="ID", help="pseudonymous participant id")
+    r.add_argument("--db", metavar="FILE", help="study database (default: <protocol name>.db)")
+    r.add_argument("--simulate", action="store_true", help="simulated observer, no window")
+    r.add_argument("--resume", action="store_true", help="continue at the participant's first unanswered trial")
+    r.add_argument("--seed", type=argtype("--seed", SEED), metavar="N",
+                   help="schedule seed (default: 0; stored per participant)")
+    r.add_argument("--scale", type=argtype("--scale", SCALE), default=1.0, metavar="F",
+                   help="use the stimulus set prepared with --scale F (default: 1)")
+    r.add_argument("--stimuli", metavar="DIR", help="stimulus folder (default: the protocol's stimuli_dir)")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--eyetracker", choices=("mousegaze",),
+                   help="record gaze through psychopy.iohub and flag trials where it left the fovea "
+                        "(mousegaze: the mouse simulates the eye, for testing)")
+    r.add_argument("--gaze-log", metavar="FILE", help="with --eyetracker: write gaze samples to this CSV")
+    r.add_argument("--sim-delay", type=float, default=0.0, help=__import__("argparse").SUPPRESS)
+    r.set_defaults(func=cmd_run)
+
+    s = subparsers.add_parser("sessions", help="list the sessions of a study database",
+                              description="List sessions (status, answers, resumes) and per-participant progress.")
+    s.add_argument("--db", metavar="FILE", required=True, help="study database")
+    s.set_defaults(func=cmd_sessions)
+
+    e = subparsers.add_parser("export", help="export the trial log (tidy CSV/Parquet, pwcmp)",
+                              description="Export the tidy trial log (data_schema/trial_log.py columns) as CSV "
+                                          "or Parquet, or the 2AFC trials in pwcmp's layout.")
+    e.add_argument("--db", metavar="FILE", required=True, help="study database")
+    e.add_argument("--format", choices=("csv", "parquet", "pwcmp"), default="csv")
+    e.add_argument("--out", metavar="FILE", required=True)
+    e.set_defaults(func=cmd_export)
+
+
+# -- demo ----------------------------------------------------------------------------------------------------
+DEMO_PROTOCOLS = (("seed003_task1", 5), ("seed001_2afc", 3))  # (shipped protocol, simulated participants)
+DEMO_SCALE = 0.25
+
+
+def demo_step(out_dir: Path, progress) -> list[Path]:
+    """Run two shipped protocols with simulated participants (seed 003 Task 1: 5, seed 001 2AFC: 3).
+
+    Stimuli: a synthetic set (procedural 'ground truth' degraded by each condition's declared quality with
+    eccentricity-dependent blur and noise) at ``--scale 0.25``, so the observer answers from images. Writes a
+    fresh database per protocol, the tidy CSVs and the pwcmp file into ``out_dir/study``.
+    """
+    from data_schema import store
+    from studyapp.runner.observer import SimulatedObserver
+    from studyapp.runner.session import ground_truth_stimuli, run_session
+    from studyapp.runner.stimuli import write_synthetic_stimuli
+
+    out = Path(out_dir) / "study"
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, n_participants in DEMO_PROTOCOLS:
+        p = _protocol(str(SHIPPED / f"{name}.yaml"), stimuli=str(out / "stimuli" / name), check_renderers=False)
+        if progress:
+            progress(f"{name}: synthetic stimuli")
+        write_synthetic_stimuli(p, DEMO_SCALE, max_frames=2)
+        db = out / f"{name}.db"
+        for suffix in ("", "-wal", "-shm"):
+            Path(str(db) + suffix).unlink(missing_ok=True)
+        for i in range(1, n_participants + 1):
+            pid = f"P{i:02d}"
+            if progress:
+                progress(f"{name}: simulated participant {pid}")
+            run_session(p, pid, db, lambda st, d, pid=pid, p=p: SimulatedObserver(
+                p, pid, 0, ground_truth_stimuli(p, st)), seed=0, scale=DEMO_SCALE)
+        written += [db, store.export_csv(db, out / f"{name}_trials.csv")]
+        if p.family == "2afc":
+            written.append(store.export_pwcmp(db, out / f"{name}_pwcmp.csv"))
+    return written
+
+
+def main(argv=None) -> int:
+    """Stand-alone entry (``python -m studyapp.commands.study``): the studyapp CLI with these commands added
+    if it does not list them yet (same one-line errors and exit codes)."""
+    from studyapp import cli
+
+    if __name__ not in cli.COMMAND_MODULES and "studyapp.commands.study" not in cli.COMMAND_MODULES:
+        cli.COMMAND_MODULES = tuple(cli.COMMAND_MODULES) + ("studyapp.commands.study",)
+    return cli.main(argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,210 @@
+"""The simulated observer: a :class:`~studyapp.presentation.base.Presenter` with no window.
+
+It answers every trial family from a psychometric model of a foveated image difference, so whole studies run
+in seconds for dry runs, the demo, CI and power analysis.
+
+Model
+-----
+*Foveated difference* of a stimulus image ``I`` from the ground truth ``G`` of the same scene (luma in [0, 1]),
+weighted by cortical magnification (Horton & Hoyt 1991, ``M(e) ~ 1 / (e + e2)``, ``e2 = 2.3 deg``) with the
+eccentricity ``e`` of every pixel from the display geometry and the fixation point::
+
+    w(e) = e2 / (e + e2)
+    d    = sqrt( sum_i w(e_i) (I_i - G_i)^2 / sum_i w(e_i) )
+
+averaged over up to three evenly spaced frames of a sequence. The impairment in just-noticeable differences is
+``D = d / jnd`` (``simulation.jnd``, default 0.02). While a condition has no stimuli yet, its declared
+``quality`` q in [0, 1] stands in: ``D = 5 (1 - q)``; with images the images are always used.
+
+*Participant* (seeded by the study seed and the participant id): sensitivity ``s = exp(N(0, sensitivity_sd))``,
+bias ``b ~ N(0, bias_sd)``, lapse rate ``lambda`` (``simulation.lapse``). With ``Phi`` the standard normal CDF:
+
+- ``yes_no``:     ``P(yes) = lambda/2 + (1 - lambda) Phi(s (c - D) + b)``, ``c = criterion_jnd``;
+- ``2afc``:       ``P(A)   = lambda/2 + (1 - lambda) Phi(s (D_B - D_A) / sqrt 2 + b)`` (Thurstone Case V; b is
+  the bias towards the first/left stimulus);
+- ``preference``: utilities ``U_i = -s D_i + N(0, 1)`` (lapse: random order); the top ``n_picks`` are picked,
+  stopping after the first when the second and third utilities are within 0.15 (undecided).
+
+*Reaction time* from stimulus onset: the sequence duration (answers come after it) plus an ex-Gaussian
+``mu_p + N(0, sigma) + Exp(tau)``, ``mu_p = rt_mu_s exp(N(0, 0.15))`` per participant, at least 0.15 s.
+
+Every trial draws from its own generator seeded by (seed, participant, trial index), so a resumed session
+answers exactly as an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import time
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from data_schema import families
+from data_schema.errors import UserError
+from data_schema.families import Observer
+from data_schema.geometry import Display
+from studyapp.presentation.base import Stimulus, TrialDisplay, TrialResult
+
+from .images import load_gray
+from .protocol import Protocol
+
+E2_DEG = 2.3
+DECLARED_SCALE_JND = 5.0
+_SHARED: dict[tuple, float] = {}  # impairment per (frames, GT frames, geometry, jnd) within one process
+
+
+def _key(*parts) -> int:
+    return int.from_bytes(hashlib.sha256("|".join(map(str, parts)).encode()).digest()[:8], "little")
+
+
+@dataclass(frozen=True)
+class ObserverParams:
+    """One simulated participant."""
+
+    sensitivity: float
+    bias: float
+    lapse: float
+    criterion: float
+    rt_mu_s: float
+    rt_sigma_s: float
+    rt_tau_s: float
+
+
+def participant_params(simulation: dict, participant: str, seed: int) -> ObserverParams:
+    """Draw a participant's sensitivity, bias and RT location from the protocol's ``simulation`` block."""
+    rng = np.random.default_rng(_key("participant", seed, participant))
+    z = rng.standard_normal(3)
+    return ObserverParams(sensitivity=float(math.exp(simulation["sensitivity_sd"] * z[0])),
+                          bias=float(simulation["bias_sd"] * z[1]), lapse=float(simulation["lapse"]),
+                          criterion=float(simulation["criterion_jnd"]),
+                          rt_mu_s=float(simulation["rt_mu_s"] * math.exp(0.15 * z[2])),
+                          rt_sigma_s=float(simulation["rt_sigma_s"]), rt_tau_s=float(simulation["rt_tau_s"]))
+
+
+def foveated_difference(img: np.ndarray, gt: np.ndarray, ecc: np.ndarray) -> float:
+    """Eccentricity-weighted RMS difference ``sqrt(sum w (I - G)^2 / sum w)``, ``w = e2 / (e + e2)``."""
+    if img.shape != gt.shape or img.shape != ecc.shape:
+        raise UserError(f"image shapes differ: stimulus {img.shape}, ground truth {gt.shape}, "
+                         f"eccentricity map {ecc.shape}")
+    w = E2_DEG / (ecc + E2_DEG)
+    diff = (img.astype(np.float64) - gt.astype(np.float64)) ** 2
+    return float(math.sqrt(float((w * diff).sum()) / float(w.sum())))
+
+
+class SimulatedObserver:
+    """Answers trials with the model in the module docstring; implements the Presenter interface.
+
+    Parameters
+    ----------
+    protocol : Protocol
+    participant : str
+    seed : int
+    ground_truth : dict
+        Scene -> the ground-truth :class:`Stimulus` of that scene (frames may be empty when not rendered).
+    delay_s : float
+        Wall-clock seconds to spend per trial (tests that kill a session mid-way).
+    """
+
+    def __init__(self, protocol: Protocol, participant: str, seed: int, ground_truth: dict[str, Stimulus],
+                 delay_s: float = 0.0) -> None:
+        self.protocol = protocol
+        self.participant = participant
+        self.seed = seed
+        self.ground_truth = ground_truth
+        self.params = participant_params(protocol.simulation, participant, seed)
+        self.delay_s = float(delay_s)
+        self._ecc: dict[tuple, np.ndarray] = {}
+        self._impairment: dict[tuple, float] = {}
+        self._clock = 0.0
+        self.shown: list[int] = []
+
+    # -- Presenter interface ------------------------------------------------------------------------------
+    def open(self, display: Display) -> dict:
+        return {"refresh_hz": float(display.refresh_hz), "keyboard_backend": "simulated", "presenter": "simulated",
+                "dropped_frames_total": 0}
+
+    def instructions(self, text: str) -> None:
+        self._clock += 2.0
+
+    def preload(self, trial: TrialDisplay) -> None:
+        for s in trial.stimuli:
+            self.impairment(s, trial.scene)
+
+    def pause(self) -> Literal["resume", "end"]:
+        return "resume"
+
+    def message(self, text: str, seconds: float) -> None:
+        self._clock += float(seconds)
+
+    def close(self) -> None:
+        pass
+
+    def present(self, trial: TrialDisplay) -> TrialResult:
+        if self.delay_s:
+            time.sleep(self.delay_s)
+        rng = np.random.default_rng(_key("trial", self.seed, self.participant, trial.index))
+        p = self.params
+        self._clock += trial.black_before_s
+        onset = self._clock
+        lapse = rng.random() < p.lapse
+        switches = 0
+        if trial.kind == "reference":
+            answers = ["seen"] if trial.answer_keys else []
+            margin = 0.0
+        else:
+            impairments = [self.impairment(st, trial.scene) for st in trial.stimuli]
+            answers, margin, switches = families.get(trial.family).simulate(
+                impairments, Observer(p.sensitivity, p.bias, p.criterion), rng, lapse, trial.n_picks)
+        rt = (trial.duration_s or 0.0) + max(0.15, p.rt_mu_s * (1.0 + 0.3 * math.exp(-margin))
+                                              + rng.normal(0.0, p.rt_sigma_s) + rng.exponential(p.rt_tau_s))
+        self._clock += rt
+        self.shown.append(trial.index)
+        return TrialResult(answers=answers, rt_s=float(rt), onset_s=float(onset), dropped_frames=0,
+                           switches=switches, gaze_left_fovea=None, escaped=False)
+
+    # -- the image model ----------------------------------------------------------------------------------
+    def _eccentricity(self, shape: tuple[int, int]) -> np.ndarray:
+        """Eccentricity of every pixel of an image of ``shape``: the stimuli's viewing geometry (the display's
+        visual angle, the fixation point) at that resolution."""
+        if shape not in self._ecc:
+            h, w = shape
+            self._ecc[shape] = self.protocol.render_geometry().resized(w, h).eccentricity_map()
+        return self._ecc[shape]
+
+    def impairment(self, stim: Stimulus, scene: str) -> float:
+        """Impairment ``D`` (JND) of ``stim`` against the scene's ground truth (cached per stimulus)."""
+        key = (stim.condition, scene, stim.frames)
+        if key in self._impairment:
+            return self._impairment[key]
+        gt = self.ground_truth.get(scene)
+        shared = None
+        if stim.frames and gt is not None and gt.frames:
+            shared = (stim.frames, gt.frames, self.protocol.display.fov_y_deg, self.protocol.fixation,
+                      float(self.protocol.simulation["jnd"]))
+            if shared in _SHARED:  # the measure does not depend on the participant
+                self._impairment[key] = _SHARED[shared]
+                return _SHARED[shared]
+        if shared is not None:
+            n = len(stim.frames)
+            idx = sorted({round(k * (n - 1) / 2) for k in range(3)}) if n > 1 else [0]
+            ds = []
+            for i in idx:
+                img = load_gray(stim.frames[i])
+                ref = load_gray(gt.frames[i % len(gt.frames)])
+                ds.append(foveated_difference(img, ref, self._eccentricity(img.shape)))
+            value = float(np.mean(ds)) / float(self.protocol.simulation["jnd"])
+        else:
+            q = self.protocol.conditions[stim.condition].quality
+            if q is None:
+                raise UserError(f"condition {stim.condition}: no stimuli for scene {scene} and no declared "
+                                 "quality for the simulated observer")
+            value = DECLARED_SCALE_JND * (1.0 - float(q))
+        self._impairment[key] = value
+        if shared is not None:
+            if len(_SHARED) > 4096:
+                _SHARED.clear()
+            _SHARED[shared] = value
+        return value

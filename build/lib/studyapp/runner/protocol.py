@@ -1,0 +1,385 @@
+"""Study protocols: YAML files checked against ``data_schema/protocol.schema.json`` plus cross-references.
+
+:func:`load_protocol` returns a frozen :class:`Protocol` with every default filled in. Errors are
+:class:`~data_schema.protocol_schema.ProtocolError` with one line ``FILE:LINE: FIELD: problem``.
+
+Viewing geometry
+----------------
+The protocol's ``display`` (pixels, physical width, viewing distance) is a :class:`data_schema.geometry.Display`:
+the only source of the visual angle the stimuli subtend. Every stimulus is rendered at ``stimulus.render_px``
+(default: the display's pixels) with a camera of the display's vertical visual angle, and shown over the
+whole display (:meth:`Protocol.render_geometry`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from data_schema import families
+from data_schema.geometry import Display, ViewingGeometry
+from data_schema.protocol_schema import LoadedYAML, load_yaml, validate_document
+
+DEFAULT_SIMULATION = {"jnd": 0.02, "sensitivity_sd": 0.25, "bias_sd": 0.25, "lapse": 0.02, "criterion_jnd": 1.0,
+                      "rt_mu_s": 0.55, "rt_sigma_s": 0.08, "rt_tau_s": 0.25}
+
+
+@dataclass(frozen=True)
+class Condition:
+    """How a condition's stimuli are made: renderer + params, a folder, or a degraded copy of another one."""
+
+    name: str
+    renderer: str | None = None
+    params: dict = field(default_factory=dict)
+    folder: Path | None = None
+    derive_from: str | None = None
+    blur_sigma_px: float = 0.0
+    noise: float = 0.0
+    label: str = ""
+    quality: float | None = None
+    role: str = "main"
+
+    @property
+    def source(self) -> str:
+        return "renderer" if self.renderer else ("folder" if self.folder else "derive")
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """A validated protocol with defaults filled in (see ``data_schema/protocol.schema.json``)."""
+
+    path: Path
+    data: dict
+    name: str
+    version: str
+    family: str
+    question: str
+    instructions: str
+    block: str
+    display: Display
+    render_size: tuple[int, int]
+    fixation: tuple[float, float]
+    fixation_mark: bool
+    scenes: tuple[str, ...]
+    conditions: dict[str, Condition]
+    design_conditions: tuple[str, ...]
+    stimulus_kind: str
+    duration_s: float | None
+    fps: float
+    camera_path: tuple[dict, ...]
+    black_s: float
+    max_response_s: float | None
+    answer_keys: dict[str, str]
+    switch_keys: dict[str, int]
+    repetitions: int
+    scene_order: str
+    trial_order: str
+    max_run: int
+    min_repeat_distance: int
+    position_balance: bool
+    n_picks: int
+    reference: str | None
+    reference_label: str
+    practice: dict | None
+    breaks: dict | None
+    catch: dict | None
+    simulation: dict
+    analysis: dict
+    stimuli_dir: Path
+    content_hash: str
+
+    @property
+    def n_frames(self) -> int:
+        """Frames per stimulus: 1 for images, ``round(duration_s * fps)`` for sequences."""
+        if self.stimulus_kind == "image":
+            return 1
+        return max(1, round(self.duration_s * self.fps))
+
+    def render_geometry(self, scale: float = 1.0) -> ViewingGeometry:
+        """The viewing geometry of the stimuli: ``render_px`` (times ``scale``), the display's vertical visual
+        angle, the gaze at the fixation point."""
+        w, h = self.render_size
+        g = ViewingGeometry.create(w, h, self.display.fov_y_deg, (self.fixation[0] * w, self.fixation[1] * h))
+        return g if scale == 1.0 else g.scaled(scale)
+
+    @property
+    def ground_truth(self) -> str | None:
+        """Condition the simulated observer compares against (simulation.ground_truth, else reference/catch)."""
+        return self.simulation.get("ground_truth") or self.reference or (self.catch or {}).get("good")
+
+    def scene_ref(self, scene: str) -> str:
+        """What the renderers resolve for ``scene``: a built-in name, or the scene file next to the protocol."""
+        from renderers.catalog import BUILTIN_SCENES, scene_file
+
+        if scene in BUILTIN_SCENES:
+            return scene
+        path = scene_file(scene, self.path.resolve().parent)
+        return str(path) if path is not None else scene
+
+    def describe(self) -> str:
+        n = len(self.design_conditions)
+        d, (w, h) = self.display, self.render_size
+        return (f"{self.name} {self.version}: {self.family}, {len(self.scenes)} scene(s), {n} condition(s), "
+                f"{self.repetitions} repetition(s), display {d.width_px}x{d.height_px} ({d.fov_y_deg:.1f}° high, "
+                f"{d.ppd:.1f} px/deg), stimuli rendered at {w}x{h}")
+
+
+def content_hash(data: dict) -> str:
+    """SHA-256 of the protocol's canonical JSON (key order, whitespace and comments do not matter)."""
+    text = json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=True, default=str)
+    return hashlib.sha256(text.encode("ascii")).hexdigest()
+
+
+def _registry():
+    try:
+        from renderers import registry
+        registry.available()
+    except Exception:  # noqa: BLE001 - any failure means "not available here"
+        return None
+    return registry
+
+
+def renderer_names() -> set[str] | None:
+    """Names in ``renderers.registry`` if it is importable, else None (renderer names are then not checked)."""
+    reg = _registry()
+    return None if reg is None else set(reg.available())
+
+
+def _conditions(doc: LoadedYAML, data: dict, base: Path, check_renderers: bool) -> dict[str, Condition]:
+    out = {}
+    reg = _registry() if check_renderers else None  # simulated runs skip the (slow) renderer import
+    known = None if reg is None else set(reg.available())
+    for name, spec in data["conditions"].items():
+        where = ("conditions", name)
+        sources = [k for k in ("renderer", "folder", "derive") if k in spec]
+        if len(sources) != 1:
+            raise doc.error(where, "give exactly one of renderer, folder or derive"
+                            + (f" (has {', '.join(sources)})" if sources else ""))
+        if "params" in spec and "renderer" not in spec:
+            raise doc.error(where + ("params",), "params belong to a renderer condition")
+        if "renderer" in spec and known is not None and spec["renderer"] not in known:
+            raise doc.error(where + ("renderer",), f"unknown renderer {spec['renderer']!r}: allowed "
+                            f"{', '.join(sorted(known))}")
+        elif "renderer" in spec and known is not None:
+            try:
+                reg.resolve_params(spec["renderer"], spec.get("params", {}))
+            except ValueError as exc:
+                raise doc.error(where + ("params",), str(exc)) from None
+        derive = spec.get("derive", {})
+        if derive and derive["from"] not in data["conditions"]:
+            raise doc.error(where + ("derive", "from"), f"unknown condition {derive['from']!r}")
+        if derive and data["conditions"][derive["from"]].get("derive"):
+            raise doc.error(where + ("derive", "from"), "cannot derive from a derived condition")
+        out[name] = Condition(name=name, renderer=spec.get("renderer"), params=dict(spec.get("params", {})),
+                              folder=_inside(doc, base, where + ("folder",), spec["folder"]) if "folder" in spec
+                              else None,
+                              derive_from=derive.get("from"), blur_sigma_px=float(derive.get("blur_sigma_px", 0)),
+                              noise=float(derive.get("noise", 0)), label=spec.get("label", name),
+                              quality=spec.get("quality"), role=spec.get("role", "main"))
+    return out
+
+
+def _display(doc: LoadedYAML, data: dict) -> tuple[Display, tuple[int, int]]:
+    """The display, and the render size of the stimuli (same aspect ratio: a stimulus covers the display)."""
+    disp = dict(data["display"])
+    stated = disp.pop("fov_y_deg", None)
+    display = Display(**disp)
+    if stated is not None and abs(stated - display.fov_y_deg) > 0.1:
+        raise doc.error(("display", "fov_y_deg"), f"{stated:g}° disagrees with the display's size: "
+                        f"{display.width_px}x{display.height_px} px, {display.width_cm:g} cm wide, seen from "
+                        f"{display.distance_cm:g} cm subtend {display.fov_y_deg:.2f}° (remove fov_y_deg, or fix "
+                        "width_cm/distance_cm)")
+    w, h = (data.get("stimulus") or {}).get("render_px", (display.width_px, display.height_px))
+    if abs(w * display.height_px / display.width_px - h) > 1.0:
+        raise doc.error(("stimulus", "render_px"), f"{w}x{h} has not the display's aspect ratio "
+                        f"({display.width_px}x{display.height_px}): a stimulus covers the whole display")
+    return display, (int(w), int(h))
+
+
+def _check_renderers_on_display(doc, conditions, display, render_size, fixation) -> None:
+    """Each renderer condition must work on this display (e.g. LaFR's fovea must fit inside it)."""
+    reg = _registry()
+    if reg is None:
+        return
+    fix = fixation or {"x": 0.5, "y": 0.5}
+    w, h = render_size
+    geometry = ViewingGeometry.create(w, h, display.fov_y_deg, (fix["x"] * w, fix["y"] * h))
+    for name, cond in conditions.items():
+        if cond.renderer:
+            try:
+                reg.check_geometry(cond.renderer, cond.params, geometry)
+            except ValueError as exc:
+                raise doc.error(("conditions", name, "renderer"), f"{cond.renderer} cannot render for this "
+                                f"display ({w}x{h} px, {display.fov_y_deg:.1f}°): {exc}") from None
+
+
+def _inside(doc: LoadedYAML, base: Path, field: tuple, relative: str) -> Path:
+    """``base / relative``, refused when it leaves the protocol's folder (``..``, an absolute path): a protocol
+    file never makes studyapp read or write elsewhere; a folder elsewhere is given on the command line."""
+    target = (base / relative).resolve()
+    if Path(relative).is_absolute() or not target.is_relative_to(base):
+        raise doc.error(field, f"{relative!r} is outside the protocol's folder {base}: give a folder inside it, "
+                        "or the folder on the command line (--stimuli DIR)")
+    return target
+
+
+def _check_scenes(doc: LoadedYAML, data: dict, base: Path) -> None:
+    """Every scene a renderer condition renders must be a built-in scene or a scene file next to the protocol."""
+    try:
+        from renderers.catalog import BUILTIN_SCENES, scene_exists
+    except ImportError:  # an analysis-only install: scenes are checked where they are rendered
+        return
+    names = [(("scenes", i), s) for i, s in enumerate(data["scenes"])]
+    if data.get("practice"):
+        names.append((("practice", "scene"), data["practice"]["scene"]))
+    for where, name in names:
+        if not scene_exists(name, base):
+            raise doc.error(where, f"unknown scene {name!r}: neither a built-in scene ({', '.join(BUILTIN_SCENES)}) "
+                            f"nor a scene file {name}.yaml next to the protocol")
+
+
+def _check_condition(doc, conditions, field_path, name, allow_roles=("main", "catch", "practice")):
+    if name not in conditions:
+        raise doc.error(field_path, f"unknown condition {name!r}: defined are {', '.join(conditions)}")
+    if conditions[name].role not in allow_roles:
+        raise doc.error(field_path, f"condition {name!r} has role {conditions[name].role}")
+
+
+def load_protocol(path, stimuli_dir=None, check_renderers: bool = True, output_base: Path | None = None) -> Protocol:
+    """Read, validate and complete a protocol file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The YAML file.
+    stimuli_dir : str or Path, optional
+        Override of the protocol's ``stimuli_dir`` (default ``stimuli/<name>`` next to the protocol file).
+    output_base : Path, optional
+        Folder the protocol's ``stimuli_dir`` is relative to (default: the protocol's own folder; the CLI
+        gives the current folder for the shipped protocols, which live inside the installed package).
+    check_renderers : bool
+        When ``renderers.registry`` is importable, renderer names and parameters are checked against it
+        (default); False skips the check (simulated runs, which render nothing, and do not import the
+        renderers).
+
+    Raises
+    ------
+    ProtocolError
+        One line naming the file, the line and the field.
+    """
+    path = Path(path)
+    doc = load_yaml(path)
+    data = validate_document(doc)
+    base = path.resolve().parent
+    family = data["family"]
+    conditions = _conditions(doc, data, base, check_renderers)
+
+    design = data["design"]
+    if "conditions" in design:
+        for i, c in enumerate(design["conditions"]):
+            _check_condition(doc, conditions, ("design", "conditions", i), c)
+        design_conditions = tuple(design["conditions"])
+    else:
+        design_conditions = tuple(n for n, c in conditions.items() if c.role == "main")
+    fam = families.get(family)
+    need = fam.min_conditions
+    if len(design_conditions) < need:
+        raise doc.error(("design",), f"{family} needs at least {need} conditions in the design, has "
+                        f"{len(design_conditions)}")
+    n_picks = int(design.get("n_picks", fam.default_n_picks(len(design_conditions))))
+    if fam.has_picks and n_picks >= len(design_conditions):
+        raise doc.error(("design", "n_picks"), f"{n_picks} picks of {len(design_conditions)} conditions: "
+                        f"allowed 1..{len(design_conditions) - 1}")
+    if not fam.has_picks and "n_picks" in design:
+        raise doc.error(("design", "n_picks"), "only the preference family picks favourites")
+    if not fam.has_positions and design.get("position_balance"):
+        raise doc.error(("design", "position_balance"), "only 2afc trials have positions to balance")
+    reference = design.get("reference", {})
+    if reference:
+        _check_condition(doc, conditions, ("design", "reference", "condition"), reference["condition"])
+
+    stim = data.get("stimulus", {})
+    kind = stim.get("kind", "image")
+    if kind == "sequence" and ("duration_s" not in stim or "fps" not in stim):
+        raise doc.error(("stimulus",), "a sequence needs duration_s and fps")
+    if kind == "image" and "fps" in stim:
+        raise doc.error(("stimulus", "fps"), "still images have no frame rate (use kind: sequence)")
+
+    display, render_size = _display(doc, data)
+    if check_renderers:
+        _check_renderers_on_display(doc, conditions, display, render_size, data.get("fixation"))
+
+    keys = data.get("keys", {})
+    default = fam.default_keys(len(design_conditions))
+    answer_keys = dict(keys.get("answer", default["answer"]))
+    switch_keys = dict(keys.get("switch", default["switch"]))
+    allowed = fam.answer_values(len(design_conditions))
+    for k, v in answer_keys.items():
+        if v not in allowed:
+            raise doc.error(("keys", "answer", k), f"answer {v!r} is not one of "
+                            f"{', '.join(repr(a) for a in sorted(allowed))}")
+    for k, v in switch_keys.items():
+        if v > fam.max_switch(len(design_conditions)):
+            raise doc.error(("keys", "switch", k), f"stimulus index {v} is out of range")
+    overlap = set(answer_keys) & set(switch_keys)
+    if overlap:
+        raise doc.error(("keys",), f"key {min(overlap)!r} both answers and switches")
+    if "escape" in answer_keys or "escape" in switch_keys:
+        raise doc.error(("keys",), "escape is reserved for pausing the session")
+
+    if check_renderers and any(c.renderer for c in conditions.values()):
+        _check_scenes(doc, data, base)
+
+    practice = data.get("practice")
+    if practice:
+        for i, c in enumerate(practice["conditions"]):
+            _check_condition(doc, conditions, ("practice", "conditions", i), c)
+        problem = fam.practice_problem(practice["conditions"], len(design_conditions))
+        if problem:
+            raise doc.error(("practice", "conditions"), problem)
+    catch = data.get("catch")
+    if catch and not fam.catch_kinds:
+        allowed_by = ", ".join(f.name for f in families.FAMILIES.values() if f.catch_kinds)
+        raise doc.error(("catch",), f"catch trials are for the {allowed_by} families")
+    if catch and catch["kind"] not in fam.catch_kinds:
+        raise doc.error(("catch", "kind"), f"{family} catch trials are {' or '.join(fam.catch_kinds)}")
+    if catch:
+        catch = {"pass_fraction": 0.75, **catch}
+        if catch["kind"] == "degraded":
+            for key in ("good", "bad"):
+                if key not in catch:
+                    raise doc.error(("catch",), f"degraded catch trials need {key!r}")
+                _check_condition(doc, conditions, ("catch", key), catch[key])
+    simulation = {**DEFAULT_SIMULATION, **data.get("simulation", {})}
+    if "ground_truth" in simulation:
+        _check_condition(doc, conditions, ("simulation", "ground_truth"), simulation["ground_truth"])
+    analysis = {"by": [], "alpha": 0.05, **data["analysis"]}
+    if "reference" in analysis and analysis["reference"] not in design_conditions:
+        raise doc.error(("analysis", "reference"), f"unknown condition {analysis['reference']!r}: the design "
+                        f"has {', '.join(design_conditions)}")
+    if analysis["dv"] not in fam.dvs:
+        raise doc.error(("analysis", "dv"), f"{family} trials record {' or '.join(map(repr, fam.dvs))}, not "
+                        f"{analysis['dv']!r}")
+
+    fix = data.get("fixation", {"x": 0.5, "y": 0.5})
+    timing = data.get("timing", {})
+    sdir = Path(stimuli_dir) if stimuli_dir is not None else _inside(
+        doc, Path(output_base).resolve() if output_base is not None else base, ("stimuli_dir",),
+        data.get("stimuli_dir", f"stimuli/{data['name']}"))
+    return Protocol(
+        path=path, data=data, name=data["name"], version=data["version"], family=family,
+        question=data["question"], instructions=data.get("instructions", ""), block=data.get("block", ""),
+        display=display, render_size=render_size, fixation=(float(fix["x"]), float(fix["y"])), fixation_mark=fix.get("mark", True),
+        scenes=tuple(data["scenes"]), conditions=conditions, design_conditions=design_conditions,
+        stimulus_kind=kind, duration_s=stim.get("duration_s"), fps=float(stim.get("fps", 0.0)),
+        camera_path=tuple(stim.get("camera_path", ())), black_s=float(timing.get("black_s", 0.5)),
+        max_response_s=timing.get("max_response_s"), answer_keys=answer_keys, switch_keys=switch_keys,
+        repetitions=int(design["repetitions"]), scene_order=design.get("scene_order", "fixed"),
+        trial_order=design.get("trial_order", "blocked"), max_run=int(design.get("max_run", 0)),
+        min_repeat_distance=int(design.get("min_repeat_distance", 0)),
+        position_balance=bool(design.get("position_balance", fam.has_positions)), n_picks=n_picks,
+        reference=reference.get("condition"), reference_label=reference.get("label", "This is the reference"),
+        practice=practice, breaks=data.get("breaks"), catch=catch, simulation=simulation, analysis=analysis,
+        stimuli_dir=sdir, content_hash=content_hash(data))

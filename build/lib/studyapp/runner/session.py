@@ -1,0 +1,310 @@
+"""Running a participant's session: schedule -> store -> presenter, one durable response at a time.
+
+Order of events (what survives a crash at any point):
+
+1. the protocol is checked against the study database (a different protocol version is refused);
+2. the schedule is built (pure function of protocol, participant, seed) and every stimulus it needs is located
+   (missing files are an error before anything is written);
+3. the presenter is opened (a window checks its keyboard backend here);
+4. a new participant's whole schedule is written in one transaction; a returning one (``resume``) must have
+   the same seed and the identical schedule (hash), and continues at the first unanswered trial;
+5. per trial: break message if due, ``present``, then the response is committed (fsync) before the next trial
+   is preloaded and shown. Escape -> ``pause``: ``resume`` shows the trial again, ``end`` closes the session
+   as ``ended`` (both are logged as events); a later ``--resume`` continues it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import platform
+import re
+import sqlite3
+import sys
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from data_schema import families
+from data_schema.errors import UserError
+from data_schema.store import PlannedRow, Store, StoreError, open_store, remove_database
+from studyapp.presentation.base import Stimulus, TrialDisplay, TrialResult
+
+from .protocol import Protocol
+from .schedule import PlannedTrial, build_schedule, counterbalance_index, schedule_hash
+from .stimuli import frame_paths, missing_stimuli
+
+
+@dataclass
+class SessionSummary:
+    session: str
+    participant: str
+    status: str
+    answered: int  # answered trials of the whole schedule so far (references excluded)
+    planned: int
+    catch_correct: int
+    catch_total: int
+    catch_passed: bool | None
+
+
+def software_versions(extra: dict | None = None) -> dict:
+    import numpy
+
+    from studyapp import __version__
+
+    out = {"studyapp": __version__, "python": platform.python_version(), "sqlite": sqlite3.sqlite_version,
+           "numpy": numpy.__version__, "platform": platform.platform()}
+    out.update(extra or {})
+    return out
+
+
+class StimulusSet:
+    """Stimulus lookup for one run: frame files per (condition, scene), empty where declared-only."""
+
+    def __init__(self, protocol: Protocol, scale: float = 1.0, root: Path | None = None,
+                 allow_declared: bool = False) -> None:
+        self.protocol, self.scale, self.root = protocol, scale, root
+        missing = missing_stimuli(protocol, scale, root)
+        self.declared: set[tuple[str, str]] = set()
+        for need, path in missing:
+            cond = protocol.conditions[need.condition]
+            if allow_declared and cond.quality is not None and cond.folder is None:  # a lab's folder must be complete
+                self.declared.add((need.condition, need.scene))
+                continue
+            hint = ("declare a quality for --simulate, or " if allow_declared else "") + \
+                f"run `studyapp prepare {protocol.path}`"
+            raise UserError(f"missing stimulus file {path} (condition {need.condition}, scene {need.scene}): "
+                             f"{hint}")
+
+    def stimulus(self, condition: str, scene: str) -> Stimulus:
+        fps = self.protocol.fps if self.protocol.stimulus_kind == "sequence" else 0.0
+        if (condition, scene) in self.declared:
+            return Stimulus(condition=condition, frames=(), fps=fps)
+        frames = frame_paths(self.protocol, condition, scene, self.scale, self.root)
+        return Stimulus(condition=condition, frames=frames, fps=fps if len(frames) > 1 else 0.0)
+
+
+def trial_display(protocol: Protocol, t: PlannedTrial | PlannedRow, stimuli: StimulusSet, number: int,
+                  total: int, display_px: tuple[float, float] | None) -> TrialDisplay:
+    """What the presenter needs for one planned trial."""
+    kind = t.kind
+    ref = kind == "reference"
+    return TrialDisplay(
+        index=t.idx, family=t.family,
+        stimuli=tuple(stimuli.stimulus(c, t.scene) for c in t.conditions),
+        question="" if ref else protocol.question,
+        answer_keys=({} if protocol.stimulus_kind == "sequence" else {"space": "seen"}) if ref
+        else dict(protocol.answer_keys),
+        switch_keys={} if ref else dict(protocol.switch_keys), fixation_px=display_px,
+        duration_s=protocol.duration_s if protocol.stimulus_kind == "sequence" else None,
+        black_before_s=protocol.black_s, label=protocol.reference_label if ref else "",
+        n_picks=protocol.n_picks if families.get(protocol.family).has_picks else 1,
+        progress=None if ref else (number, total), scene=t.scene, kind=kind)
+
+
+def interpret(protocol: Protocol, t: PlannedRow, result: TrialResult) -> dict:
+    """Map the presenter's answers to the logged chosen / chosen_2 / response (the family's rules)."""
+    if t.kind == "reference":
+        return {"chosen": "", "chosen_2": "", "response": None}
+    ans = [a for a in result.answers if a != ""]
+    if not ans:
+        raise RuntimeError(f"presenter returned no answer for trial {t.idx}")
+    try:
+        return families.get(t.family).interpret(t.conditions, result.answers, protocol.n_picks)
+    except ValueError as exc:
+        raise RuntimeError(f"presenter answer for trial {t.idx}: {exc}") from None
+
+
+def _correct(store: Store, pid: str, t: PlannedRow, answers: list[str], derived: dict) -> bool | None:
+    if t.kind != "catch" or not t.expected:
+        return None
+    if t.expected.startswith("same:"):
+        j = int(t.expected.split(":", 1)[1])
+        row = store.conn.execute("SELECT chosen FROM responses WHERE participant = ? AND idx = ?",
+                                 (pid, j)).fetchone()
+        return row is not None and row[0] == derived["chosen"]
+    return answers[:1] == [t.expected]
+
+
+def run_session(protocol: Protocol, participant: str, db_path, presenter_factory: Callable, seed: int | None = None,
+                resume: bool = False, scale: float = 1.0, stimuli_root: Path | None = None,
+                allow_declared: bool = False, on_started: Callable[[str], None] | None = None,
+                progress: Callable[[int, int], None] | None = None) -> SessionSummary:
+    """Run (or resume) one participant's session; see the module docstring for the order of events.
+
+    ``presenter_factory(stimuli, display)`` returns the Presenter (a window or the simulated observer); it is
+    called after every check has passed, so a refused run opens no window.
+    """
+    if not re.fullmatch(r"[A-Za-z0-9_.-]{1,64}", participant or ""):
+        raise UserError(f"--participant={participant!r} is invalid: a pseudonymous id of 1-64 letters, digits, "
+                         "'_', '.' or '-' (no names or e-mail addresses)")
+    db_path = Path(db_path)
+    created = not db_path.exists()
+    if created and resume:
+        raise StoreError(f"{db_path}: no such study database: nothing to resume")
+    store = open_store(db_path, "create" if created else "write")
+    try:
+        return _run(store, protocol, participant, presenter_factory, seed, resume, scale, stimuli_root,
+                    allow_declared, on_started, progress)
+    finally:
+        empty = created and not store.has_answers()
+        store.close()
+        if empty:  # a refused first run (or Ctrl-C before the first answer) leaves no database behind
+            remove_database(db_path)
+
+
+def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_root, allow_declared, on_started,
+         progress) -> SessionSummary:
+    store.bind_protocol(protocol.name, protocol.version, protocol.content_hash, protocol.data, record=False)
+    existing = store.participant(pid)
+    if existing and not resume:
+        done = len(store.answered(pid))
+        raise StoreError(f"{store.path}: participant {pid!r} already exists ({done} of {existing['n_planned']} "
+                         "planned trials answered): use --resume to continue, or another --participant")
+    if resume and not existing:
+        raise StoreError(f"{store.path}: participant {pid!r} has no session to resume")
+    if existing:
+        store.check_not_running(pid)  # a second --resume while the first still runs (checked again at start)
+    if existing:
+        if seed is not None and seed != existing["seed"]:
+            raise StoreError(f"{store.path}: participant {pid!r} was scheduled with --seed {existing['seed']}, "
+                             f"not {seed}")
+        seed = existing["seed"]
+    seed = 0 if seed is None else seed
+    schedule = build_schedule(protocol, pid, seed)
+    s_hash = schedule_hash(schedule)
+    if existing and existing["schedule_hash"] != s_hash:
+        raise StoreError(f"{store.path}: the schedule of participant {pid!r} differs from the stored one "
+                         "(protocol or scheduler changed): cannot resume")
+    if existing and store.first_unanswered(pid) is None:
+        # Every answer is recorded. A session stopped after its last answer but before it was closed (crash,
+        # kill) is closed now as completed; otherwise there is nothing to resume.
+        open_ids = store.running_sessions(pid)
+        if not open_ids:
+            raise StoreError(f"{store.path}: participant {pid!r} has already answered every trial")
+        for sid in open_ids:
+            store.event(sid, "closed", "all trials were answered before the session stopped")
+            store.end_session(sid, "completed")
+        return _summary(store, protocol, pid, open_ids[-1], "completed")
+    stimuli = StimulusSet(protocol, scale, stimuli_root, allow_declared)
+    # The window is the participant's display at any --scale: a smaller render is shown upscaled over it.
+    display = protocol.display
+    presenter = presenter_factory(stimuli, display)
+    measured = presenter.open(display)
+    try:
+        if not existing:
+            store.bind_protocol(protocol.name, protocol.version, protocol.content_hash, protocol.data)
+            rows = [PlannedRow(t.index, t.kind, t.family, t.scene, t.block, t.conditions, t.expected,
+                               t.break_before) for t in schedule]
+            store.enrol(pid, counterbalance_index(pid), seed, s_hash, rows)
+        previous = store.last_session(pid) if resume else None
+        rendered = protocol.render_geometry(scale)
+        display_info = {**asdict(display), "ppd": display.ppd, "fov_y_deg": display.fov_y_deg, "scale": scale,
+                        "render_px": [rendered.width, rendered.height], "fixation": list(protocol.fixation)}
+        sid = store.start_session(pid, protocol.content_hash, seed, software_versions(measured.get("software")),
+                                  display_info, measured, str(measured.get("presenter", type(presenter).__name__)),
+                                  resumed_from=previous)
+        if on_started:
+            on_started(sid)
+        try:
+            status = _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress)
+        except BaseException as exc:  # Ctrl-C, SIGTERM, a full disk: committed answers stay; the session says so
+            with contextlib.suppress(StoreError):
+                store.event(sid, "interrupted", "Ctrl-C or SIGTERM" if isinstance(exc, KeyboardInterrupt)
+                            else str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__)
+                store.end_session(sid, "interrupted")
+            raise
+    finally:
+        presenter.close()
+    return _summary(store, protocol, pid, sid, status)
+
+
+def _summary(store, protocol, pid, sid, status) -> SessionSummary:
+    prog = next(p for p in store.progress() if p["participant"] == pid)
+    passed = None
+    if prog["catch_planned"]:
+        frac = protocol.catch["pass_fraction"] if protocol.catch else 0.75
+        passed = prog["catch_correct"] >= frac * prog["catch_planned"] if status == "completed" else None
+    return SessionSummary(sid, pid, status, prog["answered"], prog["planned"], prog["catch_correct"],
+                          prog["catch_planned"], passed)
+
+
+def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress) -> str:
+    planned = store.planned(pid)
+    answered = store.answered(pid)
+    total = sum(t.kind != "reference" for t in planned)
+    number = sum(1 for t in planned if t.kind != "reference" and t.idx in answered)
+    gaze = protocol.render_geometry(scale).gaze if protocol.fixation_mark else None
+    text = protocol.instructions or protocol.question
+    presenter.instructions(("Welcome back. " if resume else "") + text)
+    todo = [t for t in planned if t.idx not in answered]
+    first = True
+    displays = {}
+
+    def display_of(t, done=None):
+        """The trial's display; ``done`` = non-reference trials answered before it (default: so far)."""
+        if t.idx not in displays:
+            done = number if done is None else done
+            n = done + 1 if t.kind != "reference" else done
+            displays[t.idx] = trial_display(protocol, t, stimuli, n, total, gaze)
+        return displays[t.idx]
+
+    if todo:
+        presenter.preload(display_of(todo[0]))
+    for k, t in enumerate(todo):
+        if t.break_before and not first and protocol.breaks:
+            br = protocol.breaks
+            store.event(sid, "break", f"before trial {t.idx}")
+            store.checkpoint()
+            presenter.message(br.get("text", "Take a short break."), float(br.get("seconds", 30.0)))
+        first = False
+        d = display_of(t)
+        prefetch = getattr(presenter, "prefetch", None)  # optional: decode the next trial during this one
+        if prefetch is not None and k + 1 < len(todo):
+            prefetch(display_of(todo[k + 1], number + (t.kind != "reference")))
+        while True:
+            result = presenter.present(d)
+            if not result.escaped:
+                break
+            store.event(sid, "pause", f"trial {t.idx}")
+            choice = presenter.pause()
+            store.event(sid, choice, f"trial {t.idx}")
+            if choice == "end":
+                store.end_session(sid, "ended")
+                return "ended"
+        derived = interpret(protocol, t, result)
+        store.commit_response(pid, t.idx, sid, result.answers, chosen=derived["chosen"],
+                              chosen_2=derived["chosen_2"], response=derived["response"], rt_s=result.rt_s,
+                              onset_s=result.onset_s, dropped_frames=result.dropped_frames,
+                              switches=result.switches, gaze_left_fovea=result.gaze_left_fovea,
+                              correct=_correct(store, pid, t, result.answers, derived))
+        if t.kind != "reference":
+            number += 1
+        displays.pop(t.idx, None)
+        if progress:
+            progress(number, total)
+        if k + 1 < len(todo):
+            presenter.preload(display_of(todo[k + 1]))
+    store.end_session(sid, "completed")
+    presenter.message("Thank you! The session is complete.", 2.0)
+    return "completed"
+
+
+def ground_truth_stimuli(protocol: Protocol, stimuli: StimulusSet) -> dict[str, Stimulus]:
+    """Scene -> ground-truth stimulus (for the simulated observer)."""
+    gt = protocol.ground_truth
+    scenes = set(protocol.scenes) | ({protocol.practice["scene"]} if protocol.practice else set())
+    if gt is None:
+        return {}
+    out = {}
+    for s in sorted(scenes):
+        try:
+            out[s] = stimuli.stimulus(gt, s)
+        except KeyError:
+            continue
+        if out[s].frames and not all(Path(f).is_file() for f in out[s].frames):
+            out[s] = Stimulus(gt, (), out[s].fps)
+    return out
+
+
+def write_line(msg: str) -> None:
+    print(msg, file=sys.stdout, flush=True)

@@ -1,0 +1,336 @@
+"""Stimulus sets: where a protocol's stimuli live, building them (``prepare``), and synthetic sets.
+
+Layout (the same for prepared sets and for folders a lab rendered elsewhere)::
+
+    <root>/<CONDITION>/<SCENE>.png                     still image
+    <root>/<CONDITION>/<SCENE>/frame_00000.png ...     sequence (round(duration_s * fps) frames)
+
+``root`` is the protocol's ``stimuli_dir`` (``scale<F>`` below it for ``--scale F``); a ``folder`` condition
+reads ``<folder>/<SCENE>.png`` or ``<folder>/<SCENE>/*.png`` (sorted) instead. Renderer conditions are built by
+``renderers.stimuli.render_stimulus`` (with its content-addressed cache); ``derive`` conditions are made from
+another condition's frames by a Gaussian blur and seeded noise, here.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import math
+import shutil
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from data_schema.atomic import atomic_path
+from data_schema.errors import UserError
+from data_schema.ranges import SCALE
+
+from .images import gaussian_blur, load_rgb, save_png
+from .protocol import Protocol
+
+
+@dataclass(frozen=True)
+class Needed:
+    """One (condition, scene) stimulus the protocol's schedules can show."""
+
+    condition: str
+    scene: str
+
+
+def stimulus_root(protocol: Protocol, scale: float = 1.0, root: Path | None = None) -> Path:
+    base = Path(root) if root is not None else protocol.stimuli_dir
+    return base if scale == 1.0 else base / f"scale{scale:g}"
+
+
+def needed_stimuli(protocol: Protocol) -> list[Needed]:
+    """Every (condition, scene) a schedule of ``protocol`` may show, sources of derived conditions first."""
+    want: list[Needed] = []
+
+    def add(cond, scene):
+        c = protocol.conditions[cond]
+        if c.derive_from:
+            add(c.derive_from, scene)
+        n = Needed(cond, scene)
+        if n not in want:
+            want.append(n)
+
+    for scene in protocol.scenes:
+        for cond in protocol.design_conditions:
+            add(cond, scene)
+        if protocol.reference:
+            add(protocol.reference, scene)
+        if protocol.catch and protocol.catch["kind"] == "degraded":
+            add(protocol.catch["good"], scene)
+            add(protocol.catch["bad"], scene)
+    if protocol.practice:
+        for cond in protocol.practice["conditions"]:
+            add(cond, protocol.practice["scene"])
+    if protocol.ground_truth:  # what the simulated observer compares against
+        for scene in protocol.scenes + ((protocol.practice["scene"],) if protocol.practice else ()):
+            add(protocol.ground_truth, scene)
+    return want
+
+
+def frame_paths(protocol: Protocol, condition: str, scene: str, scale: float = 1.0,
+                root: Path | None = None) -> tuple[Path, ...]:
+    """The frame files of one stimulus (they may not exist yet)."""
+    cond = protocol.conditions[condition]
+    if cond.folder is not None:
+        single = cond.folder / f"{scene}.png"
+        seq_dir = cond.folder / scene
+        if seq_dir.is_dir():
+            frames = tuple(sorted(seq_dir.glob("*.png")))
+            return frames if frames else (seq_dir / "frame_00000.png",)
+        return (single,)
+    base = stimulus_root(protocol, scale, root) / condition
+    if protocol.n_frames == 1:
+        return (base / f"{scene}.png",)
+    return tuple(base / scene / f"frame_{i:05d}.png" for i in range(protocol.n_frames))
+
+
+def missing_stimuli(protocol: Protocol, scale: float = 1.0, root: Path | None = None) -> list[tuple[Needed, Path]]:
+    out = []
+    for n in needed_stimuli(protocol):
+        for f in frame_paths(protocol, n.condition, n.scene, scale, root):
+            if not f.is_file():
+                out.append((n, f))
+                break
+    return out
+
+
+def camera_at(protocol: Protocol, frame: int) -> dict | None:
+    """Camera keyframe interpolated linearly at ``t = frame / (n_frames - 1)`` (None: the scene's camera)."""
+    path = sorted(protocol.camera_path, key=lambda k: k["t"])
+    if not path:
+        return None
+    n = protocol.n_frames
+    t = 0.0 if n <= 1 else frame / (n - 1)
+    keys = [k for k in path[0] if k != "t"]
+    if t <= path[0]["t"]:
+        return {k: path[0][k] for k in keys}
+    for a, b in itertools.pairwise(path):
+        if a["t"] <= t <= b["t"]:
+            w = 0.0 if b["t"] == a["t"] else (t - a["t"]) / (b["t"] - a["t"])
+            out = {}
+            for k in keys:
+                va, vb = a.get(k), b.get(k, a.get(k))
+                if isinstance(va, list):
+                    out[k] = [x + w * (y - x) for x, y in zip(va, vb)]
+                elif va is not None:
+                    out[k] = va + w * (vb - va)
+            return out
+    return {k: path[-1][k] for k in keys if k in path[-1]}
+
+
+def frame_camera(protocol: Protocol, scene: str, frame: int) -> dict:
+    """The renderer's camera of ``frame``: the display's vertical visual angle (``fov_y``; the scene's own
+    field of view never applies to a study's stimuli), the camera path's pose, and the previous frame's camera
+    under ``previous`` (frames after the first of a moving sequence) for screen-space velocity."""
+    fov = {"fov_y": protocol.display.fov_y_deg}
+    cam = {**(absolute_camera(protocol.scene_ref(scene), camera_at(protocol, frame)) or {}), **fov}
+    if frame == 0:
+        return cam
+    prev = {**(absolute_camera(protocol.scene_ref(scene), camera_at(protocol, frame - 1)) or {}), **fov}
+    return cam if prev == cam else {**cam, "previous": prev}
+
+
+def absolute_camera(scene: str, camera: dict | None) -> dict | None:
+    """Turn ``yaw_deg``/``pitch_deg`` offsets into the renderer's ``look_at`` for the scene's own camera.
+
+    Yaw turns the view direction about the camera's up vector, pitch about its right vector; the position
+    stays. Keys ``position``/``look_at`` pass through unchanged.
+    """
+    if not camera or not ({"yaw_deg", "pitch_deg"} & set(camera)):
+        return camera
+    from renderers.catalog import resolve
+
+    cam = resolve(scene).camera
+    f, r, u = cam.basis()
+    pos = np.asarray(camera.get("position", cam.position), dtype=np.float64)
+    dist = float(np.linalg.norm(np.subtract(cam.look_at, cam.position)))
+    yaw, pitch = math.radians(camera.get("yaw_deg", 0.0)), math.radians(camera.get("pitch_deg", 0.0))
+    d = math.cos(pitch) * (math.cos(yaw) * f + math.sin(yaw) * r) + math.sin(pitch) * u
+    out = {k: v for k, v in camera.items() if k not in ("yaw_deg", "pitch_deg")}
+    out["position"] = [float(x) for x in pos]
+    out["look_at"] = [float(x) for x in pos + dist * d]
+    return out
+
+
+def _seed_of(*parts) -> int:
+    return int.from_bytes(hashlib.sha256("|".join(map(str, parts)).encode()).digest()[:8], "little")
+
+
+def degrade(rgb: np.ndarray, blur_sigma_px: float, noise: float, seed: int) -> np.ndarray:
+    """A strongly degraded copy: Gaussian blur then additive Gaussian noise of SD ``noise``, clipped to [0, 1]."""
+    out = gaussian_blur(np.asarray(rgb, dtype=np.float32), blur_sigma_px)
+    if noise > 0:
+        out = out + np.random.default_rng(seed).normal(0.0, noise, out.shape).astype(np.float32)
+    return np.clip(out, 0.0, 1.0)
+
+
+def make_derived(protocol: Protocol, need: Needed, scale: float = 1.0, root: Path | None = None,
+                 max_frames: int | None = None) -> list[Path]:
+    """Build a ``derive`` condition's frames from its source condition's frames (frames past ``max_frames``
+    repeat the last one built, as in :func:`write_synthetic_stimuli`)."""
+    cond = protocol.conditions[need.condition]
+    src = frame_paths(protocol, cond.derive_from, need.scene, scale, root)
+    dst = frame_paths(protocol, need.condition, need.scene, scale, root)
+    if len(src) != len(dst):
+        dst = tuple(dst[0].parent / f"frame_{i:05d}.png" for i in range(len(src))) if len(src) > 1 else dst
+    out = []
+    sigma = cond.blur_sigma_px * scale
+    for i, (s, d) in enumerate(zip(src, dst)):
+        if max_frames is not None and i >= max_frames:
+            d.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(out[-1], d)
+            out.append(d)
+            continue
+        out.append(save_png(d, degrade(load_rgb(s), sigma, cond.noise, _seed_of(need.condition, need.scene, i))))
+    return out
+
+
+# -- prepare -----------------------------------------------------------------------------------------------
+def render_function():
+    """``renderers.stimuli.render_stimulus`` or a ValueError saying why it is not usable here."""
+    try:
+        from renderers.stimuli import render_stimulus
+    except Exception as exc:  # noqa: BLE001 - any import failure: the renderers are not usable
+        raise UserError(f"the renderers are not usable here ({type(exc).__name__}: {exc}): render the stimuli "
+                         "elsewhere and use folder conditions, or use run --simulate (declared qualities)") from None
+    return render_stimulus
+
+
+def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, cache_dir: Path | None = None,
+            progress: Callable[[int, int, float], None] | None = None, render=None) -> dict:
+    """Build every missing stimulus of ``protocol``: render renderer conditions, derive degraded ones.
+
+    ``progress(done_frames, total_frames, seconds_left)`` is called after every frame; the time left is the
+    mean seconds per rendered frame so far times the frames left. Returns counts and the elapsed time.
+    """
+    SCALE.check("--scale", scale)
+    geometry = protocol.render_geometry(scale)
+    root_dir = stimulus_root(protocol, scale, root)
+    cache = Path(cache_dir) if cache_dir is not None else root_dir.parent / ".cache"
+    todo = []
+    for need in needed_stimuli(protocol):
+        cond = protocol.conditions[need.condition]
+        frames = frame_paths(protocol, need.condition, need.scene, scale, root)
+        if all(f.is_file() for f in frames):
+            continue
+        if cond.folder is not None:
+            missing = next(f for f in frames if not f.is_file())
+            raise UserError(f"missing stimulus file {missing} (condition {need.condition}, scene {need.scene}): "
+                             "folder conditions are rendered elsewhere")
+        todo.append((need, cond, frames))
+    n_render = sum(len(fr) for _, c, fr in todo if c.renderer)
+    total = sum(len(fr) for _, _, fr in todo)
+    if n_render and render is None:
+        render = render_function()
+    t0, done, rendered, t_render = time.perf_counter(), 0, 0, 0.0
+    for need, cond, frames in todo:
+        if cond.renderer:
+            for i, dst in enumerate(frames):
+                if dst.is_file():
+                    done += 1
+                    continue
+                t1 = time.perf_counter()
+                png = render(protocol.scene_ref(need.scene), cond.renderer, dict(cond.params), geometry.width,
+                             geometry.height, geometry.gaze, camera=frame_camera(protocol, need.scene, i),
+                             cache_dir=cache)
+                dst.parent.mkdir(parents=True, exist_ok=True)
+                with atomic_path(dst) as tmp:
+                    shutil.copyfile(png, tmp)
+                t_render += time.perf_counter() - t1
+                rendered += 1
+                done += 1
+                if progress:
+                    left = (n_render - rendered) * (t_render / rendered) if rendered else math.nan
+                    progress(done, total, left)
+        else:
+            make_derived(protocol, need, scale, root)
+            done += len(frames)
+            if progress:
+                progress(done, total, (n_render - rendered) * (t_render / rendered) if rendered else 0.0)
+    return {"frames": total, "rendered": rendered, "seconds": time.perf_counter() - t0}
+
+
+# -- synthetic stimulus sets (demo, tests, dry runs without renderers) --------------------------------------
+def synthetic_scene(width: int, height: int, scene: str, frame: int = 0) -> np.ndarray:
+    """A procedural 'ground truth' image with fine detail everywhere (gratings, checks, edges), RGB in [0, 1]."""
+    rng = np.random.default_rng(_seed_of("scene", scene))
+    y, x = np.mgrid[0:height, 0:width].astype(np.float32)
+    x = x + 1.5 * frame
+    img = np.zeros((height, width, 3), dtype=np.float32)
+    for c in range(3):
+        f1, f2 = rng.uniform(0.05, 0.35, 2)
+        th = rng.uniform(0, np.pi)
+        img[..., c] = 0.5 + 0.22 * np.sin(f1 * (x * np.cos(th) + y * np.sin(th))) \
+            + 0.12 * np.sin(f2 * (x * np.sin(th) - y * np.cos(th)))
+    check = ((x // max(2, width // 40) + y // max(2, width // 40)) % 2).astype(np.float32)
+    img += 0.15 * (check[..., None] - 0.5) * rng.uniform(0.5, 1.0, 3).astype(np.float32)
+    return np.clip(img, 0.0, 1.0)
+
+
+def foveated_degrade(rgb: np.ndarray, ecc: np.ndarray, quality: float, seed: int) -> np.ndarray:
+    """Stand-in for a foveated renderer of declared ``quality`` in [0, 1]: blur and noise that grow with
+    eccentricity, ``w(e) = min(1, e / 10 deg)``, scaled by ``1 - quality`` (quality 1 returns the input)."""
+    k = 1.0 - float(quality)
+    if k <= 0:
+        return rgb
+    w = np.minimum(1.0, ecc / 10.0).astype(np.float32)[..., None]
+    blurred = gaussian_blur(rgb, 0.5 + 4.0 * k)
+    noise = np.random.default_rng(seed).normal(0.0, 0.12 * k, rgb.shape).astype(np.float32)
+    mix = np.clip(0.25 * k + w * (0.3 + k), 0.0, 1.0)
+    return np.clip(rgb * (1 - mix) + blurred * mix + noise * (0.2 + w), 0.0, 1.0)
+
+
+def write_synthetic_stimuli(protocol: Protocol, scale: float = 1.0, root: Path | None = None,
+                            max_frames: int | None = None) -> Path:
+    """Write a synthetic stimulus set for every stimulus the protocol needs (no renderer involved).
+
+    The ground truth of a scene is :func:`synthetic_scene`; a renderer condition is :func:`foveated_degrade`
+    of it at the condition's declared ``quality`` q (1.0 if none is declared), with the difference from the
+    ground truth scaled so that the simulated observer measures the impairment it would assume for the declared
+    quality, ``D = 5 (1 - q)`` JND (see :mod:`studyapp.runner.observer`): images and declared qualities then
+    tell the same story. A derived condition is made from its source as :func:`prepare` would; folder
+    conditions (a lab's own images) are left alone. Sequences get ``max_frames`` frames at most (the files are
+    named as the protocol expects; later frames repeat the last one).
+    """
+    from .observer import DECLARED_SCALE_JND, foveated_difference
+
+    geometry = protocol.render_geometry(scale)
+    ecc = geometry.eccentricity_map()
+    jnd = float(protocol.simulation["jnd"])
+    luma = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+
+    def calibrated(gt, img, q):
+        target = jnd * DECLARED_SCALE_JND * (1.0 - q)
+        for _ in range(3):  # the clip to [0, 1] shrinks the difference a little: repeat
+            d = foveated_difference(img @ luma, gt @ luma, ecc)
+            if d <= 0 or abs(d - target) <= 0.01 * target:
+                break
+            img = np.clip(gt + (img - gt) * (target / d), 0.0, 1.0)
+        return img
+
+    base = stimulus_root(protocol, scale, root)
+    for need in needed_stimuli(protocol):
+        cond = protocol.conditions[need.condition]
+        frames = frame_paths(protocol, need.condition, need.scene, scale, root)
+        if cond.folder is not None:  # a lab's own images: never overwritten
+            continue
+        if cond.derive_from:
+            make_derived(protocol, need, scale, root, max_frames)
+            continue
+        q = 1.0 if cond.quality is None else cond.quality
+        for i, f in enumerate(frames):
+            j = i if max_frames is None else min(i, max_frames - 1)
+            if j < i:
+                f.parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(frames[j], f)
+                continue
+            gt = synthetic_scene(geometry.width, geometry.height, need.scene, j)
+            save_png(f, calibrated(gt, foveated_degrade(gt, ecc, q, _seed_of(need.condition, need.scene, j)), q))
+    return base
