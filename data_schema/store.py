@@ -53,7 +53,7 @@ from pathlib import Path
 from . import families
 from .atomic import atomic_path, current_umask, write_text
 from .errors import UserError
-from .trial_log import ALL_COLUMNS
+from .trial_log import ALL_COLUMNS, TIMING_COLUMNS
 
 STORE_FORMAT = 2
 #: SQLite ``application_id`` of a study database ("stdy"): the marker that tells our files from any other.
@@ -65,30 +65,34 @@ SQLITE_MAGIC = b"SQLite format 3\x00"
 COLUMNS = {
     "study": ("key", "value"),
     "participants": ("id", "counterbalance", "seed", "schedule_hash", "n_planned", "created_utc", "enrol_order",
-                     "n_answered"),
+                     "n_answered", "n_frames"),
     "sessions": ("id", "participant", "protocol_hash", "software", "display", "measured_refresh_hz",
                  "keyboard_backend", "presenter", "seed", "started_utc", "ended_utc", "status", "resumed_from",
-                 "process"),
+                 "process", "validation_deg"),
     "planned_trials": ("participant", "idx", "kind", "family", "scene", "block", "conditions", "expected",
                        "break_before"),
     "responses": ("participant", "idx", "session", "answers", "chosen", "chosen_2", "response", "rt_s",
                   "onset_s", "dropped_frames", "switches", "gaze_left_fovea", "correct", "committed_utc"),
     "events": ("id", "session", "t_utc", "kind", "detail"),
+    "frames": ("participant", "idx", "frame", "stimulus", "flip_s", "render_s", "gaze_t", "gaze_x", "gaze_y",
+               "pos_x", "pos_y", "pos_z", "look_x", "look_y", "look_z", "dropped"),
 }
 PRIMARY_KEYS = {"study": ("key",), "participants": ("id",), "sessions": ("id",), "planned_trials": ("participant", "idx"),
-                "responses": ("participant", "idx"), "events": ("id",)}
+                "responses": ("participant", "idx"), "events": ("id",),
+                "frames": ("participant", "idx", "frame")}
 
 SCHEMA = """
 CREATE TABLE study (key TEXT PRIMARY KEY, value TEXT NOT NULL, crc TEXT NOT NULL);
 CREATE TABLE participants (
     id TEXT PRIMARY KEY, counterbalance INTEGER NOT NULL, seed INTEGER NOT NULL, schedule_hash TEXT NOT NULL,
     n_planned INTEGER NOT NULL, created_utc TEXT NOT NULL, enrol_order INTEGER NOT NULL,
-    n_answered INTEGER NOT NULL, crc TEXT NOT NULL);
+    n_answered INTEGER NOT NULL, n_frames INTEGER NOT NULL, crc TEXT NOT NULL);
 CREATE TABLE sessions (
     id TEXT PRIMARY KEY, participant TEXT NOT NULL REFERENCES participants(id), protocol_hash TEXT NOT NULL,
     software TEXT NOT NULL, display TEXT NOT NULL, measured_refresh_hz REAL, keyboard_backend TEXT,
     presenter TEXT NOT NULL, seed INTEGER NOT NULL, started_utc TEXT NOT NULL, ended_utc TEXT,
-    status TEXT NOT NULL, resumed_from TEXT REFERENCES sessions(id), process TEXT NOT NULL, crc TEXT NOT NULL);
+    status TEXT NOT NULL, resumed_from TEXT REFERENCES sessions(id), process TEXT NOT NULL, validation_deg REAL,
+    crc TEXT NOT NULL);
 CREATE TABLE planned_trials (
     participant TEXT NOT NULL REFERENCES participants(id), idx INTEGER NOT NULL, kind TEXT NOT NULL,
     family TEXT NOT NULL, scene TEXT NOT NULL, block TEXT NOT NULL, conditions TEXT NOT NULL,
@@ -104,6 +108,12 @@ CREATE TABLE responses (
 CREATE TABLE events (
     id INTEGER PRIMARY KEY, session TEXT NOT NULL REFERENCES sessions(id), t_utc TEXT NOT NULL,
     kind TEXT NOT NULL, detail TEXT NOT NULL, crc TEXT NOT NULL);
+CREATE TABLE frames (
+    participant TEXT NOT NULL, idx INTEGER NOT NULL, frame INTEGER NOT NULL, stimulus INTEGER NOT NULL,
+    flip_s REAL NOT NULL, render_s REAL, gaze_t REAL, gaze_x REAL, gaze_y REAL, pos_x REAL, pos_y REAL,
+    pos_z REAL, look_x REAL, look_y REAL, look_z REAL, dropped INTEGER NOT NULL, crc TEXT NOT NULL,
+    PRIMARY KEY (participant, idx, frame),
+    FOREIGN KEY (participant, idx) REFERENCES responses(participant, idx)) WITHOUT ROWID;
 """
 
 
@@ -160,6 +170,10 @@ class PlannedRow:
     conditions: tuple[str, ...]
     expected: str
     break_before: bool
+
+
+def _real(x) -> float | None:
+    return None if x is None or not math.isfinite(float(x)) else float(x)
 
 
 def _is_full(exc: BaseException) -> bool:
@@ -303,7 +317,8 @@ class Store:
         """Add a participant and write the whole schedule in one transaction (before the first trial)."""
         with self.transaction(f"write the schedule of participant {pid!r}") as c:
             order = c.execute("SELECT COUNT(*) FROM participants").fetchone()[0]
-            _insert(c, "participants", (pid, counterbalance, seed, schedule_hash, len(planned), utc_now(), order, 0))
+            _insert(c, "participants", (pid, counterbalance, seed, schedule_hash, len(planned), utc_now(), order, 0,
+                                        0))
             for t in planned:
                 _insert(c, "planned_trials", (pid, t.idx, t.kind, t.family, t.scene, t.block,
                                               json.dumps(list(t.conditions)), t.expected, int(t.break_before)))
@@ -363,7 +378,7 @@ class Store:
             _insert(c, "sessions", (sid, pid, protocol_hash, json.dumps(software, sort_keys=True),
                                     json.dumps(display, sort_keys=True), measured.get("refresh_hz"),
                                     measured.get("keyboard_backend"), presenter, seed, utc_now(), None, "running",
-                                    resumed_from, process_identity()))
+                                    resumed_from, process_identity(), None))
         return sid
 
     def running_sessions(self, pid: str) -> list[str]:
@@ -398,11 +413,14 @@ class Store:
     def commit_response(self, pid: str, idx: int, sid: str, answers: Sequence[str], chosen: str = "",
                         chosen_2: str = "", response: int | None = None, rt_s: float | None = None,
                         onset_s: float | None = None, dropped_frames: int = 0, switches: int = 0,
-                        gaze_left_fovea: bool | None = None, correct: bool | None = None) -> None:
+                        gaze_left_fovea: bool | None = None, correct: bool | None = None,
+                        frames: Sequence | None = None) -> None:
         """Write one response durably (fsynced commit) before the next trial starts.
 
-        The participant's answer count is updated in the same transaction, so a row lost from the file later
-        is detected (:func:`verify`)."""
+        ``frames`` (live trials: :class:`studyapp.runner.live.FrameRecord`-like rows, one per flip) are written
+        in the same transaction: a crash loses at most the frames of the trial in progress, never an answer.
+        The participant's answer and frame counts are updated in the same transaction too, so a row lost from
+        the file later is detected (:func:`verify`)."""
         rt = None if rt_s is None or not math.isfinite(rt_s) else float(rt_s)
         onset = None if onset_s is None or not math.isfinite(onset_s) else float(onset_s)
         with self.transaction(f"save the response to trial {idx} of participant {pid!r}") as c:
@@ -410,8 +428,21 @@ class Store:
                                      int(dropped_frames), int(switches),
                                      None if gaze_left_fovea is None else int(gaze_left_fovea),
                                      None if correct is None else int(correct), utc_now()))
-            n = c.execute("SELECT n_answered FROM participants WHERE id = ?", (pid,)).fetchone()
-            _update(c, "participants", {"id": pid}, {"n_answered": (n[0] if n else 0) + 1})
+            for f in frames or ():
+                _insert(c, "frames", (pid, idx, int(f.frame), int(f.stimulus), float(f.flip_s), _real(f.render_s),
+                                      _real(f.gaze_t), _real(f.gaze_x), _real(f.gaze_y), *map(float, f.position),
+                                      *map(float, f.look_at), int(bool(f.dropped))))
+            n = c.execute("SELECT n_answered, n_frames FROM participants WHERE id = ?", (pid,)).fetchone()
+            _update(c, "participants", {"id": pid}, {"n_answered": (n[0] if n else 0) + 1,
+                                                     "n_frames": (n[1] if n else 0) + len(frames or ())})
+
+    def record_validation(self, sid: str, error_deg: float, detail: str) -> None:
+        """The eye tracker's validation accuracy (mean error, degrees) of a session, and an event with the
+        attempts."""
+        with self.transaction(f"record the eye-tracker validation of session {sid}") as c:
+            _update(c, "sessions", {"id": sid}, {"validation_deg": float(error_deg)})
+            n = c.execute("SELECT COALESCE(MAX(id), 0) FROM events").fetchone()[0]
+            _insert(c, "events", (n + 1, sid, utc_now(), "validation", detail))
 
     # -- reading -------------------------------------------------------------------------------------------
     def sessions(self) -> list[dict]:
@@ -450,8 +481,38 @@ class Store:
              "r.chosen_2, r.response, r.rt_s, t.kind FROM responses r JOIN planned_trials t ON "
              "t.participant = r.participant AND t.idx = r.idx JOIN participants p ON p.id = t.participant "
              "WHERE t.kind != 'reference' ORDER BY p.enrol_order, t.idx")
-        return [tidy_row(pid, sid, block, scene, idx, fam, json.loads(conds), chosen, chosen_2, resp, rt, kind)
+        rows = [tidy_row(pid, sid, block, scene, idx, fam, json.loads(conds), chosen, chosen_2, resp, rt, kind)
                 for pid, sid, block, scene, idx, fam, conds, chosen, chosen_2, resp, rt, kind in self.conn.execute(q)]
+        timing = self.trial_timing()
+        for r in rows:
+            r.update(timing.get((r["participant"], r["trial"]), {}))
+        return rows
+
+    def trial_timing(self) -> dict[tuple[str, int], dict]:
+        """(participant, trial) -> the timing summary of a live trial's frames (:mod:`data_schema.timing`)."""
+        from itertools import groupby
+
+        from .timing import summary
+
+        out = {}
+        rows = self.conn.execute("SELECT participant, idx, flip_s, render_s, gaze_t, dropped FROM frames "
+                                 "ORDER BY participant, idx, frame")
+        for key, group in groupby(rows, key=lambda r: (r[0], r[1])):
+            g = list(group)
+            out[key] = summary([r[2] for r in g], [r[3] for r in g], [r[4] for r in g], [r[5] for r in g])
+        return out
+
+    def frames(self, pid: str | None = None, idx: int | None = None) -> list[dict]:
+        """The frames table (one row per flip of a live trial), optionally of one participant / trial."""
+        cols = COLUMNS["frames"]
+        where, args = [], []
+        for col, val in (("participant", pid), ("idx", idx)):
+            if val is not None:
+                where.append(f"{col} = ?")
+                args.append(val)
+        q = f"SELECT {', '.join(cols)} FROM frames" + (f" WHERE {' AND '.join(where)}" if where else "") + \
+            " ORDER BY participant, idx, frame"
+        return [dict(zip(cols, r)) for r in self.conn.execute(q, args)]
 
 
 def tidy_row(participant: str, session: str, block: str, scene: str, trial: int, family: str,
@@ -559,12 +620,13 @@ def verify(path: Path, conn: sqlite3.Connection) -> None:
             for row in conn.execute(f"SELECT {', '.join(cols)}, crc FROM {table}"):
                 if row_crc(table, row[:-1]) != row[-1]:
                     raise _damaged(path, f"a row of {table} fails its checksum")
-        for pid, n_planned, n_answered in conn.execute("SELECT id, n_planned, n_answered FROM participants"):
-            got_p = conn.execute("SELECT COUNT(*) FROM planned_trials WHERE participant = ?", (pid,)).fetchone()[0]
-            got_a = conn.execute("SELECT COUNT(*) FROM responses WHERE participant = ?", (pid,)).fetchone()[0]
-            if (got_p, got_a) != (n_planned, n_answered):
-                raise _damaged(path, f"participant {pid!r} has {got_a} answers and {got_p} planned trials, the "
-                               f"file recorded {n_answered} and {n_planned}")
+        for pid, n_planned, n_answered, n_frames in conn.execute(
+                "SELECT id, n_planned, n_answered, n_frames FROM participants"):
+            got = tuple(conn.execute(f"SELECT COUNT(*) FROM {t} WHERE participant = ?", (pid,)).fetchone()[0]
+                        for t in ("planned_trials", "responses", "frames"))
+            if got != (n_planned, n_answered, n_frames):
+                raise _damaged(path, f"participant {pid!r} has {got[1]} answers, {got[0]} planned trials and "
+                               f"{got[2]} frames; the file recorded {n_answered}, {n_planned} and {n_frames}")
     except UnicodeDecodeError as exc:
         raise _damaged(path, f"a text value is not UTF-8 ({exc.reason})") from None
     except sqlite3.DatabaseError as exc:
@@ -719,7 +781,7 @@ def tidy_frame(rows: Sequence[dict]):
     df = pd.DataFrame(list(rows), columns=list(ALL_COLUMNS))
     for c in ("trial", "practice", "catch"):
         df[c] = df[c].astype("int64")
-    for c in ("response", "rt_s"):
+    for c in ("response", "rt_s", *TIMING_COLUMNS):
         df[c] = pd.to_numeric(df[c], errors="coerce").astype("float64")
     return df
 
@@ -796,6 +858,25 @@ def export_pwcmp(db_path, out) -> Path:
         w.writerow((r["participant"], r["session"], r["scene"], r["condition_a"], r["condition_b"],
                     1 if r["chosen"] == r["condition_a"] else 2))
     return write_text(out, buf.getvalue())
+
+
+def export_frames(db_path, out) -> Path:
+    """Write the frames of every live trial (one row per flip) as Parquet (``.parquet``) or CSV."""
+    import pandas as pd
+
+    with open_store(db_path) as st:
+        rows = st.frames()
+    if not rows:
+        raise StoreError(f"{db_path}: no live-trial frames to export")
+    df = pd.DataFrame(rows).rename(columns={"idx": "trial"})
+    df["gaze_age_ms"] = (df["flip_s"] - df["gaze_t"]) * 1000.0
+    out = Path(out)
+    with atomic_path(out) as tmp:
+        if out.suffix.lower() == ".csv":
+            df.to_csv(tmp, index=False, lineterminator="\n")
+        else:
+            df.to_parquet(tmp, index=False)
+    return out
 
 
 def timed_commit_latencies(db_path, n: int = 1000) -> list[float]:

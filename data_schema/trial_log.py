@@ -23,13 +23,21 @@ conditions                ``preference``: the conditions offered, joined by ``|`
 response                  ``yes_no``: 1 for yes/acceptable, 0 for no (int)
 rt_s                      reaction time in seconds from stimulus onset (float; NaN if not measured)
 practice, catch           1 for practice / catch trials (excluded from the analysis), else 0
+fps_median, fps_p5        live trials: frames rendered per second, median and 5th percentile (float; NaN otherwise)
+dropped_share             live trials: share of dropped flips (float)
+latency_p50_ms,           live trials: gaze age at the flip in ms, median and 95th percentile (float)
+latency_p95_ms
 ========================  =====================================================================================
+
+The live columns summarise the trial's frames (:mod:`data_schema.timing`); the frames themselves are exported
+as their own table (``studyapp export --format frames``).
 """
 
 from __future__ import annotations
 
 from .families import FAMILIES as _FAMILIES
 from .families import NAMES
+from .timing import COLUMNS as TIMING_COLUMNS
 
 #: The trial families a log may hold (data_schema.families).
 FAMILIES = NAMES
@@ -38,10 +46,10 @@ REQUIRED = ("participant", "family", "scene")
 #: Family -> the columns it fills (declared by each family, :mod:`data_schema.families`).
 FAMILY_COLUMNS = {name: fam.log_columns for name, fam in _FAMILIES.items()}
 
-OPTIONAL = ("block", "session", "trial", "chosen_2", "rt_s", "practice", "catch")
+OPTIONAL = ("block", "session", "trial", "chosen_2", "rt_s", "practice", "catch", *TIMING_COLUMNS)
 
 ALL_COLUMNS = ("participant", "session", "block", "scene", "trial", "family", "condition", "condition_a",
-               "condition_b", "conditions", "chosen", "chosen_2", "response", "rt_s", "practice", "catch")
+               "condition_b", "conditions", "chosen", "chosen_2", "response", "rt_s", "practice", "catch", *TIMING_COLUMNS)
 
 
 

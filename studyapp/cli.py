@@ -26,6 +26,7 @@ COMMAND_MODULES = (
     "studyapp.commands.render",
     "studyapp.commands.study",
     "studyapp.commands.lightcuts",
+    "studyapp.commands.replay",
 )
 
 

@@ -42,6 +42,9 @@ def register(subparsers, parser_class) -> None:
                    metavar="L",
                    help="peak-to-peak value range for PSNR/SSIM (default: 255 for 8-bit, 65535 for 16-bit, "
                         "1 for float .npy)")
+    q.add_argument("--gaze-csv", metavar="FILE",
+                   help="each image at its own gaze: a CSV file,gaze_x,gaze_y (files relative to the CSV); with "
+                        "--gt DIR each image is compared with the same-named GT frame (studyapp replay writes both)")
     q.add_argument("--out", metavar="DIR",
                    help="write quality.csv, quality.md and heatmap_<name>.png per image into DIR")
     q.add_argument("--json", action="store_true",
@@ -195,15 +198,22 @@ def quality_records(table) -> list[dict]:
 
 def quality_table(paths: list[Path], gt_image, *, fov_y: float, gaze, fovea_deg: float, data_range,
                   out: Path | None = None) -> tuple[object, list[Path]]:
-    """Compute the table over ``paths``; write a heat map per image into ``out`` if given."""
+    """Compute the table over ``paths``; write a heat map per image into ``out`` if given.
+
+    ``gt_image`` is one image or a function of the path (each image its own GT: a replayed live trial);
+    ``gaze`` is one point, None (the centre) or a dict path -> point (each image at its own gaze)."""
     import pandas as pd
 
     from analysis.quality import error_heatmap, image_quality
 
     frames, written = [], []
     names = heatmap_names(paths)
+    gt_of = gt_image if callable(gt_image) else (lambda path: gt_image)
+    per_image_gaze = isinstance(gaze, dict)
+    gaze_of = gaze.get if per_image_gaze else (lambda path: gaze)
     for path, hm_name in zip(paths, names):
         img = load_image(path)
+        gt_image, gaze = gt_of(path), gaze_of(path)
         try:
             q = image_quality(img, gt_image, fov_y_deg=fov_y, gaze=gaze, fovea_deg=fovea_deg,
                               data_range=data_range)
@@ -213,6 +223,9 @@ def quality_table(paths: list[Path], gt_image, *, fov_y: float, gaze, fovea_deg:
         except ValueError as exc:
             raise CLIError(f"{path}: {exc}") from None
         q.insert(0, "image", str(path))
+        if per_image_gaze:
+            q.insert(1, "gaze_x", gaze_of(path)[0])
+            q.insert(2, "gaze_y", gaze_of(path)[1])
         frames.append(q)
     return pd.concat(frames, ignore_index=True), written
 
@@ -224,6 +237,8 @@ def cmd_quality(args) -> int:
     gt_path = Path(args.gt)
     if not gt_path.exists():
         raise CLIError(f"--gt {gt_path}: no such file")
+    if gt_path.is_dir() or args.gaze_csv:  # a replayed live trial: each frame its own GT and gaze
+        return _quality_along_gaze(args, gt_path)
     gt_image = load_image(gt_path)
     if gaze is not None:
         from data_schema.geometry import check_gaze
@@ -239,6 +254,69 @@ def cmd_quality(args) -> int:
                                    data_range=args.data_range, out=out)
     md = quality_markdown(table, gt=str(gt_path), fov_y=args.fov_y, gaze=gaze, fovea_deg=args.fovea_deg,
                           shape=gt_image.shape)
+    if out is not None:
+        written = [write_text(out / "quality.csv", table.to_csv(index=False, lineterminator="\n")),
+                   write_text(out / "quality.md", md)] + written
+    if args.json:
+        print(json.dumps(quality_records(table), indent=2))
+    elif out is not None:
+        for p in written:
+            print(p)
+    else:
+        print(md, end="")
+    return 0
+
+
+def read_gaze_csv(path: Path, folder: Path) -> dict[Path, tuple[float, float]]:
+    """``file,gaze_x,gaze_y`` rows (files relative to ``folder``) -> {path: (x, y)}."""
+    import csv
+
+    try:
+        with open(path, encoding="utf-8", newline="") as fh:
+            rows = list(csv.DictReader(fh))
+    except OSError as exc:
+        raise CLIError(f"--gaze-csv {path}: {exc.strerror or exc}") from None
+    out = {}
+    for i, r in enumerate(rows, start=2):
+        try:
+            out[(folder / r["file"]).resolve()] = (float(r["gaze_x"]), float(r["gaze_y"]))
+        except (KeyError, TypeError, ValueError):
+            raise CLIError(f"--gaze-csv {path}:{i}: needs columns file, gaze_x, gaze_y with numbers") from None
+    return out
+
+
+def _quality_along_gaze(args, gt_dir: Path) -> int:
+    """Each input frame against the same-named frame of ``--gt DIR`` at its own gaze (``--gaze-csv``): the
+    foveal and peripheral error along a participant's actual gaze (``studyapp replay`` writes both)."""
+    from data_schema.atomic import write_text
+    from data_schema.geometry import check_gaze
+
+    if not gt_dir.is_dir():
+        raise CLIError(f"--gt {gt_dir}: with --gaze-csv, give the folder of the ground-truth frames")
+    if not args.gaze_csv:
+        raise CLIError(f"--gt {gt_dir} is a folder: give --gaze-csv FILE with each frame's gaze")
+    gazes = read_gaze_csv(Path(args.gaze_csv), Path(args.gaze_csv).resolve().parent)
+    # the images the CSV gives a gaze for (a replay folder also holds each frame's linear .npy)
+    paths = [p for p in collect_inputs(args.inputs, gt_dir / ".none") if p.resolve() in gazes]
+    if not paths:
+        raise CLIError(f"--gaze-csv {args.gaze_csv}: gives no gaze for any of the images")
+    gaze_of, gt_cache = {}, {}
+    for p in paths:
+        gt_file = gt_dir / p.name
+        if not gt_file.is_file():
+            raise CLIError(f"--gt {gt_dir}: no ground-truth frame {p.name}")
+        gt_cache[p] = load_image(gt_file)
+        h, w = gt_cache[p].shape[:2]
+        try:
+            gaze_of[p] = check_gaze(gazes[p.resolve()], w, h)
+        except ValueError as exc:
+            raise CLIError(f"--gaze-csv {args.gaze_csv}: {p.name}: {exc}") from None
+    out = Path(args.out) if args.out else None
+    table, written = quality_table(paths, gt_cache.__getitem__, fov_y=args.fov_y, gaze=gaze_of,
+                                   fovea_deg=args.fovea_deg, data_range=args.data_range, out=out)
+    md = quality_markdown(table, gt=f"{gt_dir}/<frame>", fov_y=args.fov_y, gaze=None, fovea_deg=args.fovea_deg,
+                          shape=next(iter(gt_cache.values())).shape).replace(
+        "gaze centre", "gaze of each frame (--gaze-csv), centre")
     if out is not None:
         written = [write_text(out / "quality.csv", table.to_csv(index=False, lineterminator="\n")),
                    write_text(out / "quality.md", md)] + written

@@ -144,7 +144,10 @@ def cmd_sessions(args) -> int:
         meta = st.meta()
         sessions = st.sessions()
         prog = st.progress()
-        frac = ((st.protocol_json() or {}).get("catch") or {}).get("pass_fraction", 0.75)
+        proto = st.protocol_json() or {}
+        frac = (proto.get("catch") or {}).get("pass_fraction", 0.75)
+        timing = st.trial_timing()
+        trial_session = {(r["participant"], r["trial"]): r["session"] for r in st.tidy_rows()} if timing else {}
     print(f"{db}: protocol {meta.get('protocol_name')} {meta.get('protocol_version')} "
           f"(sha256 {meta.get('protocol_hash', '')[:12]})")
     print(f"{'session':<16} {'participant':<12} {'status':<12} {'answers':>7}  {'started (UTC)':<27} resumed from")
@@ -159,7 +162,33 @@ def cmd_sessions(args) -> int:
                 "passed" if r["catch_correct"] >= frac * r["catch_planned"] else "FAILED")
             catch = f"{r['catch_correct']}/{r['catch_planned']} {verdict}"
         print(f"{r['participant']:<12} {r['answered']:>8} {r['planned']:>8}  {catch}")
+    if timing:
+        _print_timing_qa(sessions, timing, trial_session, (proto.get("stimulus") or {}).get("min_fps"))
     return 0
+
+
+def _print_timing_qa(sessions, timing, trial_session, min_fps) -> None:
+    """Live trials: frame rate and gaze-to-flip latency per session; trials below the protocol's min_fps."""
+    import numpy as np
+
+    floor = f"; trials below min_fps {min_fps:g} flagged" if min_fps else ""
+    print(f"timing (live trials{floor})")
+    print(f"{'session':<16} {'trials':>6} {'fps p50':>8} {'fps p5':>7} {'dropped':>8} {'lat p50':>8} {'lat p95':>8}"
+          "  below min_fps")
+    for s in sessions:
+        keys = [k for k, sid in trial_session.items() if sid == s["id"] and k in timing]
+        if not keys:
+            continue
+        t = [timing[k] for k in keys]
+
+        def med(col):
+            v = np.array([x[col] for x in t], dtype=float)
+            return float(np.nanmedian(v)) if np.isfinite(v).any() else float("nan")
+
+        slow = [str(k[1]) for k in keys if min_fps and timing[k]["fps_median"] < min_fps]
+        print(f"{s['id']:<16} {len(keys):>6} {med('fps_median'):>8.1f} {med('fps_p5'):>7.1f} "
+              f"{med('dropped_share'):>7.1%} {med('latency_p50_ms'):>6.0f}ms {med('latency_p95_ms'):>6.0f}ms  "
+              f"{('FLAGGED trials ' + ', '.join(slow)) if slow else '-'}")
 
 
 def cmd_export(args) -> int:
@@ -167,7 +196,8 @@ def cmd_export(args) -> int:
     from data_schema.atomic import check_target
 
     check_target(args.out, inputs=[args.db])
-    fn = {"csv": store.export_csv, "parquet": store.export_parquet, "pwcmp": store.export_pwcmp}[args.format]
+    fn = {"csv": store.export_csv, "parquet": store.export_parquet, "pwcmp": store.export_pwcmp,
+          "frames": store.export_frames}[args.format]
     out = fn(args.db, args.out)
     print(out)
     return 0
@@ -224,7 +254,9 @@ def register(subparsers, parser_class) -> None:
                               description="Export the tidy trial log (data_schema/trial_log.py columns) as CSV "
                                           "or Parquet, or the 2AFC trials in pwcmp's layout.")
     e.add_argument("--db", metavar="FILE", required=True, help="study database")
-    e.add_argument("--format", choices=("csv", "parquet", "pwcmp"), default="csv")
+    e.add_argument("--format", choices=("csv", "parquet", "pwcmp", "frames"), default="csv",
+                   help="csv/parquet: the tidy trial log (with live trials' timing columns); pwcmp: 2AFC trials in "
+                        "pwcmp's layout; frames: every flip of the live trials (Parquet, or CSV for --out *.csv)")
     e.add_argument("--out", metavar="FILE", required=True)
     e.set_defaults(func=cmd_export)
 

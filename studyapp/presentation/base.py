@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal, Protocol, Sequence
+from typing import Any, Literal, Protocol, Sequence
 
 from data_schema.errors import UserError
 from data_schema.geometry import Display
@@ -29,6 +29,7 @@ class Stimulus:
     condition: str
     frames: tuple[Path, ...]
     fps: float = 0.0  # 0 for a still image
+    live: Any = None  # a studyapp.runner.live.LiveStimulus: rendered every refresh (no frames)
 
     @property
     def is_sequence(self) -> bool:
@@ -74,6 +75,7 @@ class TrialResult:
     switches: int = 0  # how often the participant switched between stimuli before committing
     gaze_left_fovea: bool | None = None  # None without an eye tracker
     escaped: bool = False  # Escape was pressed during this trial (no answer recorded)
+    frames: list = field(default_factory=list)  # live trials: one studyapp.runner.live.FrameRecord per flip
 
 
 class Presenter(Protocol):

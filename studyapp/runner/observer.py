@@ -53,7 +53,15 @@ from .protocol import Protocol
 
 E2_DEG = 2.3
 DECLARED_SCALE_JND = 5.0
+SIM_WIDTH = 64  # live stimuli: the simulated observer renders this many pixels across
+LIVE_SAMPLES = 3  # ... at this many moments of each stimulus
 _SHARED: dict[tuple, float] = {}  # impairment per (frames, GT frames, geometry, jnd) within one process
+
+
+def _exposure(scene) -> float:
+    from renderers.catalog import resolve
+
+    return resolve(scene).exposure
 
 
 def _key(*parts) -> int:
@@ -160,10 +168,81 @@ class SimulatedObserver:
                 impairments, Observer(p.sensitivity, p.bias, p.criterion), rng, lapse, trial.n_picks)
         rt = (trial.duration_s or 0.0) + max(0.15, p.rt_mu_s * (1.0 + 0.3 * math.exp(-margin))
                                               + rng.normal(0.0, p.rt_sigma_s) + rng.exponential(p.rt_tau_s))
+        frames = self._live_frames(trial, onset) if any(st.live for st in trial.stimuli) else []
         self._clock += rt
         self.shown.append(trial.index)
         return TrialResult(answers=answers, rt_s=float(rt), onset_s=float(onset), dropped_frames=0,
-                           switches=switches, gaze_left_fovea=None, escaped=False)
+                           switches=switches, gaze_left_fovea=None, escaped=False, frames=frames)
+
+    # -- live stimuli: a few frames rendered along a synthetic gaze path ------------------------------------
+    def _live_frames(self, trial: TrialDisplay, onset: float) -> list:
+        """The frame log of a simulated live trial: the frames the image model rendered (flip times on the
+        simulated clock), for every stimulus shown."""
+        from .live import FrameRecord
+
+        out = []
+        for i, st in enumerate(trial.stimuli):
+            for k, (t, gaze, pose, render_s) in enumerate(self._live_samples(st.live, trial.scene)):
+                x, y = gaze
+                flip = onset + i * st.live.duration_s + t
+                age = st.live.latency_ms / 1000.0 + 0.002  # the controlled delay + a nominal 2 ms tracker age
+                out.append(FrameRecord(len(out), i, flip, render_s, flip - age, x, y, pose.position, pose.look_at,
+                                       False))
+        return out
+
+    def _live_samples(self, live, scene: str) -> list:
+        """``LIVE_SAMPLES`` moments of a live stimulus: (t, gaze in render pixels, pose, render seconds), the
+        gaze from a synthetic path (fixations and saccades) seeded by the scene, shared by all conditions."""
+        from .live import synthetic_gaze
+
+        key = ("samples", live.condition, scene)
+        if key not in _SHARED:
+            w, h = SIM_WIDTH, max(8, round(SIM_WIDTH * live.render_size[1] / live.render_size[0]))
+            rng = np.random.default_rng(_key("gaze", scene))
+            path = synthetic_gaze(live.duration_s, w, h, rng)
+            motion = live.motion_model()
+            samples = []
+            for k in range(LIVE_SAMPLES):
+                t = live.duration_s * (k + 0.5) / LIVE_SAMPLES
+                _, gx, gy = min(path, key=lambda s: abs(s[0] - t))
+                # the gaze as a tracker reports it: display pixels
+                d = self.protocol.display
+                samples.append((t, (gx * d.width_px / w, gy * d.height_px / h), motion.pose(t), float("nan")))
+            _SHARED[key] = samples
+        return _SHARED[key]
+
+    def _live_impairment(self, stim: Stimulus, scene: str) -> float:
+        """Impairment of a live stimulus: its frames rendered at a small size along the synthetic gaze path,
+        against the ground truth's frames at the same poses and gaze (CPU renderers, the reference)."""
+        import time as _time
+
+        from renderers.registry import render
+        from renderers.stimuli import to_srgb8
+
+        live = stim.live
+        gt_cond = self.protocol.ground_truth
+        if gt_cond is None:
+            raise UserError("live stimuli need a ground truth to simulate answers: set simulation.ground_truth")
+        gt = self.protocol.conditions[gt_cond]
+        w, h = SIM_WIDTH, max(8, round(SIM_WIDTH * live.render_size[1] / live.render_size[0]))
+        luma = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+        samples = self._live_samples(live, scene)
+        ds = []
+        d = self.protocol.display
+        for k, (t, (gx, gy), pose, _) in enumerate(samples):
+            gaze = (gx * w / d.width_px, gy * h / d.height_px)
+            cam = pose.camera(live.fov_y_deg)
+            ref_key = ("gt-frame", scene, k)
+            if ref_key not in _SHARED:
+                ref, st = render(live.scene, gt.renderer, gt.params, w, h, gaze=gaze, camera=cam)
+                _SHARED[ref_key] = (to_srgb8(ref, _exposure(live.scene)) / 255.0) @ luma
+            t0 = _time.perf_counter()
+            img, _ = render(live.scene, live.renderer, live.params, w, h, gaze=gaze, camera=cam)
+            samples[k] = (t, (gx, gy), pose, _time.perf_counter() - t0)
+            img = (to_srgb8(img, _exposure(live.scene)) / 255.0) @ luma
+            ecc = self.protocol.render_geometry().resized(w, h).with_gaze(gaze).eccentricity_map()
+            ds.append(foveated_difference(img, _SHARED[ref_key], ecc))
+        return float(np.mean(ds)) / float(self.protocol.simulation["jnd"])
 
     # -- the image model ----------------------------------------------------------------------------------
     def _eccentricity(self, shape: tuple[int, int]) -> np.ndarray:
@@ -179,6 +258,14 @@ class SimulatedObserver:
         key = (stim.condition, scene, stim.frames)
         if key in self._impairment:
             return self._impairment[key]
+        if stim.live is not None:
+            shared = ("live", stim.condition, scene, float(self.protocol.simulation["jnd"]))
+            if shared not in _SHARED:
+                _SHARED[shared] = self._live_impairment(stim, scene)
+            else:
+                self._live_samples(stim.live, scene)
+            self._impairment[key] = _SHARED[shared]
+            return _SHARED[shared]
         gt = self.ground_truth.get(scene)
         shared = None
         if stim.frames and gt is not None and gt.frames:

@@ -40,6 +40,9 @@ class Condition:
     label: str = ""
     quality: float | None = None
     role: str = "main"
+    backend: str | None = None  # None: cpu for pre-rendered stimuli, gpu for live ones
+    latency_ms: float = 0.0  # live: delay added to the gaze
+    max_fps: float | None = None  # live: frame-rate cap
 
     @property
     def source(self) -> str:
@@ -89,10 +92,27 @@ class Protocol:
     analysis: dict
     stimuli_dir: Path
     content_hash: str
+    motion: str = "path"  # live: path | explore
+    gaze_source: str = "fixation"  # live: tracker | mouse | fixation
+    min_fps: float | None = None  # live: the timing check's floor
+    explore: dict = field(default_factory=dict)
+    eyetracker: dict | None = None
+
+    @property
+    def live(self) -> bool:
+        """Stimuli rendered every refresh where the participant looks (``stimulus.kind: live``)."""
+        return self.stimulus_kind == "live"
+
+    def backend_of(self, condition: str) -> str:
+        """The renderer backend of ``condition``: its own, else gpu for live stimuli and cpu otherwise."""
+        return self.conditions[condition].backend or ("gpu" if self.live else "cpu")
 
     @property
     def n_frames(self) -> int:
-        """Frames per stimulus: 1 for images, ``round(duration_s * fps)`` for sequences."""
+        """Frames per stimulus: 1 for images, ``round(duration_s * fps)`` for sequences, 0 for live stimuli
+        (rendered during the trial, nothing prepared)."""
+        if self.stimulus_kind == "live":
+            return 0
         if self.stimulus_kind == "image":
             return 1
         return max(1, round(self.duration_s * self.fps))
@@ -177,7 +197,9 @@ def _conditions(doc: LoadedYAML, data: dict, base: Path, check_renderers: bool) 
                               else None,
                               derive_from=derive.get("from"), blur_sigma_px=float(derive.get("blur_sigma_px", 0)),
                               noise=float(derive.get("noise", 0)), label=spec.get("label", name),
-                              quality=spec.get("quality"), role=spec.get("role", "main"))
+                              quality=spec.get("quality"), role=spec.get("role", "main"),
+                              backend=spec.get("backend"), latency_ms=float(spec.get("latency_ms", 0.0)),
+                              max_fps=spec.get("max_fps"))
     return out
 
 
@@ -196,6 +218,41 @@ def _display(doc: LoadedYAML, data: dict) -> tuple[Display, tuple[int, int]]:
         raise doc.error(("stimulus", "render_px"), f"{w}x{h} has not the display's aspect ratio "
                         f"({display.width_px}x{display.height_px}): a stimulus covers the whole display")
     return display, (int(w), int(h))
+
+
+def _check_live(doc: LoadedYAML, data: dict, conditions: dict, family: str) -> None:
+    """Live stimuli: a duration, a motion, a gaze source with what it needs, renderer conditions with a
+    version for their backend, frame-rate caps the display can show, and no pre-rendered sources."""
+    stim = data["stimulus"]
+    if "duration_s" not in stim:
+        raise doc.error(("stimulus",), "a live stimulus needs duration_s (the longest a trial shows it)")
+    if "fps" in stim:
+        raise doc.error(("stimulus", "fps"), "live stimuli are rendered every refresh: no fps (use max_fps per "
+                        "condition to cap the frame rate)")
+    motion = stim.get("motion", "path")
+    if motion == "explore" and "camera_path" in stim:
+        raise doc.error(("stimulus", "camera_path"), "explore moves the camera from the participant's keys: no "
+                        "camera_path")
+    gaze = stim.get("gaze", "fixation")
+    if gaze == "tracker" and "eyetracker" not in data:
+        raise doc.error(("stimulus", "gaze"), "gaze: tracker needs an eyetracker block (device, settings)")
+    for name in (stim.get("explore") or {}).get("bounds", {}) | (stim.get("explore") or {}).get("start", {}):
+        if name not in data["scenes"] and name != (data.get("practice") or {}).get("scene"):
+            raise doc.error(("stimulus", "explore"), f"scene {name!r} is not one of the protocol's scenes")
+    refresh = float(data["display"].get("refresh_hz", 60.0))
+    reg = _registry()
+    for name, cond in conditions.items():
+        where = ("conditions", name)
+        if cond.renderer is None:
+            raise doc.error(where, "live stimuli are rendered: every condition needs a renderer (not a folder or "
+                            "a derived copy)")
+        if cond.max_fps is not None and cond.max_fps > refresh:
+            raise doc.error(where + ("max_fps",), f"{cond.max_fps:g} fps is above the display's refresh rate "
+                            f"({refresh:g} Hz): a cap the display cannot show")
+        backend = cond.backend or "gpu"
+        if reg is not None and backend == "gpu" and reg.get(cond.renderer).gpu is None:
+            raise doc.error(where + ("renderer",), f"renderer {cond.renderer!r} has no GPU version for live "
+                            "stimuli: use backend: cpu (slow) or another renderer")
 
 
 def _check_renderers_on_display(doc, conditions, display, render_size, fixation) -> None:
@@ -270,7 +327,18 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True, output_b
         One line naming the file, the line and the field.
     """
     path = Path(path)
-    doc = load_yaml(path)
+    return _build(load_yaml(path), path, stimuli_dir, check_renderers, output_base)
+
+
+def protocol_from_data(data: dict, label: str, check_renderers: bool = True) -> Protocol:
+    """The protocol a study database recorded (its JSON), checked as a file would be; errors name ``label``."""
+    from data_schema.protocol_schema import ProtocolError
+
+    doc = LoadedYAML(data, {}, Path(label), ProtocolError)
+    return _build(doc, Path.cwd() / "recorded.yaml", None, check_renderers, None)
+
+
+def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, output_base) -> Protocol:
     data = validate_document(doc)
     base = path.resolve().parent
     family = data["family"]
@@ -306,6 +374,21 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True, output_b
         raise doc.error(("stimulus",), "a sequence needs duration_s and fps")
     if kind == "image" and "fps" in stim:
         raise doc.error(("stimulus", "fps"), "still images have no frame rate (use kind: sequence)")
+    live_keys = [k for k in ("motion", "gaze", "min_fps", "explore") if k in stim]
+    if kind != "live" and live_keys:
+        raise doc.error(("stimulus", live_keys[0]), "only live stimuli (kind: live) have this")
+    if kind == "live":
+        _check_live(doc, data, conditions, family)
+    else:
+        for name, spec in data["conditions"].items():
+            extra = [k for k in ("latency_ms", "max_fps") if k in spec]
+            if extra:
+                raise doc.error(("conditions", name, extra[0]), "only live stimuli (kind: live) have this")
+    reg = _registry() if check_renderers else None
+    for name, cond in conditions.items():
+        if reg is not None and cond.renderer and cond.backend == "gpu" and reg.get(cond.renderer).gpu is None:
+            raise doc.error(("conditions", name, "backend"), f"renderer {cond.renderer!r} has no GPU version: "
+                            "use backend: cpu")
 
     display, render_size = _display(doc, data)
     if check_renderers:
@@ -382,4 +465,6 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True, output_b
         position_balance=bool(design.get("position_balance", fam.has_positions)), n_picks=n_picks,
         reference=reference.get("condition"), reference_label=reference.get("label", "This is the reference"),
         practice=practice, breaks=data.get("breaks"), catch=catch, simulation=simulation, analysis=analysis,
-        stimuli_dir=sdir, content_hash=content_hash(data))
+        stimuli_dir=sdir, content_hash=content_hash(data), motion=stim.get("motion", "path"),
+        gaze_source=stim.get("gaze", "fixation"), min_fps=stim.get("min_fps"), explore=dict(stim.get("explore", {})),
+        eyetracker=data.get("eyetracker"))

@@ -76,6 +76,11 @@ class StimulusSet:
                              f"{hint}")
 
     def stimulus(self, condition: str, scene: str) -> Stimulus:
+        if self.protocol.live:
+            from .live import live_stimulus
+
+            return Stimulus(condition=condition, frames=(), fps=0.0,
+                            live=live_stimulus(self.protocol, condition, scene, self.scale))
         fps = self.protocol.fps if self.protocol.stimulus_kind == "sequence" else 0.0
         if (condition, scene) in self.declared:
             return Stimulus(condition=condition, frames=(), fps=fps)
@@ -92,10 +97,10 @@ def trial_display(protocol: Protocol, t: PlannedTrial | PlannedRow, stimuli: Sti
         index=t.idx, family=t.family,
         stimuli=tuple(stimuli.stimulus(c, t.scene) for c in t.conditions),
         question="" if ref else protocol.question,
-        answer_keys=({} if protocol.stimulus_kind == "sequence" else {"space": "seen"}) if ref
+        answer_keys=({} if protocol.stimulus_kind in ("sequence", "live") else {"space": "seen"}) if ref
         else dict(protocol.answer_keys),
         switch_keys={} if ref else dict(protocol.switch_keys), fixation_px=display_px,
-        duration_s=protocol.duration_s if protocol.stimulus_kind == "sequence" else None,
+        duration_s=protocol.duration_s if protocol.stimulus_kind in ("sequence", "live") else None,
         black_before_s=protocol.black_s, label=protocol.reference_label if ref else "",
         n_picks=protocol.n_picks if families.get(protocol.family).has_picks else 1,
         progress=None if ref else (number, total), scene=t.scene, kind=kind)
@@ -276,7 +281,7 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
                               chosen_2=derived["chosen_2"], response=derived["response"], rt_s=result.rt_s,
                               onset_s=result.onset_s, dropped_frames=result.dropped_frames,
                               switches=result.switches, gaze_left_fovea=result.gaze_left_fovea,
-                              correct=_correct(store, pid, t, result.answers, derived))
+                              correct=_correct(store, pid, t, result.answers, derived), frames=result.frames)
         if t.kind != "reference":
             number += 1
         displays.pop(t.idx, None)

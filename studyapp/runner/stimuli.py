@@ -48,6 +48,8 @@ def stimulus_root(protocol: Protocol, scale: float = 1.0, root: Path | None = No
 def needed_stimuli(protocol: Protocol) -> list[Needed]:
     """Every (condition, scene) a schedule of ``protocol`` may show, sources of derived conditions first."""
     want: list[Needed] = []
+    if protocol.live:  # rendered during the trial: nothing to prepare
+        return want
 
     def add(cond, scene):
         c = protocol.conditions[cond]
@@ -103,11 +105,15 @@ def missing_stimuli(protocol: Protocol, scale: float = 1.0, root: Path | None = 
 
 def camera_at(protocol: Protocol, frame: int) -> dict | None:
     """Camera keyframe interpolated linearly at ``t = frame / (n_frames - 1)`` (None: the scene's camera)."""
+    n = protocol.n_frames
+    return path_camera(protocol, 0.0 if n <= 1 else frame / (n - 1))
+
+
+def path_camera(protocol: Protocol, t: float) -> dict | None:
+    """The camera path's keyframes interpolated linearly at ``t`` in [0, 1] (None: the scene's camera)."""
     path = sorted(protocol.camera_path, key=lambda k: k["t"])
     if not path:
         return None
-    n = protocol.n_frames
-    t = 0.0 if n <= 1 else frame / (n - 1)
     keys = [k for k in path[0] if k != "t"]
     if t <= path[0]["t"]:
         return {k: path[0][k] for k in keys}

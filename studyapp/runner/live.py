@@ -1,0 +1,288 @@
+"""Live, gaze-contingent stimuli: what is rendered at every refresh, apart from any window or GPU.
+
+A live trial renders each stimulus every refresh where the participant looks (seed 001 §5.3, seed 003 §5). This
+module holds the parts that decide *what* is rendered and *what is logged*, so that the PsychoPy presenter,
+the simulated observer and ``studyapp replay`` share them and they are tested without a window:
+
+- :class:`LiveStimulus` — one condition of a live trial: scene, renderer, parameters, backend, the controlled
+  gaze delay (``latency_ms``) and frame-rate cap (``max_fps``), the motion and the geometry;
+- :class:`PathMotion` / :class:`ExploreMotion` — the camera: a key-framed path over the trial, or free
+  exploration from the keyboard and the mouse inside the scene's bounds;
+- :class:`GazeDelay` — the newest gaze sample at least ``latency_ms`` old (the manipulation of Albert et al.
+  2017);
+- :class:`FramePacer` — renders only as often as ``max_fps`` allows (an emulated slower renderer); the other
+  refreshes show the last frame again;
+- :class:`FrameRecord` and :func:`timing_summary` — one log row per flip and the per-trial timing summary
+  (frame rate median and 5th percentile, dropped-frame share, gaze-to-flip latency p50 and p95).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: Keys of free exploration (psychtoolbox key names).
+MOVE_KEYS = {"w": (1, 0), "s": (-1, 0), "a": (0, -1), "d": (0, 1)}
+TURN_KEYS = {"left": (-1, 0), "right": (1, 0), "up": (0, 1), "down": (0, -1)}
+EXPLORE_KEYS = tuple(MOVE_KEYS) + tuple(TURN_KEYS)
+
+
+@dataclass(frozen=True)
+class Pose:
+    """Camera position and look-at point (scene units)."""
+
+    position: tuple[float, float, float]
+    look_at: tuple[float, float, float]
+
+    def camera(self, fov_y_deg: float) -> dict:
+        """The renderer's camera overrides (``renderers.registry.render(camera=...)``)."""
+        return {"position": [float(v) for v in self.position], "look_at": [float(v) for v in self.look_at],
+                "fov_y": float(fov_y_deg)}
+
+
+class PathMotion:
+    """The camera of a key-framed path: ``pose(t_s)`` for the time since the stimulus' onset."""
+
+    def __init__(self, poses_at, duration_s: float):
+        self._at = poses_at  # t in [0, 1] -> Pose
+        self.duration_s = float(duration_s)
+
+    def pose(self, t_s: float, keys=(), mouse=(0.0, 0.0)) -> Pose:
+        return self._at(min(1.0, max(0.0, t_s / self.duration_s)) if self.duration_s > 0 else 0.0)
+
+
+class ExploreMotion:
+    """Free exploration: W/S forward and back, A/D sideways, Left/Right turn, Up/Down look up and down, and the
+    mouse (a drag in pixels) turns; the position stays inside ``bounds``.
+
+    ``pose(t_s, keys, mouse)`` integrates from the last call: ``keys`` are the keys held down now, ``mouse`` the
+    pointer's motion (pixels) since the last call. Yaw turns about the world's up axis (+y), pitch is kept within
+    ±85°, so the view never flips.
+    """
+
+    def __init__(self, start: Pose, move_speed: float = 1.0, turn_speed_deg: float = 60.0,
+                 bounds: tuple | None = None, mouse_deg_per_px: float = 0.1):
+        p, q = np.asarray(start.position, float), np.asarray(start.look_at, float)
+        d = q - p
+        self.distance = float(np.linalg.norm(d)) or 1.0
+        d = d / self.distance
+        self.yaw = math.atan2(d[0], d[2])
+        self.pitch = math.asin(max(-1.0, min(1.0, d[1])))
+        self.position = p
+        self.move_speed, self.turn_speed = float(move_speed), math.radians(turn_speed_deg)
+        self.bounds = None if bounds is None else (np.asarray(bounds[0], float), np.asarray(bounds[1], float))
+        self.mouse_rad_per_px = math.radians(mouse_deg_per_px)
+        self._t: float | None = None
+
+    def direction(self) -> np.ndarray:
+        cp = math.cos(self.pitch)
+        return np.array([cp * math.sin(self.yaw), math.sin(self.pitch), cp * math.cos(self.yaw)])
+
+    def pose(self, t_s: float, keys=(), mouse=(0.0, 0.0)) -> Pose:
+        dt = 0.0 if self._t is None else max(0.0, t_s - self._t)
+        self._t = t_s
+        turn = [0.0, 0.0]
+        for k in keys:
+            if k in TURN_KEYS:
+                turn[0] += TURN_KEYS[k][0]
+                turn[1] += TURN_KEYS[k][1]
+        self.yaw += self.turn_speed * dt * turn[0] + self.mouse_rad_per_px * float(mouse[0])
+        lim = math.radians(85.0)
+        self.pitch = max(-lim, min(lim, self.pitch + self.turn_speed * dt * turn[1]
+                                   - self.mouse_rad_per_px * float(mouse[1])))
+        fwd = np.array([math.sin(self.yaw), 0.0, math.cos(self.yaw)])
+        right = np.array([math.cos(self.yaw), 0.0, -math.sin(self.yaw)])
+        move = np.zeros(3)
+        for k in keys:
+            if k in MOVE_KEYS:
+                move += MOVE_KEYS[k][0] * fwd + MOVE_KEYS[k][1] * right
+        n = float(np.linalg.norm(move))
+        if n > 0:
+            self.position = self.position + move / n * self.move_speed * dt
+        if self.bounds is not None:
+            self.position = np.clip(self.position, self.bounds[0], self.bounds[1])
+        return Pose(tuple(self.position), tuple(self.position + self.distance * self.direction()))
+
+
+class GazeDelay:
+    """The gaze that drives the foveation: the newest sample at least ``latency_s`` old.
+
+    ``push(t, x, y)`` adds a sample (times on the presenter's clock, seconds); ``at(now)`` returns the sample
+    used at ``now``: ``(t, x, y)``, or None while no sample is old enough.
+    """
+
+    def __init__(self, latency_s: float = 0.0, keep_s: float = 2.0):
+        self.latency_s, self.keep_s = float(latency_s), float(keep_s)
+        self._t: deque[float] = deque()
+        self._xy: deque[tuple[float, float]] = deque()
+
+    def push(self, t: float, x: float, y: float) -> None:
+        if self._t and t <= self._t[-1]:
+            return  # the same sample polled again
+        self._t.append(float(t))
+        self._xy.append((float(x), float(y)))
+        while len(self._t) > 2 and self._t[1] < t - self.keep_s - self.latency_s:
+            self._t.popleft()
+            self._xy.popleft()
+
+    def at(self, now: float) -> tuple[float, float, float] | None:
+        i = bisect.bisect_right(self._t, now - self.latency_s) - 1
+        if i < 0:
+            return None
+        return (self._t[i], *self._xy[i])
+
+
+class FramePacer:
+    """Renders at most ``max_fps`` frames per second (None: every refresh)."""
+
+    def __init__(self, max_fps: float | None):
+        self.period = 0.0 if not max_fps else 1.0 / float(max_fps)
+        self._next = -math.inf
+
+    def due(self, t: float) -> bool:
+        """True if a new frame is to be rendered for the flip at ``t`` (and books the next one)."""
+        if t + 1e-4 < self._next:
+            return False
+        # Keep the cadence from the planned time (a cap of 30 fps at 60 Hz renders every other flip), but never
+        # plan less than half a period ahead after a stall.
+        planned = t + self.period if self._next == -math.inf else self._next + self.period
+        self._next = max(planned, t + 0.5 * self.period)
+        return True
+
+
+@dataclass
+class FrameRecord:
+    """One flip of a live trial (a row of the session store's ``frames`` table)."""
+
+    frame: int  # flip index within the trial
+    stimulus: int  # which of the trial's stimuli was shown (2AFC: 0 = A, 1 = B)
+    flip_s: float  # flip time (presenter's clock), seconds
+    render_s: float | None  # render time of a new frame (GPU timer where available); None: the last one again
+    gaze_t: float | None  # time of the gaze sample used
+    gaze_x: float | None  # display pixels (x right, y down)
+    gaze_y: float | None
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    look_at: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    dropped: bool = False
+
+    @property
+    def gaze_age_s(self) -> float | None:
+        """Latency: how old the gaze sample was at the flip."""
+        return None if self.gaze_t is None else self.flip_s - self.gaze_t
+
+
+@dataclass
+class LiveStimulus:
+    """One condition of a live trial, as the presenter renders it."""
+
+    condition: str
+    scene: str  # what renderers.catalog.resolve takes (a built-in name or a scene file)
+    renderer: str
+    params: dict
+    backend: str
+    latency_ms: float
+    max_fps: float | None
+    motion: str  # "path" or "explore"
+    duration_s: float
+    fov_y_deg: float
+    render_size: tuple[int, int]
+    path: tuple = ()  # PathMotion's poses: ((t, Pose), ...) sampled along the path
+    start: Pose | None = None
+    move_speed: float = 1.0
+    turn_speed_deg: float = 60.0
+    bounds: tuple | None = None
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def eyes(self) -> int:
+        """Stereo conditions (VaFR dup/rep) render both eyes, shown side by side."""
+        return 2 if self.params.get("stereo", "mono") in ("dup", "rep") else 1
+
+    def motion_model(self):
+        if self.motion == "explore":
+            return ExploreMotion(self.start, self.move_speed, self.turn_speed_deg, self.bounds)
+        ts = [t for t, _ in self.path]
+        poses = [p for _, p in self.path]
+
+        def at(t: float) -> Pose:
+            i = min(len(poses) - 1, max(0, bisect.bisect_right(ts, t) - 1))
+            if i + 1 >= len(poses) or ts[i + 1] == ts[i]:
+                return poses[i]
+            w = (t - ts[i]) / (ts[i + 1] - ts[i])
+            a, b = poses[i], poses[i + 1]
+            lerp = lambda u, v: tuple(x + w * (y - x) for x, y in zip(u, v))  # noqa: E731
+            return Pose(lerp(a.position, b.position), lerp(a.look_at, b.look_at))
+
+        return PathMotion(at, self.duration_s)
+
+
+def timing_summary(frames: list[FrameRecord]) -> dict:
+    """Per-trial timing of :mod:`data_schema.timing` (frame rate median and 5th percentile, dropped share,
+    gaze-to-flip latency p50 and p95 in ms; NaN where not defined)."""
+    from data_schema.timing import summary
+
+    return summary([f.flip_s for f in frames], [f.render_s for f in frames], [f.gaze_t for f in frames],
+                   [f.dropped for f in frames])
+
+
+PATH_SAMPLES = 64  # poses sampled along a camera path (interpolated linearly between them)
+
+
+def live_stimulus(protocol, condition: str, scene: str, scale: float = 1.0) -> LiveStimulus:
+    """The :class:`LiveStimulus` of ``condition`` in ``scene`` for a live protocol (geometry at ``scale``)."""
+    from renderers.catalog import resolve
+
+    from .stimuli import absolute_camera, path_camera
+
+    cond = protocol.conditions[condition]
+    ref = protocol.scene_ref(scene)
+    geometry = protocol.render_geometry(scale)
+    cam = resolve(ref).camera
+    common = dict(condition=condition, scene=ref, renderer=cond.renderer, params=dict(cond.params),
+                  backend=protocol.backend_of(condition), latency_ms=cond.latency_ms, max_fps=cond.max_fps,
+                  motion=protocol.motion, duration_s=float(protocol.duration_s), fov_y_deg=geometry.fov_y_deg,
+                  render_size=(geometry.width, geometry.height))
+    if protocol.motion == "explore":
+        ex = protocol.explore
+        start = (ex.get("start") or {}).get(scene)
+        pose = Pose(tuple(start["position"]), tuple(start["look_at"])) if start else \
+            Pose(tuple(cam.position), tuple(cam.look_at))
+        bounds = (ex.get("bounds") or {}).get(scene)
+        if bounds is None:
+            v = resolve(ref).vertices
+            bounds = (tuple(np.min(v, axis=0)), tuple(np.max(v, axis=0)))
+        return LiveStimulus(**common, start=pose, move_speed=float(ex.get("move_speed", 1.0)),
+                            turn_speed_deg=float(ex.get("turn_speed_deg", 60.0)),
+                            bounds=(tuple(bounds[0]), tuple(bounds[1])))
+    path = []
+    for k in range(PATH_SAMPLES):
+        t = k / (PATH_SAMPLES - 1)
+        c = absolute_camera(ref, path_camera(protocol, t)) or {}
+        path.append((t, Pose(tuple(c.get("position", cam.position)), tuple(c.get("look_at", cam.look_at)))))
+    return LiveStimulus(**common, path=tuple(path))
+
+
+def synthetic_gaze(duration_s: float, width: int, height: int, rng: np.random.Generator,
+                   start: tuple[float, float] | None = None) -> list[tuple[float, float, float]]:
+    """A simulated eye's gaze over ``duration_s`` on a ``width`` x ``height`` image: fixations of 200-400 ms
+    (log-normal around 250 ms) joined by saccades whose duration follows the main sequence (2.2 ms per degree
+    + 21 ms, the rule MouseGaze uses; 30 px taken as one degree here), as ``(t, x, y)`` samples at 500 Hz."""
+    x, y = start if start is not None else (width / 2.0, height / 2.0)
+    t, out = 0.0, []
+    while t < duration_s:
+        fix = float(np.clip(rng.lognormal(math.log(0.25), 0.25), 0.1, 0.6))
+        for k in range(int(fix * 500)):
+            out.append((t + k / 500.0, x, y))
+        t += fix
+        nx, ny = rng.uniform(0.1, 0.9) * width, rng.uniform(0.1, 0.9) * height
+        dur = (2.2 * math.hypot(nx - x, ny - y) / 30.0 + 21.0) / 1000.0
+        for k in range(max(1, int(dur * 500))):
+            w = k / max(1, int(dur * 500))
+            out.append((t + k / 500.0, x + w * (nx - x), y + w * (ny - y)))
+        t += dur
+        x, y = nx, ny
+    return [s for s in out if s[0] <= duration_s]

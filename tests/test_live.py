@@ -1,0 +1,159 @@
+"""Live trials apart from any window: motion, gaze delay, frame pacing, timing summary (studyapp/runner/live.py)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from studyapp.runner.live import ExploreMotion, FramePacer, FrameRecord, GazeDelay, Pose, timing_summary
+
+
+def test_gaze_delay_uses_the_newest_sample_old_enough():
+    g = GazeDelay(latency_s=0.05)
+    for i in range(20):  # 100 Hz samples moving right
+        g.push(i * 0.01, float(i), 0.0)
+    t, x, _ = g.at(0.19)
+    assert t == pytest.approx(0.14) and x == 14.0  # 50 ms behind
+    assert GazeDelay(0.5).at(0.1) is None
+    g0 = GazeDelay(0.0)
+    g0.push(1.0, 3.0, 4.0)
+    g0.push(1.0, 9.0, 9.0)  # the same sample polled twice is kept once
+    assert g0.at(1.0) == (1.0, 3.0, 4.0)
+
+
+@pytest.mark.parametrize("refresh,cap,expected", [(60, 30, 30), (60, None, 60), (60, 20, 20), (90, 45, 45)])
+def test_frame_pacer_renders_at_the_cap(refresh, cap, expected):
+    p = FramePacer(cap)
+    flips = [i / refresh for i in range(refresh * 2)]
+    n = sum(p.due(t) for t in flips)
+    assert n == pytest.approx(2 * expected, abs=1)
+
+
+def test_explore_moves_turns_and_stays_in_bounds():
+    m = ExploreMotion(Pose((0, 1, 0), (0, 1, 1)), move_speed=2.0, turn_speed_deg=90.0,
+                      bounds=((-1, 0, -1), (1, 2, 3)))
+    m.pose(0.0)
+    p = m.pose(0.5, keys={"w"})  # forward (+z) for 0.5 s at 2 units/s
+    assert p.position == pytest.approx((0, 1, 1))
+    p = m.pose(1.5, keys={"w"})  # stopped by the bounds at z = 3
+    assert p.position[2] == pytest.approx(3.0)
+    p = m.pose(2.5, keys={"right"})  # 90 degrees to the right: now looking along +x
+    d = np.subtract(p.look_at, p.position)
+    assert d / np.linalg.norm(d) == pytest.approx((1, 0, 0), abs=1e-9)
+    p = m.pose(3.0, keys={"up"}, mouse=(0, -10000))  # pitch stays within 85 degrees
+    d = np.subtract(p.look_at, p.position)
+    assert math.degrees(math.asin(d[1] / np.linalg.norm(d))) == pytest.approx(85.0)
+
+
+def test_timing_summary_from_frames():
+    frames = [FrameRecord(i, 0, i / 60, 0.004 if i % 2 == 0 else None, i / 60 - 0.03, 1.0, 2.0,
+                          dropped=(i == 5)) for i in range(60)]
+    s = timing_summary(frames)
+    assert s["fps_median"] == pytest.approx(30.0) and s["fps_p5"] == pytest.approx(30.0)
+    assert s["dropped_share"] == pytest.approx(1 / 60) and s["latency_p50_ms"] == pytest.approx(30.0)
+    assert math.isnan(timing_summary([])["fps_median"])
+
+
+LIVE = """
+schema_version: 1
+name: tiny_live
+version: "1"
+family: 2afc
+question: "Which one?"
+display: {width_px: 320, height_px: 180, width_cm: 30.0, distance_cm: 40.0, refresh_hz: 60}
+scenes: [cornell]
+conditions:
+  GT: {renderer: gt, backend: cpu}
+  LaFR: {renderer: lafr, params: {delta: 4.0}, backend: cpu, latency_ms: 50, max_fps: 30}
+stimulus:
+  kind: live
+  render_px: [64, 36]
+  duration_s: 2.0
+  motion: path
+  gaze: fixation
+  min_fps: 45
+  camera_path: [{t: 0, yaw_deg: -3}, {t: 1, yaw_deg: 3}]
+design: {repetitions: 2}
+simulation: {ground_truth: GT}
+analysis: {dv: chosen, unit: participant, test: thurstone}
+"""
+
+
+def test_a_simulated_live_session_logs_frames_and_timing(tmp_path, capsys):
+    from data_schema.store import open_store
+    from studyapp.cli import main
+    from studyapp.runner.protocol import load_protocol
+
+    f = tmp_path / "live.yaml"
+    f.write_text(LIVE)
+    p = load_protocol(f)
+    assert p.live and p.n_frames == 0 and p.backend_of("LaFR") == "cpu"
+    db = tmp_path / "s.db"
+    assert main(["run", str(f), "--participant", "P1", "--simulate", "--db", str(db), "--quiet"]) == 0
+    with open_store(db) as st:
+        frames = st.frames("P1")
+        rows = st.tidy_rows()
+    assert len(rows) == 2 and {r["chosen"] for r in rows} <= {"GT", "LaFR"}
+    assert len(frames) == 2 * 2 * 3  # 2 trials x 2 stimuli x 3 simulated frames
+    assert all(r["render_s"] is not None and r["render_s"] > 0 for r in frames)
+    lafr = [r for r in frames if r["stimulus"] == [i for i, c in enumerate(rows[0]["condition_a"] and
+            (rows[0]["condition_a"], rows[0]["condition_b"])) if c == "LaFR"][0] and r["idx"] == rows[0]["trial"]]
+    assert all((r["flip_s"] - r["gaze_t"]) == pytest.approx(0.052) for r in lafr)  # 50 ms + 2 ms nominal
+    assert all(isinstance(rows[0][c], float) for c in ("fps_median", "latency_p95_ms"))
+    capsys.readouterr()
+    assert main(["sessions", "--db", str(db)]) == 0
+    out = capsys.readouterr().out
+    assert "timing (live trials; trials below min_fps 45 flagged)" in out and "FLAGGED" in out
+    assert main(["export", "--db", str(db), "--format", "frames", "--out", str(tmp_path / "frames.parquet")]) == 0
+    import pandas as pd
+
+    df = pd.read_parquet(tmp_path / "frames.parquet")
+    assert len(df) == len(frames) and {"gaze_age_ms", "pos_x", "look_z", "dropped"} <= set(df.columns)
+
+
+def test_replay_re_renders_the_logged_frames_and_scores_them_along_the_gaze(tmp_path, capsys):
+    import json
+
+    import numpy as np
+
+    from data_schema.store import open_store
+    from studyapp.cli import main
+
+    f = tmp_path / "live.yaml"
+    f.write_text(LIVE)
+    db = tmp_path / "s.db"
+    assert main(["run", str(f), "--participant", "P1", "--simulate", "--db", str(db), "--quiet"]) == 0
+    with open_store(db) as st:
+        logged = st.frames("P1", 0)
+    out = tmp_path / "replay"
+    assert main(["replay", "--db", str(db), "--participant", "P1", "--trial", "0", "--out", str(out),
+                 "--quality"]) == 0
+    rows = (out / "frames.csv").read_text().splitlines()
+    assert len(rows) == 1 + len(logged)
+    assert sorted(p.name for p in out.iterdir()) == ["GT", "LaFR", "frames.csv", "gaze.csv", "gt", "quality.csv",
+                                                      "quality.md"]
+    q = (out / "quality.csv").read_text().splitlines()
+    assert len(q) == 1 + 3 * len(logged)  # fovea, periphery, all per frame
+    # the GT condition replayed is the ground truth: zero error; LaFR has some, more in the periphery
+    import pandas as pd
+
+    t = pd.read_csv(out / "quality.csv")
+    assert (t[t.image.str.startswith("GT/")]["mse"] == 0).all()
+    lafr = t[t.image.str.startswith("LaFR/")]
+    assert lafr[lafr.region == "periphery"]["mse"].mean() > lafr[lafr.region == "fovea"]["mse"].mean()
+    # studyapp quality gives the same numbers from the files replay wrote
+    capsys.readouterr()
+    fov = load_protocol_fov(f)
+    assert main(["quality", "--gt", str(out / "gt"), "--gaze-csv", str(out / "gaze.csv"), "--fov-y", str(fov),
+                 "--json", str(out / "LaFR")]) == 0
+    recs = json.loads(capsys.readouterr().out)
+    assert len(recs) == len(lafr)
+    np.testing.assert_allclose([r["mse"] for r in recs], lafr["mse"].to_numpy(), rtol=1e-12)
+    assert main(["replay", "--db", str(db), "--participant", "P1", "--trial", "99", "--out", str(tmp_path / "x")]) \
+        == 2
+
+
+def load_protocol_fov(path):
+    from studyapp.runner.protocol import load_protocol
+
+    return repr(load_protocol(path).display.fov_y_deg)
