@@ -203,3 +203,35 @@ class Display:
     def ppd(self) -> float:
         """Pixels per degree at the screen centre, ``width_px / width_cm * distance_cm * tan(1°)``."""
         return self.geometry().ppd
+
+
+@dataclass(frozen=True)
+class EyeView:
+    """Where one eye's image goes: its viewport in the window (pixels from the top-left) and the size it is
+    rendered at. The one place that knows the per-eye projection of a binocular condition (a desktop window
+    shows the eyes side by side; an HMD presenter would map each to its own display)."""
+
+    eye: str  # "mono", "left" or "right"
+    x0: int
+    y0: int
+    width: int
+    height: int
+    render_width: int
+    render_height: int
+
+    def to_render(self, x: float, y: float) -> tuple[float, float]:
+        """Window pixels -> this eye's render pixels (clamped to the image)."""
+        u = (x - self.x0) * self.render_width / self.width
+        v = (y - self.y0) * self.render_height / self.height
+        return (min(max(u, 0.0), float(self.render_width)), min(max(v, 0.0), float(self.render_height)))
+
+
+def eye_views(window: tuple[int, int], render: tuple[int, int], eyes: int) -> list[EyeView]:
+    """The views of a mono (``eyes=1``) or binocular (``eyes=2``: left and right halves, each eye rendered at
+    half the width with the same vertical visual angle) stimulus covering a ``window``."""
+    (ww, wh), (rw, rh) = window, render
+    if eyes == 1:
+        return [EyeView("mono", 0, 0, ww, wh, rw, rh)]
+    half = ww // 2
+    rw2 = max(16, rw // 2)
+    return [EyeView("left", 0, 0, half, wh, rw2, rh), EyeView("right", half, 0, ww - half, wh, rw2, rh)]

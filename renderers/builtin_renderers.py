@@ -33,6 +33,8 @@ def _eyes(ctx):
 
 def _pick(ctx, images):
     ctx.extra["eyes"] = len(images)
+    if len(images) > 1:  # both eyes for a binocular presenter (live trials show them side by side)
+        ctx.extra["eye_images"] = list(images)
     return images[-1] if (ctx.params["eye"] == "right" and len(images) > 1) else images[0]
 
 

@@ -82,7 +82,12 @@ def _presenter_factory(args, protocol):
             from studyapp.presentation.psychopy_window import PsychoPyPresenter
         except ImportError as exc:
             raise CLIError(f"the PsychoPy presenter is not available ({exc}); use --simulate for a dry run") from None
-        return PsychoPyPresenter(eyetracker=args.eyetracker, gaze_log=args.gaze_log)
+        kw = {"eyetracker": args.eyetracker}
+        if protocol.live and protocol.gaze_source == "mouse":  # the window's mouse stands in for the eye
+            kw = {"eyetracker": "pointer", "required_tracker": True}
+        elif protocol.live and protocol.gaze_source == "tracker":
+            kw = {"eyetracker": "device", "tracker": protocol.eyetracker, "required_tracker": True}
+        return PsychoPyPresenter(gaze_log=args.gaze_log, screenshot_dir=args.screenshot_dir, **kw)
     return make_window
 
 
@@ -243,6 +248,7 @@ def register(subparsers, parser_class) -> None:
                         "(mousegaze: the mouse simulates the eye, for testing)")
     r.add_argument("--gaze-log", metavar="FILE", help="with --eyetracker: write gaze samples to this CSV")
     r.add_argument("--sim-delay", type=float, default=0.0, help=__import__("argparse").SUPPRESS)
+    r.add_argument("--screenshot-dir", help=__import__("argparse").SUPPRESS)  # tests: back-buffer shots
     r.set_defaults(func=cmd_run)
 
     s = subparsers.add_parser("sessions", help="list the sessions of a study database",

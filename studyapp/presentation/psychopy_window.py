@@ -134,7 +134,7 @@ def validate_trial(trial: TrialDisplay) -> None:
             f"trial {trial.index}: family {trial.family!r} needs {need[0]}..{need[1]} stimuli, got {n}"
         )
     for s in trial.stimuli:
-        if not s.frames:
+        if not s.frames and s.live is None:
             raise UserError(f"trial {trial.index}: stimulus {s.condition!r} has no frames")
         if s.is_sequence and not s.fps > 0:
             raise UserError(f"trial {trial.index}: sequence {s.condition!r} needs fps > 0, got {s.fps!r}")
@@ -321,9 +321,14 @@ class PsychoPyPresenter:
         gaze_log: str | Path | None = None,
         on_event: EventHook | None = None,
         text_height_px: int | None = None,
+        tracker: dict | None = None,
+        required_tracker: bool = False,
     ):
-        if eyetracker not in (None, "mousegaze"):
-            raise UserError(f"eyetracker={eyetracker!r} is not supported: use None or 'mousegaze'")
+        if eyetracker not in (None, "mousegaze", "device", "pointer"):
+            raise UserError(f"eyetracker={eyetracker!r} is not supported: use None, 'mousegaze', 'device' or "
+                            "'pointer'")
+        if eyetracker == "device" and not (tracker or {}).get("device"):
+            raise UserError("eyetracker='device' needs a tracker block with the iohub device")
         if not (math.isfinite(fovea_deg) and fovea_deg > 0):
             raise UserError(f"fovea_deg={fovea_deg!r} is out of range: must be > 0")
         self.fixation_rgb = fixation_rgb
@@ -331,6 +336,8 @@ class PsychoPyPresenter:
         self.fixation_line_px = int(fixation_line_px)
         self.show_labels = show_labels
         self.eyetracker = eyetracker
+        self.tracker_spec = dict(tracker or {})  # the protocol's eyetracker block (device, settings, calibrate...)
+        self.required_tracker = required_tracker  # live gaze-contingent trials cannot run without it
         self.fovea_deg = float(fovea_deg)
         self.screenshot_dir = Path(screenshot_dir) if screenshot_dir is not None else None
         self.gaze_log = Path(gaze_log) if gaze_log is not None else None
@@ -348,6 +355,7 @@ class PsychoPyPresenter:
         self._black_since: float | None = None
         self._io = None
         self._tracker = None
+        self._pointer = None
         self._n_shots = 0
 
     # ------------------------------------------------------------------ window
@@ -441,6 +449,13 @@ class PsychoPyPresenter:
         self._make_stims()
         if self.eyetracker:
             self.facts["eyetracker"] = self._start_eyetracker()
+            if self.required_tracker and not self.facts["eyetracker"]["ok"]:
+                reason = self.facts["eyetracker"]["reason"]
+                self.close()
+                raise PresentationError(f"the eye tracker did not start ({reason}): check its connection and "
+                                        "the protocol's eyetracker block, or use gaze: fixation")
+            if self.tracker_spec.get("calibrate") or self.tracker_spec.get("max_validation_error_deg"):
+                self.facts["validation"] = self._calibrate_and_validate()
         return dict(self.facts)
 
     def _make_stims(self) -> None:
@@ -524,16 +539,26 @@ class PsychoPyPresenter:
 
     # ------------------------------------------------------------------ eye tracking
     def _start_eyetracker(self) -> dict:
-        """Start iohub with MouseGaze; return a fact dict (``{"ok": False, "reason": ...}`` if unusable)."""
+        """Start iohub with MouseGaze or the protocol's device; a fact dict (``{"ok": False, "reason": ...}``
+        if unusable). ``pointer``: the window's own mouse position stands in for the gaze (no iohub)."""
+        if self.eyetracker == "pointer":
+            from psychopy import event
+
+            self._pointer = event.Mouse(win=self.win, visible=False)
+            return {"kind": "pointer", "ok": True}
         try:
             from psychopy.iohub import launchHubServer
 
-            cfg = {
-                "eyetracker.hw.mouse.EyeTracker": {
-                    "name": "tracker",
-                    "controls": {"move": [], "blink": ["LEFT_BUTTON"], "saccade_threshold": 0.5},
+            if self.eyetracker == "device":
+                settings = {"name": "tracker", **(self.tracker_spec.get("settings") or {})}
+                cfg = {self.tracker_spec["device"]: settings}
+            else:
+                cfg = {
+                    "eyetracker.hw.mouse.EyeTracker": {
+                        "name": "tracker",
+                        "controls": {"move": [], "blink": ["LEFT_BUTTON"], "saccade_threshold": 0.5},
+                    }
                 }
-            }
             self._io = launchHubServer(window=self.win, **cfg)
             self._tracker = self._io.getDevice("tracker")
             self._tracker.setRecordingState(True)
@@ -541,6 +566,63 @@ class PsychoPyPresenter:
             self._io = self._tracker = None
             return {"kind": self.eyetracker, "ok": False, "reason": f"{type(exc).__name__}: {exc}"}
         return {"kind": self.eyetracker, "ok": True}
+
+    #: Validation targets as fractions of the window (centre, then the four quadrants at 70 % out).
+    VALIDATION_TARGETS = ((0.5, 0.5), (0.15, 0.15), (0.85, 0.15), (0.85, 0.85), (0.15, 0.85))
+
+    def _calibrate_and_validate(self) -> dict:
+        """Calibrate through iohub where the tracker supports it, then validate: targets shown one by one, the
+        gaze recorded over the last half of each 1.2 s, the mean angular error (degrees, from the display
+        geometry) against the protocol's ``max_validation_error_deg``; repeated up to ``max_attempts`` times.
+        Raises :class:`PresentationError` if no attempt passes."""
+        spec = self.tracker_spec
+        limit = spec.get("max_validation_error_deg")
+        attempts = []
+        for attempt in range(int(spec.get("max_attempts", 3))):
+            if spec.get("calibrate"):
+                try:
+                    self._tracker.runSetupProcedure()
+                except Exception as exc:  # noqa: BLE001 - the tracker's own failure, reported in one line
+                    self.close()
+                    raise PresentationError(f"eye-tracker calibration failed: {type(exc).__name__}: "
+                                            f"{str(exc).splitlines()[0] if str(exc) else ''}".rstrip(": ")) from None
+            error = self._validate_once(attempt)
+            attempts.append(error)
+            self._emit("validation", attempt=attempt, error_deg=error)
+            if limit is None or error <= limit:
+                return {"error_deg": error, "attempts": attempts}
+        self.close()
+        raise PresentationError(f"eye-tracker validation failed: mean error {min(attempts):.2f}° > "
+                                f"{limit:g}° after {len(attempts)} attempt(s): check the set-up and run again")
+
+    def _validate_once(self, attempt: int) -> float:
+        geometry = self.display.geometry()
+        ww, wh = (int(v) for v in self.win.size)
+        dot = self._visual.Circle(self.win, radius=8, units="pix", fillColor=(1, 1, 1), lineColor=None)
+        errors = []
+        for k, (fx, fy) in enumerate(self.VALIDATION_TARGETS):
+            tx, ty = fx * ww, fy * wh
+            dot.pos = (tx - ww / 2, wh / 2 - ty)
+            samples = []
+            t0 = self._now()
+            shown = False
+            while self._now() - t0 < 1.2:
+                dot.draw()
+                self.win.flip()
+                if not shown:
+                    self._emit("validation_target", attempt=attempt, target=k, x=tx, y=ty)
+                    shown = True
+                g = self._gaze_window_px()
+                if g is not None and self._now() - t0 > 0.6:
+                    samples.append(g)
+            if not samples:
+                errors.append(float("inf"))
+                continue
+            gx, gy = np.mean(samples, axis=0)
+            # the angle between the rays to the target and to the gaze (viewing geometry, seed 001 Eq 3 from
+            # the target as the centre of projection)
+            errors.append(float(geometry.with_gaze((tx, ty)).eccentricity(math.hypot(gx - tx, gy - ty))))
+        return float(np.mean(errors))
 
     def _window_location(self) -> tuple[int, int]:
         """Top-left corner of the window on its screen, pixels (0, 0 in fullscreen)."""
@@ -550,6 +632,10 @@ class PsychoPyPresenter:
 
     def _gaze_window_px(self) -> tuple[float, float] | None:
         """Last gaze sample in window pixels (x right, y down, top-left origin), or None."""
+        if self._pointer is not None:
+            x, y = self._pointer.getPos()  # pix units: origin at the window centre, y up
+            ww, wh = (int(v) for v in self.win.size)
+            return (float(x) + ww / 2.0, wh / 2.0 - float(y))
         if self._tracker is None:
             return None
         g = self._tracker.getLastGazePosition()
@@ -712,6 +798,8 @@ class PsychoPyPresenter:
         :meth:`prefetch`) and upload them in order on this thread (OpenGL's)."""
         t0 = time.perf_counter()
         frames, placements = [], []
+        if trial.stimuli and trial.stimuli[0].live is not None:  # rendered during the trial
+            return _Loaded(trial, [], [], 0.0)
         decoded = iter(
             self._prefetched.pop(trial.index, None)
             or [self._decoder().submit(decode_image, Path(f)) for s in trial.stimuli for f in s.frames]
@@ -781,7 +869,17 @@ class PsychoPyPresenter:
         current = state.current
         seq, placement = loaded.frames[current], loaded.placements[current]
         seq[sequence_frame(elapsed_s, trial.stimuli[current].fps, len(seq), families.get(trial.family).loops)].draw()
-        if trial.fixation_px is not None:
+        self._draw_overlay(trial, state, placement)
+        self._draw_question_in_margin(trial.question, placement)
+
+    def _draw_overlay(self, trial: TrialDisplay, state: AnswerState, placement: Placement | None) -> None:
+        """The fixation mark (at ``trial.fixation_px`` of the stimulus image) and the stimulus label with the
+        picks so far. ``placement`` None: a live stimulus covering the window (its render size maps onto it)."""
+        if trial.fixation_px is not None and self.fixation_rgb is not None:
+            if placement is None:
+                live = trial.stimuli[state.current].live
+                ww, wh = (int(v) for v in self.win.size)
+                placement = Placement.fit(ww, wh, *live.render_size)
             fx, fy = placement.image_to_pix(*trial.fixation_px)
             for r in self._fix:
                 r.pos = (fx, fy)
@@ -789,9 +887,13 @@ class PsychoPyPresenter:
         labels = _stim_labels(trial)
         if self.show_labels and len(labels) > 1:
             picked = ("  picked: " + ", ".join(labels[int(p)] for p in state.picks)) if state.picks else ""
-            _set_text(self._corner, labels[current] + picked)
+            _set_text(self._corner, labels[state.current] + picked)
             self._corner.draw()
-        self._draw_question_in_margin(trial.question, placement)
+
+    def _exposure(self, scene: str) -> float:
+        from renderers.catalog import resolve
+
+        return resolve(scene).exposure
 
     def _sample_gaze(self, trial: TrialDisplay, placement: Placement, t_s: float, info: dict) -> bool:
         """Record the last gaze sample at ``t_s`` after onset; True if it lies outside the foveal disc."""
@@ -809,6 +911,8 @@ class PsychoPyPresenter:
         docstring."""
         self._require_open()
         validate_trial(trial)
+        if trial.stimuli[0].live is not None:
+            return self._present_live(trial)
         win, kb = self.win, self.kb
         loaded, overran = self._black_interval(trial)
         info = {
@@ -882,6 +986,34 @@ class PsychoPyPresenter:
             loaded.release()
             self._write_gaze(trial.index, info["gaze"])
         return self._result(state, onset, win.nDroppedFrames - dropped0, gaze_left, False)
+
+    def _present_live(self, trial: TrialDisplay) -> TrialResult:
+        """A live trial (:mod:`.live_window`): the black interval, then a rendered frame every refresh."""
+        from .live_window import LiveTrial, check_live_trial
+
+        check_live_trial(trial)
+        _, overran = self._black_interval(trial)
+        self._info = {"trial": trial.index, "load_s": 0.0, "black_overran": bool(overran), "onsets": [],
+                      "gaze": [], "live": True}
+        self.trial_info.append(self._info)
+        if self._poll_keys([ESCAPE]):
+            self._info["escaped_in_black"] = True
+            return TrialResult(answers=[], rt_s=float("nan"), onset_s=float("nan"), escaped=True)
+        keys_wanted = sorted({*trial.answer_keys, *trial.switch_keys, ESCAPE})
+        timed_once = not families.get(trial.family).loops or not trial.answer_keys
+        state = AnswerState(trial)
+
+        def on_switch(i):
+            self._emit("switch", trial=trial.index, stimulus=i)
+
+        onset, frames, dropped, escaped = LiveTrial(self, trial).run(state, keys_wanted, timed_once,
+                                                                     self._poll_keys, on_switch)
+        self._info["frames"] = len(frames)
+        if escaped:
+            state.picks, state.rt_s = [], None
+        res = self._result(state, onset if onset is not None else float("nan"), dropped, None, escaped)
+        res.frames = [] if escaped else frames
+        return res
 
     def _write_gaze(self, index: int, samples: list) -> None:
         """Append ``samples`` of trial ``index`` to :attr:`gaze_log` (header first), then flush and fsync."""

@@ -252,8 +252,8 @@ def live_stimulus(protocol, condition: str, scene: str, scale: float = 1.0) -> L
         pose = Pose(tuple(start["position"]), tuple(start["look_at"])) if start else \
             Pose(tuple(cam.position), tuple(cam.look_at))
         bounds = (ex.get("bounds") or {}).get(scene)
-        if bounds is None:
-            v = resolve(ref).vertices
+        if bounds is None:  # the scene's bounding box, grown to hold the start position
+            v = np.vstack([resolve(ref).vertices, np.asarray(pose.position, dtype=float)[None]])
             bounds = (tuple(np.min(v, axis=0)), tuple(np.max(v, axis=0)))
         return LiveStimulus(**common, start=pose, move_speed=float(ex.get("move_speed", 1.0)),
                             turn_speed_deg=float(ex.get("turn_speed_deg", 60.0)),

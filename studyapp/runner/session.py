@@ -16,6 +16,7 @@ Order of events (what survives a crash at any point):
 from __future__ import annotations
 
 import contextlib
+import json
 import platform
 import re
 import sqlite3
@@ -204,10 +205,16 @@ def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_r
         previous = store.last_session(pid) if resume else None
         rendered = protocol.render_geometry(scale)
         display_info = {**asdict(display), "ppd": display.ppd, "fov_y_deg": display.fov_y_deg, "scale": scale,
-                        "render_px": [rendered.width, rendered.height], "fixation": list(protocol.fixation)}
+                        "render_px": [rendered.width, rendered.height], "fixation": list(protocol.fixation),
+                        **{k: measured[k] for k in ("window_size_px", "window_pos_px", "window_matches_display",
+                                                    "eyetracker") if k in measured}}
         sid = store.start_session(pid, protocol.content_hash, seed, software_versions(measured.get("software")),
                                   display_info, measured, str(measured.get("presenter", type(presenter).__name__)),
                                   resumed_from=previous)
+        validation = measured.get("validation")
+        if validation:  # the eye tracker's accuracy, measured before the first trial
+            store.record_validation(sid, validation["error_deg"],
+                                    json.dumps({"attempts_deg": validation["attempts"]}))
         if on_started:
             on_started(sid)
         try:

@@ -1,0 +1,254 @@
+"""Live trials in the PsychoPy window: every refresh renders the stimulus where the participant looks.
+
+Per refresh (:meth:`LiveTrial.run`): the newest gaze sample (psychopy.iohub: an eye tracker, or MouseGaze) is
+delayed by the condition's ``latency_ms``, mapped from window pixels onto each eye's render
+(:func:`data_schema.geometry.eye_views`), and the condition's renderer renders a new frame foveated there when
+the frame-rate cap allows (:class:`studyapp.runner.live.FramePacer`), on the GPU backend inside this window's
+OpenGL context (or the CPU backend); the frame is tone-mapped once (:func:`renderers.stimuli.to_srgb8`),
+uploaded into a texture that covers the window (both eyes side by side for binocular conditions) and flipped.
+Every flip is logged (:class:`studyapp.runner.live.FrameRecord`): flip time, render time, the gaze sample
+used and its age, the camera pose, the dropped flag.
+
+The camera follows the protocol's path, or the participant's keys (W/S/A/D move, arrow keys turn) and a mouse
+drag when exploring. Answer and switch keys work as in pre-rendered trials; a switch shows the other condition
+at the same place (explore) or restarts its path (path).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import time
+
+import numpy as np
+
+from data_schema.geometry import eye_views
+from studyapp.runner.live import EXPLORE_KEYS, FramePacer, FrameRecord, GazeDelay
+
+from .base import PresentationError, TrialDisplay
+
+# psychtoolbox key names of exploration -> pyglet key codes (held-key state comes from pyglet)
+_PYGLET_KEYS = {"w": "W", "s": "S", "a": "A", "d": "D", "left": "LEFT", "right": "RIGHT", "up": "UP",
+                "down": "DOWN"}
+
+
+class _Surface:
+    """One eye's texture covering its viewport; a new frame replaces the texels (no new texture per frame)."""
+
+    def __init__(self, presenter, view):
+        from pyglet import gl
+
+        self.view = view
+        win = presenter.win
+        ww, wh = (int(v) for v in win.size)
+        self.stim = presenter._visual.ImageStim(
+            win, image=None, units="pix", size=(view.width, view.height),
+            pos=(view.x0 + view.width / 2 - ww / 2, wh / 2 - (view.y0 + view.height / 2)))
+        gl.glBindTexture(gl.GL_TEXTURE_2D, self.stim._texID)
+        for param, value in ((gl.GL_TEXTURE_MIN_FILTER, gl.GL_LINEAR), (gl.GL_TEXTURE_MAG_FILTER, gl.GL_LINEAR),
+                             (gl.GL_TEXTURE_WRAP_S, gl.GL_CLAMP_TO_EDGE), (gl.GL_TEXTURE_WRAP_T, gl.GL_CLAMP_TO_EDGE),
+                             (gl.GL_TEXTURE_MAX_LEVEL, 0)):
+            gl.glTexParameteri(gl.GL_TEXTURE_2D, param, value)
+        gl.glPixelStorei(gl.GL_UNPACK_ALIGNMENT, 1)
+        gl.glTexImage2D(gl.GL_TEXTURE_2D, 0, gl.GL_RGB, view.render_width, view.render_height, 0, gl.GL_RGB,
+                        gl.GL_UNSIGNED_BYTE, None)
+        gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
+        from .psychopy_window import _TextureRef
+
+        self.stim.image = _TextureRef(self.stim._texID)
+
+    def update(self, rgb8: np.ndarray) -> None:
+        from pyglet import gl
+
+        data = np.ascontiguousarray(rgb8)
+        gl.glBindTexture(gl.GL_TEXTURE_2D, self.stim._texID)
+        gl.glPixelStorei(gl.GL_UNPACK_ALIGNMENT, 1)
+        gl.glTexSubImage2D(gl.GL_TEXTURE_2D, 0, 0, 0, data.shape[1], data.shape[0], gl.GL_RGB, gl.GL_UNSIGNED_BYTE,
+                           data.ctypes.data_as(ctypes.POINTER(ctypes.c_ubyte)))
+        gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
+
+    def release(self) -> None:
+        from pyglet import gl
+
+        if hasattr(self.stim, "_texID"):
+            gl.glDeleteTextures(1, ctypes.byref(self.stim._texID))
+            del self.stim._texID
+
+
+class _Input:
+    """Held keys (pyglet's key state) and the mouse drag since the last call (pixels, y up)."""
+
+    def __init__(self, win):
+        from pyglet.window import key
+
+        self._key = key
+        self.state = key.KeyStateHandler()
+        self.drag = [0.0, 0.0]
+        handle = win.winHandle
+
+        def on_mouse_drag(x, y, dx, dy, buttons, modifiers):
+            self.drag[0] += dx
+            self.drag[1] += dy
+
+        self._handlers = (self.state, on_mouse_drag)
+        handle.push_handlers(self.state, on_mouse_drag=on_mouse_drag)
+        self._handle = handle
+
+    def held(self) -> set[str]:
+        return {k for k in EXPLORE_KEYS if self.state[getattr(self._key, _PYGLET_KEYS[k])]}
+
+    def take_drag(self) -> tuple[float, float]:
+        d, self.drag = tuple(self.drag), [0.0, 0.0]
+        return (d[0], -d[1])
+
+    def close(self) -> None:
+        import contextlib
+
+        with contextlib.suppress(Exception):  # the window may already be gone
+            self._handle.remove_handlers(self.state)
+            self._handle.remove_handler("on_mouse_drag", self._handlers[1])
+
+
+class LiveTrial:
+    """One live trial in the presenter's window; :meth:`run` returns ``(answer state, onset, frames, dropped,
+    escaped)``."""
+
+    def __init__(self, presenter, trial: TrialDisplay):
+        self.p, self.trial = presenter, trial
+        self.live = [s.live for s in trial.stimuli]
+        win = presenter.win
+        self.window = tuple(int(v) for v in win.size)
+        self.views = [eye_views(self.window, lv.render_size, lv.eyes) for lv in self.live]
+        self.motions = [lv.motion_model() for lv in self.live]
+        if self.live[0].motion == "explore":  # one camera for the whole trial: a switch keeps the place
+            self.motions = [self.motions[0]] * len(self.live)
+        self.delays = [GazeDelay(lv.latency_ms / 1000.0) for lv in self.live]
+        self.pacers = [FramePacer(lv.max_fps) for lv in self.live]
+        self.surfaces: dict[int, list[_Surface]] = {}
+
+    def _surfaces(self, i: int) -> list[_Surface]:
+        if i not in self.surfaces:
+            self.surfaces[i] = [_Surface(self.p, v) for v in self.views[i]]
+        return self.surfaces[i]
+
+    def _gaze_sample(self, now: float):
+        """The newest gaze sample in window pixels with its time, or the fixation point."""
+        g = self.p._gaze_window_px()
+        if g is not None:
+            return now, g[0], g[1]
+        fix = self.trial.fixation_px
+        lv = self.live[0]
+        if fix is None:
+            return now, self.window[0] / 2, self.window[1] / 2
+        return now, fix[0] * self.window[0] / lv.render_size[0], fix[1] * self.window[1] / lv.render_size[1]
+
+    def _render(self, i: int, t_stim: float, gaze_window, held, drag):
+        """Render stimulus ``i`` for all its eyes at the gaze; upload; return (render seconds, pose)."""
+        from renderers.registry import render
+        from renderers.stimuli import to_srgb8
+
+        lv = self.live[i]
+        pose = self.motions[i].pose(t_stim, held, drag)
+        views = self.views[i]
+        w, h = views[0].render_width, views[0].render_height
+        gaze = None if gaze_window is None else views[0].to_render(*gaze_window)
+        params = dict(lv.params)
+        t0 = time.perf_counter()
+        try:
+            img, stats = render(lv.scene, lv.renderer, params, w, h, gaze=gaze, camera=pose.camera(lv.fov_y_deg),
+                                backend=lv.backend)
+        except ValueError as exc:  # a user-facing problem (no OpenGL 4.3, ...): one line, as everywhere
+            raise PresentationError(f"cannot render {lv.condition} live: {str(exc).splitlines()[0]}") from None
+        images = stats.get("eye_images") or [img]
+        exposure = self.p._exposure(lv.scene)
+        for surf, im in zip(self._surfaces(i), images):
+            surf.update(to_srgb8(im, exposure))
+        seconds = stats["seconds"].get("total", time.perf_counter() - t0)
+        return float(seconds), pose
+
+    def run(self, state, keys_wanted, timed_once: bool, poll_keys, on_switch):
+        p, trial = self.p, self.trial
+        win = p.win
+        frames: list[FrameRecord] = []
+        onset = stim_onset = None
+        dropped0 = win.nDroppedFrames
+        win.recordFrameIntervals = True
+        inp = _Input(win)
+        pose = None
+        last_dropped = dropped0
+        next_flip = p._now() + p._frame_period
+        escaped, playback_over = False, False
+        try:
+            while True:
+                i = state.current
+                t_est = next_flip
+                if timed_once and onset is not None:
+                    playback_over = t_est - onset >= trial.duration_s
+                t_sample = self._gaze_sample(p._now())
+                self.delays[i].push(*t_sample)
+                used = self.delays[i].at(t_est)
+                render_s = None
+                if playback_over:
+                    p._draw_text(trial.question, p._progress_text(trial))
+                else:
+                    t_stim = 0.0 if stim_onset is None else t_est - stim_onset
+                    if not timed_once and self.live[i].motion == "path":
+                        t_stim = t_stim % self.live[i].duration_s
+                    if self.pacers[i].due(t_est) or i not in self.surfaces:
+                        render_s, pose = self._render(i, t_stim, None if used is None else used[1:],
+                                                      inp.held(), inp.take_drag())
+                    for surf in self.surfaces[i]:
+                        surf.stim.draw()
+                    p._draw_overlay(trial, state, None)
+                    if render_s is not None and p.screenshot_dir is not None:
+                        p._save_shot(trial, f"live{len(frames):05d}")
+                if onset is None:
+                    win.callOnFlip(p.kb.clock.reset)
+                    win.callOnFlip(p.kb.clearEvents)
+                t_flip = win.flip()
+                next_flip = t_flip + p._frame_period
+                if stim_onset is None or (onset is not None and frames and frames[-1].stimulus != i):
+                    stim_onset = t_flip
+                if onset is None:
+                    onset = t_flip
+                    p._emit("onset", trial=trial.index, stimulus=i, t=t_flip)
+                dropped_now = win.nDroppedFrames
+                if not playback_over and pose is not None:
+                    frames.append(FrameRecord(len(frames), i, t_flip, render_s,
+                                              None if used is None else used[0],
+                                              None if used is None else used[1], None if used is None else used[2],
+                                              tuple(pose.position), tuple(pose.look_at),
+                                              dropped_now > last_dropped))
+                last_dropped = dropped_now
+                if playback_over and "question_shown" not in p._info:
+                    p._info["question_shown"] = t_flip
+                    p._emit("question", trial=trial.index)
+                for key in poll_keys(keys_wanted):
+                    event = state.press(key.name, key.rt, can_switch=not playback_over)
+                    if event == "escape":
+                        escaped = True
+                        break
+                    if event == "switch":
+                        stim_onset = None
+                        on_switch(state.current)
+                    elif event == "pick":
+                        p._emit("pick", trial=trial.index, answer=state.picks[-1])
+                if escaped:
+                    break
+                if (state.answered or not trial.answer_keys) and (playback_over or not timed_once):
+                    break
+        finally:
+            win.recordFrameIntervals = False
+            inp.close()
+            for surfs in self.surfaces.values():
+                for s in surfs:
+                    s.release()
+        return onset, frames, win.nDroppedFrames - dropped0, escaped
+
+
+def check_live_trial(trial: TrialDisplay) -> None:
+    """One-line errors for a live trial the window cannot show."""
+    if not all(s.live is not None for s in trial.stimuli):
+        raise PresentationError(f"trial {trial.index}: live and pre-rendered stimuli cannot be mixed in a trial")
+    if trial.duration_s is None or not math.isfinite(trial.duration_s):
+        raise PresentationError(f"trial {trial.index}: a live trial needs a duration")
