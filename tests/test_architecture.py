@@ -98,7 +98,12 @@ def test_the_wheel_ships_the_protocols_and_schemas(tmp_path):
     import sys
     import zipfile
 
-    res = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", str(ROOT),
+    import shutil
+
+    src = tmp_path / "src"  # build from a copy: setuptools writes build/ next to the sources
+    shutil.copytree(ROOT, src, symlinks=True, ignore=shutil.ignore_patterns(
+        ".venv", ".git", "build", "demo_out", "__pycache__", ".hypothesis", "*.egg-info", "stimulus_cache"))
+    res = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", str(src),
                           "-w", str(tmp_path)], capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr
     [wheel] = tmp_path.glob("studyapp-*.whl")

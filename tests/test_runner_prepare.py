@@ -10,11 +10,10 @@ import numpy as np
 import pytest
 
 from studyapp.progress import Bar
+from studyapp.runner.camera import absolute_camera, camera_at
 from studyapp.runner.images import load_gray, save_png
 from studyapp.runner.protocol import load_protocol
 from studyapp.runner.stimuli import (
-    absolute_camera,
-    camera_at,
     frame_paths,
     missing_stimuli,
     needed_stimuli,
@@ -91,7 +90,7 @@ def test_prepare_refuses_missing_folder_stimuli(tmp_path):
 def test_protocol_paths_stay_inside_the_protocol_folder(tmp_path, field, value):
     text = (PROTOCOLS / "seed003_task2.yaml").read_text()
     if field == "stimuli_dir":
-        text = re.sub(r"^stimuli_dir: .*$", f"stimuli_dir: {value}", text, flags=re.M)
+        text = re.sub(r"^stimuli_dir: .*$", f"stimuli_dir: {value}", text, flags=re.MULTILINE)
     else:
         text = re.sub(r"CC3: \{renderer: sl_as[^}]*\}", f"CC3: {{folder: {value}}}", text)
     f = tmp_path / "sub" / "p.yaml"
@@ -198,7 +197,7 @@ def test_synthetic_images_carry_the_declared_impairment(tmp_path):
 
 
 def test_frame_camera_carries_the_previous_frame():
-    from studyapp.runner.stimuli import absolute_camera, frame_camera
+    from studyapp.runner.camera import absolute_camera, frame_camera
 
     p = load_protocol(PROTOCOLS / "seed003_task2.yaml", check_renderers=False)
     assert "previous" not in frame_camera(p, "study", 0)

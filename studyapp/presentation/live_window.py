@@ -53,9 +53,9 @@ class _Surface:
         gl.glTexImage2D(gl.GL_TEXTURE_2D, 0, gl.GL_RGB, view.render_width, view.render_height, 0, gl.GL_RGB,
                         gl.GL_UNSIGNED_BYTE, None)
         gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
-        from .psychopy_window import _TextureRef
+        from ._texture import TextureRef
 
-        self.stim.image = _TextureRef(self.stim._texID)
+        self.stim.image = TextureRef(self.stim._texID)
 
     def update(self, rgb8: np.ndarray) -> None:
         from pyglet import gl

@@ -49,6 +49,7 @@ from data_schema import families
 from data_schema.errors import UserError
 from data_schema.geometry import Display
 
+from ._texture import TextureRef
 from .base import PresentationError, TrialDisplay, TrialResult
 
 ESCAPE = "escape"
@@ -220,16 +221,6 @@ class AnswerState:
 
 def _stim_labels(trial: TrialDisplay) -> list[str]:
     return families.get(trial.family).labels(len(trial.stimuli))
-
-
-class _TextureRef:
-    """Hands an already uploaded GL texture to ``ImageStim.image`` (PsychoPy's path for movie/camera
-    frames)."""
-
-    isLumImage = False
-
-    def __init__(self, tex_id):
-        self.colorTexture = tex_id
 
 
 def decode_image(path: Path):
@@ -763,7 +754,7 @@ class PsychoPyPresenter:
             data.ctypes.data_as(ctypes.POINTER(ctypes.c_ubyte)),
         )
         gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
-        stim.image = _TextureRef(
+        stim.image = TextureRef(
             stim._texID
         )  # draw this texture as a top-row-first RGB image (no recolouring)
         return stim, placement

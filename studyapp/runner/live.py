@@ -214,7 +214,7 @@ class LiveStimulus:
                 return poses[i]
             w = (t - ts[i]) / (ts[i + 1] - ts[i])
             a, b = poses[i], poses[i + 1]
-            lerp = lambda u, v: tuple(x + w * (y - x) for x, y in zip(u, v))  # noqa: E731
+            lerp = lambda u, v: tuple(x + w * (y - x) for x, y in zip(u, v))
             return Pose(lerp(a.position, b.position), lerp(a.look_at, b.look_at))
 
         return PathMotion(at, self.duration_s)
@@ -236,7 +236,7 @@ def live_stimulus(protocol, condition: str, scene: str, scale: float = 1.0) -> L
     """The :class:`LiveStimulus` of ``condition`` in ``scene`` for a live protocol (geometry at ``scale``)."""
     from renderers.catalog import resolve
 
-    from .stimuli import absolute_camera, path_camera
+    from .camera import absolute_camera, path_camera
 
     cond = protocol.conditions[condition]
     ref = protocol.scene_ref(scene)

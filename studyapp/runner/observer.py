@@ -234,7 +234,7 @@ class SimulatedObserver:
             cam = pose.camera(live.fov_y_deg)
             ref_key = ("gt-frame", scene, k)
             if ref_key not in _SHARED:
-                ref, st = render(live.scene, gt.renderer, gt.params, w, h, gaze=gaze, camera=cam)
+                ref, _ = render(live.scene, gt.renderer, gt.params, w, h, gaze=gaze, camera=cam)
                 _SHARED[ref_key] = (to_srgb8(ref, _exposure(live.scene)) / 255.0) @ luma
             t0 = _time.perf_counter()
             img, _ = render(live.scene, live.renderer, live.params, w, h, gaze=gaze, camera=cam)

@@ -220,7 +220,7 @@ def _display(doc: LoadedYAML, data: dict) -> tuple[Display, tuple[int, int]]:
     return display, (int(w), int(h))
 
 
-def _check_live(doc: LoadedYAML, data: dict, conditions: dict, family: str) -> None:
+def _check_live(doc: LoadedYAML, data: dict, conditions: dict, family: str, check_renderers: bool) -> None:
     """Live stimuli: a duration, a motion, a gaze source with what it needs, renderer conditions with a
     version for their backend, frame-rate caps the display can show, and no pre-rendered sources."""
     stim = data["stimulus"]
@@ -240,7 +240,7 @@ def _check_live(doc: LoadedYAML, data: dict, conditions: dict, family: str) -> N
         if name not in data["scenes"] and name != (data.get("practice") or {}).get("scene"):
             raise doc.error(("stimulus", "explore"), f"scene {name!r} is not one of the protocol's scenes")
     refresh = float(data["display"].get("refresh_hz", 60.0))
-    reg = _registry()
+    reg = _registry() if check_renderers else None  # simulated runs render on the CPU
     for name, cond in conditions.items():
         where = ("conditions", name)
         if cond.renderer is None:
@@ -378,7 +378,7 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
     if kind != "live" and live_keys:
         raise doc.error(("stimulus", live_keys[0]), "only live stimuli (kind: live) have this")
     if kind == "live":
-        _check_live(doc, data, conditions, family)
+        _check_live(doc, data, conditions, family, check_renderers)
     else:
         for name, spec in data["conditions"].items():
             extra = [k for k in ("latency_ms", "max_fps") if k in spec]

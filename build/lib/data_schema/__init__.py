@@ -1,1 +1,0 @@
-"""Schemas and durable storage for study data (session store, protocol schema)."""

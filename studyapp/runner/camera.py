@@ -1,0 +1,74 @@
+"""Camera poses of a protocol's stimuli: the camera path's keyframes at a frame or a time, offsets turned into
+the renderer's ``look_at``, and the display's visual angle on every frame (the one place that knows them; the
+stimulus builder, the live loop and the simulated observer all ask here)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+
+from .protocol import Protocol
+
+
+def camera_at(protocol: Protocol, frame: int) -> dict | None:
+    """Camera keyframe interpolated linearly at ``t = frame / (n_frames - 1)`` (None: the scene's camera)."""
+    n = protocol.n_frames
+    return path_camera(protocol, 0.0 if n <= 1 else frame / (n - 1))
+
+
+def path_camera(protocol: Protocol, t: float) -> dict | None:
+    """The camera path's keyframes interpolated linearly at ``t`` in [0, 1] (None: the scene's camera)."""
+    path = sorted(protocol.camera_path, key=lambda k: k["t"])
+    if not path:
+        return None
+    keys = [k for k in path[0] if k != "t"]
+    if t <= path[0]["t"]:
+        return {k: path[0][k] for k in keys}
+    for a, b in itertools.pairwise(path):
+        if a["t"] <= t <= b["t"]:
+            w = 0.0 if b["t"] == a["t"] else (t - a["t"]) / (b["t"] - a["t"])
+            out = {}
+            for k in keys:
+                va, vb = a.get(k), b.get(k, a.get(k))
+                if isinstance(va, list):
+                    out[k] = [x + w * (y - x) for x, y in zip(va, vb)]
+                elif va is not None:
+                    out[k] = va + w * (vb - va)
+            return out
+    return {k: path[-1][k] for k in keys if k in path[-1]}
+
+
+def frame_camera(protocol: Protocol, scene: str, frame: int) -> dict:
+    """The renderer's camera of ``frame``: the display's vertical visual angle (``fov_y``; the scene's own
+    field of view never applies to a study's stimuli), the camera path's pose, and the previous frame's camera
+    under ``previous`` (frames after the first of a moving sequence) for screen-space velocity."""
+    fov = {"fov_y": protocol.display.fov_y_deg}
+    cam = {**(absolute_camera(protocol.scene_ref(scene), camera_at(protocol, frame)) or {}), **fov}
+    if frame == 0:
+        return cam
+    prev = {**(absolute_camera(protocol.scene_ref(scene), camera_at(protocol, frame - 1)) or {}), **fov}
+    return cam if prev == cam else {**cam, "previous": prev}
+
+
+def absolute_camera(scene: str, camera: dict | None) -> dict | None:
+    """Turn ``yaw_deg``/``pitch_deg`` offsets into the renderer's ``look_at`` for the scene's own camera.
+
+    Yaw turns the view direction about the camera's up vector, pitch about its right vector; the position
+    stays. Keys ``position``/``look_at`` pass through unchanged.
+    """
+    if not camera or not ({"yaw_deg", "pitch_deg"} & set(camera)):
+        return camera
+    from renderers.catalog import resolve
+
+    cam = resolve(scene).camera
+    f, r, u = cam.basis()
+    pos = np.asarray(camera.get("position", cam.position), dtype=np.float64)
+    dist = float(np.linalg.norm(np.subtract(cam.look_at, cam.position)))
+    yaw, pitch = math.radians(camera.get("yaw_deg", 0.0)), math.radians(camera.get("pitch_deg", 0.0))
+    d = math.cos(pitch) * (math.cos(yaw) * f + math.sin(yaw) * r) + math.sin(pitch) * u
+    out = {k: v for k, v in camera.items() if k not in ("yaw_deg", "pitch_deg")}
+    out["position"] = [float(x) for x in pos]
+    out["look_at"] = [float(x) for x in pos + dist * d]
+    return out
