@@ -17,7 +17,11 @@ whether each has the seed's direction (> 1) and reaches the seed's lower bound, 
 light samples per pixel in the fovea and the periphery, the share of its samples spent in the periphery, the
 fraction of peripheral pixels left with one light sample and their share of Ours' peripheral squared error,
 the share of glossy pixels that get no glossy ray (``rspp = ceil(map · MAX_rspp) = 0``), the fraction of samples
-reused by multi-resolution selection, and the time per step (Fig 9) of Ours and SL_f. GT comes from the
+reused by multi-resolution selection, and the time per step (Fig 9) of Ours and SL_f. ``--variance-renders N``
+(``--variance-only`` for just this) adds, per view, the best peripheral MSE ratio any allocation of the same
+number of samples could reach against a uniform count: with per-pixel variance ``σ²`` of a one-sample
+estimate (from ``N`` renders of SL at 1 light sample + 1 glossy ray, clipped to [0, 1]), the allocation
+``n ∝ σ`` (Neyman) gives ``mean(σ²) / mean(σ)²``. GT comes from the
 stimulus cache (``--cache``), rendered once per view. Writes ``lightcuts_readings.csv`` and
 ``lightcuts_readings.md`` to ``--out``; ``--write`` puts the Markdown into the ``lightcuts-readings`` section of
 that file. The machine load (``os.getloadavg``) is printed with the figures: frame times on a shared machine
@@ -50,8 +54,6 @@ VIEWS = {
     "yard": ("yard", None),
     "sponza_vpl": ("sponza_vpl", None),
 }
-#: ratio -> the seed's lower bound (seed 003 Table 3 and §4.2; the direction is "> 1")
-SEED_LOW = {"sl_f_over_ours": 2.5, "periphery_sl_e_over_ours": 1.2, "multires": 1.3}
 STEP_COLUMNS = ("gbuffer", "low_res", "fpsm", "cuts", "select", "shade", "glossy")
 ALPHA = 0.1
 
@@ -62,19 +64,19 @@ def _causes(records: list[dict], im: dict, regions, max_rspp: int) -> dict:
         return next((r["value"] for r in records if (r["table"], r["method"], r["metric"], r["region"])
                      == (table, method, metric, region)), float("nan"))
 
-    per, fov = regions.periphery, regions.fovea
     spp = np.asarray(im["ours_spp"], dtype=np.float64)
+    shaded = spp > 0  # pixels whose primary ray hit a surface (misses draw no light sample)
+    per, fov = regions.periphery & shaded, regions.fovea & shaded
     err = np.mean((np.clip(im["ours"], 0, 1) - np.clip(im["gt"], 0, 1)) ** 2, axis=-1)
-    shaded = spp > 0
-    one = per & shaded & (spp == 1)
+    one = per & (spp == 1)
     no_glossy = per & np.asarray(im["glossy"]) & (np.ceil(np.asarray(im["fpsm"]) * max_rspp - 1e-9) == 0)
-    e_per = max(float(err[per].sum()), 1e-300)
+    e_per = max(float(err[regions.periphery].sum()), 1e-300)
     n_full = max(float(spp.sum()), 1.0)
     out = {
         "ours_spp_fovea": float(spp[fov].mean()) if fov.any() else float("nan"),
-        "ours_spp_periphery": float(spp[per].mean()),
+        "ours_spp_periphery": float(spp[per].mean()) if per.any() else float("nan"),
         "periphery_sample_share": float(spp[per].sum() / n_full),
-        "periphery_px_at_1": float(one.sum() / max((per & shaded).sum(), 1)),
+        "periphery_px_at_1": float(one.sum() / max(per.sum(), 1)),
         "periphery_err_share_at_1": float(err[one].sum() / e_per),
         "periphery_err_share_no_glossy_ray": float(err[no_glossy].sum() / e_per),
         "reused_share": float((get("3", "Ours", "light_samples") - get("3", "Ours", "traversals")) / n_full),
@@ -83,10 +85,39 @@ def _causes(records: list[dict], im: dict, regions, max_rspp: int) -> dict:
         "sl_e_lspp": get("3", "SL_e", "lspp"), "sl_f_lspp": get("3", "SL_f", "lspp"),
         "ms_ours": get("3", "Ours", "ms"), "ms_ours_no_multires": get("3", "Ours'", "ms"),
         "ms_sl_f": get("3", "SL_f", "ms"),
+        "select_gain": get("fig9", "Ours'", "ms_select") / max(get("fig9", "Ours", "ms_select"), 1e-9),
     }
     for method, key in (("Ours", "ours"), ("SL_f", "sl_f")):
         for step in STEP_COLUMNS:
             out[f"ms_{step}_{key}"] = get("fig9", method, f"ms_{step}")
+    return out
+
+
+def neyman_bound(scene, camera, width: int, height: int, renders: int, periphery) -> float:
+    """``mean(σ²) / mean(σ)²`` over the periphery: SL_e / Ours peripheral MSE at equal samples for the best
+    allocation (``n ∝ σ``); ``σ²`` from ``renders`` one-sample SL renders (clipped to [0, 1], seeds 0..)."""
+    from renderers import registry
+
+    imgs = np.array([np.clip(registry.render(scene, "sl", {"lspp": 1, "rspp": 1, "seed": s}, width, height,
+                                             camera=camera)[0], 0, 1) for s in range(renders)], dtype=np.float64)
+    var = imgs.var(axis=0, ddof=1).mean(axis=-1)[periphery]
+    sd = np.sqrt(var)
+    return float(var.mean() / sd.mean() ** 2) if sd.mean() > 0 else float("nan")
+
+
+def run_variance(args) -> dict:
+    from analysis.quality import region_masks
+    from renderers.catalog import resolve
+    from renderers.lightcuts.scenes import SCENES
+
+    out = {}
+    for view in args.views:
+        scene_name, camera = VIEWS[view]
+        scene = SCENES[scene_name]()
+        cam = resolve(scene).camera.override(camera)
+        periphery = region_masks(args.width, args.height, cam.fov_y, None, 5.0).periphery
+        out[view] = neyman_bound(scene, camera, args.width, args.height, args.variance_renders, periphery)
+        print(f"{view}: Neyman bound {out[view]:.2f}", file=sys.stderr, flush=True)
     return out
 
 
@@ -124,6 +155,15 @@ def run(args) -> list[dict]:
     return rows
 
 
+def _seed_low() -> dict:
+    """Ratio -> the seed's lower bound (``tables.SEED_RATIOS``; the direction is "> 1")."""
+    from renderers.lightcuts.tables import SEED_RATIOS
+
+    return {"sl_f_over_ours": SEED_RATIOS["speedup_vs_sl_f"][0],
+            "periphery_sl_e_over_ours": SEED_RATIOS["peripheral_mse_sl_e_over_ours"][0],
+            "multires": SEED_RATIOS["multires_speedup"][0]}
+
+
 def _mark(v: float, low: float) -> str:
     """✓✓ reaches the seed's lower bound, ✓ has its direction (> 1), ✗ neither."""
     if not np.isfinite(v):
@@ -131,9 +171,10 @@ def _mark(v: float, low: float) -> str:
     return f"{v:.2f} {'✓✓' if v >= low else '✓' if v > 1 else '✗'}"
 
 
-def markdown(rows: list[dict], args, load: tuple[float, float]) -> list[str]:
+def markdown(rows: list[dict], args, load: tuple[float, float], bounds: dict) -> list[str]:
     from _report import machine_line
 
+    low = _seed_low()
     lines = ["## Readings of Eq 4–8 × budget accountings (`benchmarks/bench_lightcuts_readings.py`)", "",
              machine_line() + f" {args.width}×{args.height}, α = {ALPHA}, GT {args.gt_samples} light + "
              f"{args.gt_samples} glossy samples per pixel, seed {args.seed}, Table 3 times the minimum of "
@@ -147,20 +188,32 @@ def markdown(rows: list[dict], args, load: tuple[float, float]) -> list[str]:
              "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['view']} | {r['reading']} | {r['budget']} | "
-                     f"{_mark(r['sl_f_over_ours'], SEED_LOW['sl_f_over_ours'])} | "
-                     f"{_mark(r['periphery_sl_e_over_ours'], SEED_LOW['periphery_sl_e_over_ours'])} | "
-                     f"{_mark(r['multires'], SEED_LOW['multires'])} | {r['sl_e_lspp']:.0f} | {r['sl_f_lspp']:.0f} |")
-    lines += ["", "What the readings do (equal-time runs; the map does not depend on the accounting):", "",
+                     f"{_mark(r['sl_f_over_ours'], low['sl_f_over_ours'])} | "
+                     f"{_mark(r['periphery_sl_e_over_ours'], low['periphery_sl_e_over_ours'])} | "
+                     f"{_mark(r['multires'], low['multires'])} | {r['sl_e_lspp']:.0f} | {r['sl_f_lspp']:.0f} |")
+    lines += ["", "What the readings do (first accounting's run; the map does not depend on the accounting). Samples "
+              "per pixel over the pixels that hit a surface; the shares of Ours' peripheral squared error overlap "
+              "(a glossy pixel without glossy ray also has one light sample); selection gain = Ours' / Ours time "
+              "of the selection step (seed Fig 9: 4.4×); Ours ms = its frame time in the runs of each accounting "
+              "(the same render: the spread is the timing noise of the shared machine).", "",
               "| view | reading | Ours spp fovea / periphery | samples in periphery | periphery px at 1 sample | "
-              "their share of Ours' peripheral error | share in glossy px without glossy ray | samples reused |",
-              "|---|---|---|---|---|---|---|---|"]
+              "their share of Ours' peripheral error | share in glossy px without glossy ray | samples reused | "
+              "selection gain | Ours ms |", "|---|---|---|---|---|---|---|---|---|---|"]
+    ms_runs: dict = {}
+    for r in rows:
+        ms_runs.setdefault((r["view"], r["reading"]), []).append(f"{r['ms_ours']:.0f}")
     for r in rows:
         if r["budget"] != args.budgets[0]:
             continue
         lines.append(f"| {r['view']} | {r['reading']} | {r['ours_spp_fovea']:.1f} / {r['ours_spp_periphery']:.1f} | "
                      f"{r['periphery_sample_share']:.0%} | {r['periphery_px_at_1']:.0%} | "
                      f"{r['periphery_err_share_at_1']:.0%} | {r['periphery_err_share_no_glossy_ray']:.0%} | "
-                     f"{r['reused_share']:.0%} |")
+                     f"{r['reused_share']:.0%} | {r['select_gain']:.2f} | "
+                     f"{', '.join(ms_runs[(r['view'], r['reading'])])} |")
+    if bounds:
+        lines += ["", f"Best possible peripheral MSE ratio SL_e / Ours at equal samples (allocation ∝ σ, σ² from "
+                  f"{args.variance_renders} one-sample renders): "
+                  + ", ".join(f"{v} {b:.2f}" for v, b in bounds.items())]
     lines += ["", "Where the time goes (ms per step, Fig 9; first reading, equal time): Ours / SL_f", "",
               "| view | " + " | ".join(STEP_COLUMNS) + " | frame |", "|---|" + "---|" * (len(STEP_COLUMNS) + 1)]
     for r in rows:
@@ -188,6 +241,11 @@ def main(argv=None) -> int:
     ap.add_argument("--readings", default=",".join(FPSM_READINGS))
     ap.add_argument("--budgets", default=",".join(BUDGETS))
     ap.add_argument("--cache", default="stimulus_cache", help="stimulus cache for the GT renders")
+    ap.add_argument("--variance-renders", type=int, default=16, metavar="N",
+                    help="one-sample renders per view for the Neyman bound (0: skip)")
+    ap.add_argument("--variance-only", action="store_true", help="only the Neyman bound per view")
+    ap.add_argument("--from-csv", metavar="CSV", help="report the rows of an earlier run's CSV instead of measuring "
+                    "(pass that run's --width/--height/--gt-samples/--repeats/--seed)")
     ap.add_argument("--out", metavar="DIR", help="write lightcuts_readings.csv and .md here")
     ap.add_argument("--write", metavar="MD", help="write the 'lightcuts-readings' section into this Markdown file")
     args = ap.parse_args(argv)
@@ -197,9 +255,26 @@ def main(argv=None) -> int:
         if bad or not values:
             ap.error(f"--{name}: {bad[0] if bad else '(none)'!r} is unknown: allowed {', '.join(allowed)}")
         setattr(args, name, values)
+    if args.variance_renders == 1 or args.variance_renders < 0:
+        ap.error("--variance-renders: must be 0 or >= 2")
     load0 = os.getloadavg()[0]
-    rows = run(args)
-    lines = markdown(rows, args, (load0, os.getloadavg()[0]))
+    bounds = run_variance(args) if args.variance_renders else {}
+    if args.variance_only:
+        print("\n".join(f"{v}: {b:.3f}" for v, b in bounds.items()))
+        return 0
+    if args.from_csv:
+        with open(args.from_csv, encoding="utf-8", newline="") as f:
+            rows = [{k: (v if k in ("view", "reading", "budget") else float(v)) for k, v in r.items()}
+                    for r in csv.DictReader(f)]
+        keep = set(args.views) & {r["view"] for r in rows}
+        rows = [r for r in rows if r["view"] in keep]
+        args.readings = list(dict.fromkeys(r["reading"] for r in rows))
+        args.budgets = list(dict.fromkeys(r["budget"] for r in rows))
+        load = (rows[0]["load"], rows[-1]["load"])
+    else:
+        rows = run(args)
+        load = (load0, os.getloadavg()[0])
+    lines = markdown(rows, args, load, bounds)
     print("\n".join(lines))
     if args.out:
         from data_schema.atomic import write_text
