@@ -16,7 +16,9 @@ def test_tables_json_records_and_files(tmp_path, capsys):
     gt_files = sorted(cache.rglob("*.npy"))
     assert len(gt_files) == 1  # GT stored once in the stimulus cache ...
     stamp = gt_files[0].stat().st_mtime_ns
-    assert main(["lightcuts", "tables", *TINY, "--json", "--cache", str(cache)]) == 0
+    # the other budget accounting: SL_e changes, Ours does not, the GT is reused
+    assert main(["lightcuts", "tables", *TINY, "--json", "--cache", str(cache), "--budget", "equal-samples",
+                 "--out", str(tmp_path / "samples")]) == 0
     again = json.loads(capsys.readouterr().out)
 
     def errors(recs):  # Ours' and SL_as' errors do not depend on timing (SL_e's equal-time count does)
@@ -25,7 +27,7 @@ def test_tables_json_records_and_files(tmp_path, capsys):
     assert errors(again) == errors(records)  # ... and reused: the same GT, the same seed
     assert gt_files[0].stat().st_mtime_ns == stamp
     assert records and all(set(r) == {"table", "scene", "method", "metric", "region", "value"} for r in records)
-    assert {r["table"] for r in records} == {"1", "2", "3", "4", "fig8"}
+    assert {r["table"] for r in records} == {"1", "2", "3", "4", "fig8", "fig9"}
     assert {r["metric"] for r in records} >= {"mse", "mse_d", "spp", "ms"}
     assert {r["region"] for r in records} == {"fovea", "periphery", "all"}
     t3 = {r["method"] for r in records if r["table"] == "3" and r["metric"] == "ms"}
@@ -39,6 +41,14 @@ def test_tables_json_records_and_files(tmp_path, capsys):
     assert ratios["speedup_vs_sl_f"] == pytest.approx(t3v["SL_f"] / t3v["Ours"])
     for name in ("study_fpsm.png", "study_error_ours.png", "study_error_sl_e.png", "fig8_mse_vs_alpha.png"):
         assert (tmp_path / name).stat().st_size > 100
+    assert "Fig 9: ms per step" in md and "(same-run ratios, equal-time)" in md
+    md2 = (tmp_path / "samples" / "lightcuts_tables.md").read_text()
+    assert "(same-run ratios, equal-samples)" in md2 and "speed-up, rays" in md2
+    r2 = json.loads((tmp_path / "samples" / "lightcuts_ratios.json").read_text())["study"]
+    t3 = {(r["method"], r["metric"]): r["value"] for r in again if r["table"] == "3"}
+    assert r2["multires_speedup"] == pytest.approx(t3[("Ours'", "traversals")] / t3[("Ours", "traversals")])
+    assert r2["speedup_vs_sl_f"] == pytest.approx((t3[("SL_f", "light_samples")] + t3[("SL_f", "glossy_rays")])
+                                                  / (t3[("Ours", "light_samples")] + t3[("Ours", "glossy_rays")]))
 
 
 @pytest.mark.parametrize("argv, message", [
@@ -46,6 +56,8 @@ def test_tables_json_records_and_files(tmp_path, capsys):
     (["--alpha", "0"], "alpha=0 is out of range"),
     (["--scenes", "nowhere"], "unknown scene 'nowhere'"),
     (["--width", "2"], "--width=2 is out of range"),
+    (["--budget", "equal-money"], "argument --budget: invalid choice: 'equal-money'"),
+    (["--fpsm-reading", "literal"], "argument --fpsm-reading: invalid choice: 'literal'"),
 ])
 def test_bad_input_is_one_line_exit_2(tmp_path, capsys, argv, message):
     assert main(["lightcuts", "tables", *TINY, *argv, "--out", str(tmp_path / "o")]) == 2

@@ -29,13 +29,16 @@ def _buf(channels, kind, seed):
 kinds = st.sampled_from(["flat", "black", "saturated", "noise"])
 
 
-@settings(max_examples=60)
+@pytest.mark.parametrize("reading", F.FPSM_READINGS)
+@settings(max_examples=60, deadline=None)
 @given(kn=kinds, ka=kinds, kv=kinds, kl=kinds, seed=st.integers(0, 2**31), alpha=st.floats(1e-6, 1 - 1e-6),
        gx=st.floats(-10, 40), gy=st.floats(-10, 30), fov=st.floats(10, 120))
-def test_fpsm_finite_and_in_unit_interval(kn, ka, kv, kl, seed, alpha, gx, gy, fov):
+def test_fpsm_finite_and_in_unit_interval(reading, kn, ka, kv, kl, seed, alpha, gx, gy, fov):
     ecc = F.eccentricity_map(ViewingGeometry.create(W, H, fov, (gx, gy)))
     low = np.abs(_buf(3, kl, seed + 3))[: H // 8 + 1, : W // 8 + 1]
-    m = F.build_fpsm(ecc, _buf(3, kn, seed), _buf(3, ka, seed + 1), _buf(2, kv, seed + 2), low, alpha)
+    m = F.build_fpsm(ecc, _buf(3, kn, seed), _buf(3, ka, seed + 1), _buf(2, kv, seed + 2), low, alpha,
+                     reading=reading)
+    assert m.reading == reading
     for name in ("fb_f", "fb_st", "fb_l", "map"):
         x = getattr(m, name)
         assert x.shape == (H, W) and np.all(np.isfinite(x)) and x.min() >= 0 and x.max() <= 1, name
@@ -60,6 +63,73 @@ def test_corrected_eq7_solves_eq5_equals_eq6(st_, lu, alpha):
     assert np.all(rho[(m > alpha) & (d == 0)] == 0)
     mp = F.normalise_rho(rho)
     assert np.all(np.isfinite(mp)) and mp.min() >= 0 and mp.max() <= 1
+
+
+features = arrays(np.float64, (8, 9), elements=st.floats(0, 1))
+
+
+@settings(max_examples=60)
+@given(st_=features, lu=features, alpha=st.floats(0.001, 0.999))
+def test_blur_reading_is_eq4_maximum_and_reciprocal_of_derived(st_, lu, alpha):
+    rho = F.rho_map(st_, lu, alpha, "blur")
+    d = (st_ - F.gaussian5(st_)) ** 2 + (lu - F.gaussian5(lu)) ** 2
+    d = np.where(d > F.D_TOL, d, 0.0)
+    m = np.maximum(st_, lu)
+    ok = np.isfinite(rho)
+    # G(rho) = exp(-rho^2 D / 2) falls with rho: the largest rho with M - G <= alpha has G = M - alpha (Eq 5)
+    np.testing.assert_allclose(np.exp(-rho[ok] ** 2 * d[ok] / 2), m[ok] - alpha, rtol=1e-9, atol=1e-300)
+    g_wider = np.exp(-(1.01 * rho[ok]) ** 2 * d[ok] / 2)
+    assert np.all(m[ok] - g_wider > alpha - 1e-12)  # a wider filter breaks Eq 4's constraint
+    np.testing.assert_array_equal(ok, (m > alpha) & (d > 0))
+    der = F.rho_map(st_, lu, alpha, "derived")
+    both = ok & (der > 0)
+    np.testing.assert_allclose(rho[both] * der[both], 1.0, rtol=1e-9)
+    rho2, mp = F.fpsm_map(st_, lu, alpha, "blur")
+    np.testing.assert_array_equal(rho2, rho)
+    assert np.all(np.isfinite(mp)) and mp.min() >= 0 and mp.max() <= 1 and np.all(mp[~ok] == 0)
+
+
+@settings(max_examples=60)
+@given(st_=features, lu=features, alpha=st.floats(0.001, 0.998))
+def test_retained_reading_is_eq5_feature_over_its_range(st_, lu, alpha):
+    rho, mp = F.fpsm_map(st_, lu, alpha, "retained")
+    m = np.maximum(st_, lu)
+    np.testing.assert_allclose(mp, np.clip((m - alpha) / (1 - alpha), 0, 1), rtol=1e-12, atol=1e-15)
+    np.testing.assert_array_equal(rho, F.rho_map(st_, lu, alpha, "derived"))  # kept for comparison
+    # more tolerance (larger alpha) never asks for more samples; a saturated feature always gets the maximum
+    assert np.all(F.fpsm_map(st_, lu, min(alpha + 0.001, 0.999), "retained")[1] <= mp)
+    assert np.all(mp[m == 1.0] == 1.0) and np.all(mp[m <= alpha] == 0.0)
+    with pytest.raises(ValueError, match="no rho"):
+        F.rho_map(st_, lu, alpha, "retained")
+
+
+def _spot_in_the_periphery(fov):
+    """Acuity-only features of a 96 x 64 view plus a 3 x 3 spot of full luminance contrast near a corner."""
+    fb_f = F.acuity_map(F.eccentricity_map(ViewingGeometry.create(96, 64, fov)))
+    lu = fb_f.copy()
+    lu[2:5, 2:5] = 1.0
+    return fb_f, lu
+
+
+def test_high_contrast_periphery_keeps_samples_under_the_alternatives():
+    fb_f, lu = _spot_in_the_periphery(40.0)
+    assert fb_f[3, 3] == F.ACUITY_FLOOR and fb_f[32, 48] == 1.0  # the spot lies where acuity is at its floor
+    b = {r: F.light_budget(F.fpsm_map(fb_f, lu, 0.1, r)[1], 48) for r in F.FPSM_READINGS}
+    # derived: the spot's pixels with the largest local deviation D have the largest rho, which Eq 8 maps to
+    # 0 -> one sample (the corners of the spot), its centre 27
+    np.testing.assert_array_equal(b["derived"][2:5, 2:5], [[1, 12, 1], [12, 27, 12], [1, 12, 1]])
+    # blur (rho falls with D and M) and retained (M = 1) give every pixel of the spot the maximum
+    assert np.all(b["blur"][2:5, 2:5] == 48) and np.all(b["retained"][2:5, 2:5] == 48)
+    # all three leave the flat periphery (M <= alpha) at one sample ...
+    assert b["derived"][60, 90] == b["blur"][60, 90] == b["retained"][60, 90] == 1
+    # ... and differ in the flat fovea (fb_f = 1, D = 0): rho_derived = 0 -> maximum; no blur reduces a flat
+    # feature -> rho_blur unbounded -> one sample; retained: M - alpha = 1 - alpha -> maximum
+    assert b["derived"][32, 48] == 48 and b["blur"][32, 48] == 1 and b["retained"][32, 48] == 48
+
+
+def test_unknown_reading_is_a_one_line_error():
+    with pytest.raises(ValueError, match="fpsm_reading='literal' is invalid: allowed derived, blur, retained"):
+        F.fpsm_map(np.zeros((4, 4)), np.zeros((4, 4)), 0.1, "literal")
 
 
 def test_normalise_rho_edge_cases():

@@ -59,7 +59,8 @@ def test_all_diffuse_scene_casts_no_glossy_ray():
 
 
 @pytest.mark.parametrize("name, params", [("fsl", {}), ("fsl", {"multires": False}), ("sl_e", {"lspp": 4}),
-                                          ("sl_as", {}), ("sl_f", {"lspp": 16})])
+                                          ("sl_as", {}), ("sl_f", {"lspp": 16}), ("fsl", {"fpsm_reading": "blur"}),
+                                          ("fsl", {"fpsm_reading": "retained"})])
 def test_plugins_agree_with_ground_truth_on_average(name, params):
     sc = _diffuse_scene(glossy=True)
     gt, _ = registry.render(sc, "sl_gt", {"lspp": 192, "rspp": 64}, 48, 32)
@@ -73,8 +74,16 @@ def test_plugins_agree_with_ground_truth_on_average(name, params):
 def test_fsl_reports_its_map_and_steps():
     _, st = registry.render(_diffuse_scene(), "fsl", {"alpha": 0.2}, 48, 32)
     assert st["fpsm"].shape == (32, 48) and 0 <= st["fpsm"].min() and st["fpsm"].max() <= 1
-    assert set(st["steps"]) == {"low_res", "fpsm", "cuts", "select", "shade"}
-    assert np.all(st["spp"] <= 48)
+    assert set(st["steps"]) == {"gbuffer", "low_res", "fpsm", "cuts", "select", "shade", "glossy"}
+    assert np.all(st["spp"] <= 48) and st["fpsm_reading"] == "derived"
+    # sample accounting: the low-resolution pass (6 x 4 pixels, up to 48 samples each) is counted, reused
+    # samples are light samples that did not descend the tree
+    extra = st["light_samples"] - int(st["spp"].sum())
+    assert 0 < extra <= 6 * 4 * 48 and st["traversals"] == st["light_samples"] - st["reused"]
+    _, su = registry.render(_diffuse_scene(), "sl", {"lspp": 3}, 48, 32)
+    assert su["light_samples"] == su["traversals"] == int(su["spp"].sum()) > 0
+    assert set(su["steps"]) == {"gbuffer", "cuts", "select", "shade", "glossy"}
+    assert all(v >= 0 for v in su["steps"].values())
 
 
 @pytest.mark.parametrize("name, params, match", [("fsl", {"alpha": 0}, "fsl.alpha"),

@@ -9,6 +9,12 @@ sampling, shading), ``fpsm`` (the foveated perceptual sensitivity map, seed 003 
 See docs/lightcuts.md.
 """
 
-from .tree import LightTree, build_light_tree
-
 __all__ = ["LightTree", "build_light_tree"]
+
+
+def __getattr__(name):  # lazy (PEP 562): ``renderers.lightcuts.options`` is imported without numpy
+    if name in __all__:
+        from . import tree
+
+        return getattr(tree, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -25,7 +25,7 @@ from data_schema.errors import UserError
 
 from . import _kernels as K
 from . import multires as MR
-from .fpsm import FPSM, build_fpsm, check_alpha, light_budget
+from .fpsm import FPSM, build_fpsm, check_alpha, check_reading, light_budget
 from .sampling import GBuffer, Occluder, clamp2, cut_and_sample, ray_offset_for, shade_tile
 from .tree import LightTree
 
@@ -40,6 +40,7 @@ class FoveatedResult:
     reused: np.ndarray          # (h, w) of which taken from LS' (Algorithm 2 line 6)
     shadow_rays: int
     timings: dict = field(default_factory=dict)
+    low_res_samples: int = 0    # light samples of the low-resolution pass (LS')
 
 
 def _check_image_gbuffer(name: str, g: GBuffer) -> tuple[int, int]:
@@ -50,9 +51,14 @@ def _check_image_gbuffer(name: str, g: GBuffer) -> tuple[int, int]:
 
 def foveated_lightcuts(tree: LightTree, full: GBuffer, low: GBuffer, eccentricity_rad, velocity, alpha,
                        max_lspp: int = 48, *, seed: int = 0, occluded: Occluder | None = None,
-                       multires: bool = True, tile: int = 1 << 15) -> FoveatedResult:
-    """Render one frame of foveated stochastic lightcuts (diffuse part). See the module docstring."""
+                       multires: bool = True, tile: int = 1 << 15,
+                       fpsm_reading: str = "derived") -> FoveatedResult:
+    """Render one frame of foveated stochastic lightcuts (diffuse part). See the module docstring.
+
+    ``fpsm_reading`` selects the reading of Eq 4–8 (``fpsm.FPSM_READINGS``, see ``fpsm.fpsm_map``).
+    """
     alpha = check_alpha(alpha)
+    check_reading(fpsm_reading)
     light_budget(np.zeros(1), max_lspp)  # validates max_lspp
     max_lspp = int(max_lspp)
     if seed < 0:
@@ -74,7 +80,7 @@ def foveated_lightcuts(tree: LightTree, full: GBuffer, low: GBuffer, eccentricit
 
     t0 = time.perf_counter()
     fp = build_fpsm(eccentricity_rad, full.normal.reshape(h, w, 3), full.albedo.reshape(h, w, 3), velocity,
-                    lr_rad.reshape(hl, wl, 3), alpha)
+                    lr_rad.reshape(hl, wl, 3), alpha, reading=fpsm_reading)
     budget = np.where(full.valid, light_budget(fp.map, max_lspp).reshape(-1), 0)
     fmap = np.ascontiguousarray(fp.map.reshape(-1))
     timings["fpsm"] = time.perf_counter() - t0
@@ -111,4 +117,4 @@ def foveated_lightcuts(tree: LightTree, full: GBuffer, low: GBuffer, eccentricit
         timings["select"] += t2 - t1
         timings["shade"] += t3 - t2
     return FoveatedResult(out.reshape(h, w, 3), lr_rad.reshape(hl, wl, 3), fp, budget.reshape(h, w),
-                          spp.reshape(h, w), reused.reshape(h, w), rays, timings)
+                          spp.reshape(h, w), reused.reshape(h, w), rays, timings, int(ls[3].sum()))

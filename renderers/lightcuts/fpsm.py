@@ -14,7 +14,10 @@ Pipeline (Fig 3 of the seed), all maps ``(h, w)`` with values in ``[0, 1]``:
    render upsampled bicubically to ``w × h``; ``LP_1`` is the finest band, ``LP_3`` the low-pass residual
    (Peli's band-limited contrast: band over local mean). Bicubic overshoot is clipped at 0 so ``LP_3 >= 0``;
    the contrast is clipped to ``[0, 1]``.
-4. ``ρ`` (Eq 4–7) and ``map`` (Eq 8), see ``rho_map`` and ``normalise_rho``.
+4. ``ρ`` (Eq 4–7) and ``map`` (Eq 8) under one of three readings of Eq 4–8 (``FPSM_READINGS``, the renderer
+   parameter ``fpsm_reading``; ``fpsm_map``): ``derived`` (Eq 7 with its sign corrected, the default),
+   ``blur`` (Eq 6 as a spatial Gaussian's attenuation, ρ = 1/ρ_derived) and ``retained`` (Eq 5's surviving
+   feature ``M - α`` without Eq 6–7). docs/lightcuts.md compares them.
 """
 
 from __future__ import annotations
@@ -25,6 +28,8 @@ import numpy as np
 from scipy import ndimage
 
 from data_schema.errors import UserError
+
+from .options import FPSM_READINGS
 
 EPSILON = 0.01
 ACUITY_FLOOR = 0.02
@@ -158,33 +163,83 @@ def luminance_feature(fb_f, contrast) -> np.ndarray:
     return np.clip(np.maximum(_finite("fb_f", fb_f), _finite("contrast", contrast)), 0.0, 1.0)
 
 
-def rho_map(fb_st, fb_l, alpha) -> np.ndarray:
-    """Per-pixel standard deviation ρ of the 3-D Gaussian (Eq 4–7), corrected.
+#: Squared local deviations ``D`` at or below this (a feature deviation of 1e-6; features lie in [0, 1]) are
+#: rounding of ``gaussian5`` on a flat map, taken as 0 so that readings with ``ρ ∝ 1/sqrt(D)`` do not turn
+#: rounding noise into a pole.
+D_TOL = 1e-12
 
-    With ``M = max(fb_st, fb_l)`` and ``D = (fb_st - mean5(fb_st))^2 + (fb_l - mean5(fb_l))^2`` (``mean5`` the
-    5×5 Gaussian average), Eq 5 (``G = M - α``) and Eq 6 (``G = exp(-D / (2 ρ^2))``) give
-    ``ln(M - α) = -D / (2 ρ^2)``, hence
 
-        ρ = sqrt( D / (-2 ln(M - α)) ).                                   (Eq 7, corrected)
+def check_reading(reading) -> str:
+    """The name of a reading of Eq 4–8, one of ``FPSM_READINGS``."""
+    if reading not in FPSM_READINGS:
+        raise UserError(f"fpsm_reading={reading!r} is invalid: allowed {', '.join(FPSM_READINGS)}")
+    return reading
 
-    The printed Eq 7 has ``+2 ln(M - α)`` in the denominator, which is negative for every admissible
-    ``M - α < 1`` (a square root of a negative number) and undefined for ``M <= α``. Domain of the corrected
-    form: features lie in ``[0, 1]`` and ``α in (0, 1)``, so ``M - α < 1`` and ``-ln(M - α) > 0`` whenever
-    ``M > α``; then ρ is finite and ``>= 0`` (``D = 0`` gives ``ρ = 0``). When ``M <= α`` Eq 5 asks for
-    ``G <= 0``, which no Gaussian reaches, while the constraint of Eq 4 (``M - G <= α``) holds for every ρ:
-    the whole feature is imperceptible and ρ is unbounded, returned as ``+inf`` (``normalise_rho`` maps it
-    to 0, the least accurate cut).
-    """
+
+def _features(fb_st, fb_l, alpha):
+    """``(α, M, D)`` of Eq 5–6: ``M = max(fb_st, fb_l)``, ``D`` the squared deviations from the 5×5 means."""
     a = check_alpha(alpha)
     st = np.clip(_finite("fb_st", fb_st), 0.0, 1.0)
     lu = np.clip(_finite("fb_l", fb_l), 0.0, 1.0)
     if st.shape != lu.shape:
         raise UserError(f"fb_l has shape {lu.shape}: must match fb_st {st.shape}")
     d = (st - gaussian5(st)) ** 2 + (lu - gaussian5(lu)) ** 2
-    m = np.maximum(st, lu)
+    return a, np.maximum(st, lu), np.where(d > D_TOL, d, 0.0)
+
+
+def rho_map(fb_st, fb_l, alpha, reading: str = "derived") -> np.ndarray:
+    """Per-pixel standard deviation ρ of the 3-D Gaussian (Eq 4–7) under a reading of Eq 6.
+
+    Parameters
+    ----------
+    fb_st, fb_l : array_like, shape (h, w)
+        The spatiotemporal (Eq 1) and luminance (Eq 3) features, clipped to [0, 1].
+    alpha : float
+        The maximum imperceptibility threshold α, in (0, 1).
+    reading : {"derived", "blur"}
+        How Eq 6's Gaussian depends on ρ (``"retained"`` has no ρ; see ``fpsm_map``).
+
+    Returns
+    -------
+    numpy.ndarray
+        ρ >= 0, ``+inf`` where Eq 4's constraint holds for every ρ (no NaN).
+
+    Notes
+    -----
+    With ``M = max(fb_st, fb_l)`` and ``D = (fb_st - mean5(fb_st))^2 + (fb_l - mean5(fb_l))^2`` (``mean5`` the
+    5×5 Gaussian average; ``D <= D_TOL`` taken as 0):
+
+    ``derived`` — Eq 6 as printed, ``G(ρ) = exp(-D / (2 ρ^2))``, a Gaussian over the feature space centred on
+    the local means. Eq 5 (``G = M - α``) = Eq 6 gives ``ln(M - α) = -D / (2 ρ^2)``, hence
+
+        ρ = sqrt( D / (-2 ln(M - α)) ).                                   (Eq 7, corrected)
+
+    The printed Eq 7 has ``+2 ln(M - α)`` in the denominator, negative for every admissible ``M - α < 1``
+    (a square root of a negative number) and undefined for ``M <= α``. Features lie in ``[0, 1]`` and
+    ``α in (0, 1)``, so for ``M > α`` the denominator is positive and ρ finite (``D = 0`` gives ``ρ = 0``).
+    This ``G`` grows with ρ, so Eq 4's constraint ``M - G <= α`` holds for every ``ρ >= ρ*``: Eq 4's maximum
+    is unbounded and Eq 5's equality picks the boundary ``ρ*``, the *smallest* admissible ρ. When ``M <= α``
+    Eq 5 asks for ``G <= 0``, which no Gaussian reaches, while Eq 4's constraint holds for every ρ: ρ is
+    unbounded, returned as ``+inf`` (``normalise_rho`` maps it to 0, the least accurate cut).
+
+    ``blur`` — Eq 6's Gaussian read as the attenuation of the local detail by a spatial Gaussian filter of
+    standard deviation ρ (its frequency response), ``G(ρ) = exp(-ρ^2 D / 2)``. ``G`` falls as ρ grows, as
+    §3.1's text says ("the larger the standard deviation, the more reduction"), so Eq 4 is a true maximum,
+    attained where Eq 5 holds:
+
+        ρ = sqrt( -2 ln(M - α) / D ) = 1 / ρ_derived.
+
+    ``+inf`` where ``M <= α`` or ``D = 0`` (no filter reduces a flat feature: Eq 4 holds for every ρ).
+    """
+    if check_reading(reading) == "retained":
+        raise UserError("fpsm_reading='retained' has no rho: use fpsm_map")
+    a, m, d = _features(fb_st, fb_l, alpha)
     defined = m > a
-    denom = -2.0 * np.log(np.where(defined, m - a, 0.5))
-    return np.where(defined, np.sqrt(d / denom), np.inf)
+    neg2ln = -2.0 * np.log(np.where(defined, m - a, 0.5))
+    if reading == "derived":
+        return np.where(defined, np.sqrt(d / neg2ln), np.inf)
+    ok = defined & (d > 0)
+    return np.where(ok, np.sqrt(neg2ln / np.where(ok, d, 1.0)), np.inf)
 
 
 def normalise_rho(rho) -> np.ndarray:
@@ -208,6 +263,35 @@ def normalise_rho(rho) -> np.ndarray:
     return np.clip(out, 0.0, 1.0)
 
 
+def fpsm_map(fb_st, fb_l, alpha, reading: str = "derived") -> tuple[np.ndarray, np.ndarray]:
+    """ρ (Eq 4–7) and the FPSM ``map`` (Eq 8) under one reading of Eq 4–8.
+
+    Parameters
+    ----------
+    fb_st, fb_l : array_like, shape (h, w)
+        The spatiotemporal (Eq 1) and luminance (Eq 3) features.
+    alpha : float
+        The maximum imperceptibility threshold α, in (0, 1).
+    reading : {"derived", "blur", "retained"}
+        ``"derived"`` and ``"blur"``: ``rho_map`` then Eq 8 (``normalise_rho``). ``"retained"``: Eq 4–5
+        without Eq 6–7 — the accuracy a pixel needs is the feature that must survive the largest imperceptible
+        reduction, ``G = M - α`` (Eq 5), normalised by its largest admissible value ``1 - α`` (Eq 8's role):
+        ``map = clip((M - α) / (1 - α), 0, 1)``. It rises with the feature and falls with α; it is 1 in the
+        fovea (features saturated by ``fb_f = 1``) and at full-contrast edges anywhere, 0 where ``M <= α``.
+        It has no ρ; the returned ρ is then the derived one, for comparison.
+
+    Returns
+    -------
+    rho, map : numpy.ndarray
+        ``rho >= 0`` or ``+inf``; ``map`` in ``[0, 1]``, finite for every finite input.
+    """
+    if check_reading(reading) == "retained":
+        a, m, _ = _features(fb_st, fb_l, alpha)
+        return rho_map(fb_st, fb_l, a, "derived"), np.clip((m - a) / (1.0 - a), 0.0, 1.0)
+    rho = rho_map(fb_st, fb_l, alpha, reading)
+    return rho, normalise_rho(rho)
+
+
 @dataclass(frozen=True)
 class FPSM:
     """The maps of one FPSM construction (for the figures) and the final ``map``."""
@@ -217,16 +301,35 @@ class FPSM:
     fb_l: np.ndarray
     rho: np.ndarray
     map: np.ndarray
+    reading: str = "derived"
 
 
-def build_fpsm(eccentricity_rad, normal, albedo, velocity, low_res_rgb, alpha, eps: float = EPSILON) -> FPSM:
-    """Construct the FPSM (Fig 3 of seed 003) from G-buffers ``(h, w, c)`` and the ``w/8 × h/8`` render."""
+def build_fpsm(eccentricity_rad, normal, albedo, velocity, low_res_rgb, alpha, eps: float = EPSILON,
+               reading: str = "derived") -> FPSM:
+    """Construct the FPSM (Fig 3 of seed 003) from G-buffers ``(h, w, c)`` and the ``w/8 × h/8`` render.
+
+    Parameters
+    ----------
+    eccentricity_rad : array_like, shape (h, w)
+        Eccentricity of every pixel in radians (Eq 2).
+    normal, albedo, velocity : array_like, shape (h, w, c)
+        The G-buffer of Eq 1.
+    low_res_rgb : array_like, shape (h', w', 3) or (h', w')
+        The low-resolution render ``fb'`` of Eq 3.
+    alpha : float
+        The maximum imperceptibility threshold α, in (0, 1).
+    eps : float
+        ε of Eq 3.
+    reading : {"derived", "blur", "retained"}
+        The reading of Eq 4–8 (``fpsm_map``).
+    """
     a = check_alpha(alpha)
+    check_reading(reading)
     fb_f = acuity_map(eccentricity_rad)
     fb_st = spatiotemporal_feature(fb_f, normal, albedo, velocity)
     fb_l = luminance_feature(fb_f, luminance_contrast(low_res_rgb, fb_f.shape, eps))
-    rho = rho_map(fb_st, fb_l, a)
-    return FPSM(fb_f, fb_st, fb_l, rho, normalise_rho(rho))
+    rho, fmap = fpsm_map(fb_st, fb_l, a, reading)
+    return FPSM(fb_f, fb_st, fb_l, rho, fmap, reading)
 
 
 def light_budget(fpsm_map, max_lspp: int = 48) -> np.ndarray:

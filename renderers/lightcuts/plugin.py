@@ -11,14 +11,19 @@ ambient as in the built-in renderers. Glossy and metallic materials add the one-
 (``glossy.py``, seed 003 Algorithm 1 line 16–17), skipped when the scene has none.
 
 * ``fsl`` — ours: ``foveated_lightcuts`` (FPSM budgets, multi-resolution selection), ``rspp = ceil(MAX_rspp ·
-  map)`` glossy rays per glossy pixel.
+  map)`` glossy rays per glossy pixel; ``fpsm_reading`` chooses the reading of Eq 4–8 (``fpsm.fpsm_map``).
 * ``sl_e``, ``sl_f``, ``sl_p`` — stochastic lightcuts with a uniform ``lspp`` and ``rspp`` per pixel (the
   three differ only in how the tables choose the counts: equal time, equal foveal MSE, equal peripheral MSE).
-* ``sl_as`` — counts ``ceil(AFSM · MAX)`` with Stengel's adaptive foveated sampling map (``fb_st`` of Eq 1).
+* ``sl_as`` — counts ``ceil(AFSM · MAX)`` with Stengel's adaptive foveated sampling map (``fb_st`` of Eq 1; it
+  does not go through Eq 4–8, so it has no ``fpsm_reading``).
 * ``sl_gt`` — ground truth: ``passes`` independent SL estimates of ``MAX_lspp`` nodes averaged (2048 light
   samples per pixel by default) and 2048 glossy rays, in tiles.
 
-The velocity buffer is zero (one frame, no previous camera in the render context).
+Stats extras: ``steps`` (seconds per step of seed 003 Fig 9: ``gbuffer``, [``low_res``, ``fpsm``,] ``cuts``,
+``select``, ``shade``, ``glossy``), ``light_samples`` (light samples drawn per frame, the low-resolution pass
+included) and ``traversals`` (those that descended the light tree, i.e. not reused), ``spp``, ``glossy_rays``.
+
+The velocity buffer is the screen motion from ``camera.previous`` (zero without one).
 """
 
 from __future__ import annotations
@@ -33,7 +38,7 @@ from renderers._shade import texture_weight
 from renderers.plugin_types import Param, RendererPlugin
 
 from .foveated import foveated_lightcuts
-from .fpsm import acuity_map, eccentricity_map, light_budget, screen_velocity, spatiotemporal_feature
+from .fpsm import FPSM_READINGS, acuity_map, eccentricity_map, light_budget, screen_velocity, spatiotemporal_feature
 from .glossy import glossy_pass
 from .sampling import GBuffer, stochastic_lightcuts
 from .tree import LightTree, build_light_tree
@@ -185,6 +190,7 @@ def _low_res(width: int, height: int) -> tuple[int, int]:
 
 def _finish(ctx, hits: Hits, diffuse: np.ndarray, rspp, seed: int, lspp_bounce: int = 1) -> np.ndarray:
     """Emission + ambient + diffuse + the glossy pass (only if the scene has a glossy or metallic material)."""
+    t0 = time.perf_counter()
     h, w = ctx.height, ctx.width
     tree, occ = scene_light_tree(ctx.scene), scene_occluder(ctx.scene)
     img = hits.base + diffuse.reshape(-1, 3)
@@ -201,17 +207,39 @@ def _finish(ctx, hits: Hits, diffuse: np.ndarray, rspp, seed: int, lspp_bounce: 
     ctx.extra["directional_lights_ignored"] = len(ctx.scene.directional_lights)
     ctx.extra["diffuse_image"] = (hits.base + diffuse.reshape(-1, 3)).reshape(h, w, 3).astype(np.float32)
     ctx.extra["glossy_mask"] = hits.glossy.reshape(h, w).copy()
+    _steps(ctx, {"glossy": time.perf_counter() - t0})
     return img.reshape(h, w, 3).astype(np.float32)  # linear, unexposed (the renderer output contract)
 
 
-def _sl(ctx, budget, seed: int):
+def _steps(ctx, timings: dict) -> None:
+    """Add seconds per step (seed 003 Fig 9) to ``extra["steps"]``."""
+    steps = ctx.extra.setdefault("steps", {})
+    for k, v in timings.items():
+        steps[k] = round(steps.get(k, 0.0) + v, 6)
+
+
+def _count_samples(ctx, light_samples: int, traversals: int) -> None:
+    """The sample accounting of a frame: light samples drawn (shadow-ray candidates, every pass included) and
+    how many of them descended the light tree (the rest were reused from the low-resolution pass)."""
+    ctx.extra["light_samples"] = ctx.extra.get("light_samples", 0) + int(light_samples)
+    ctx.extra["traversals"] = ctx.extra.get("traversals", 0) + int(traversals)
+
+
+def _sl(ctx, budget, seed: int, hits: Hits | None = None):
     tree, occ = scene_light_tree(ctx.scene), scene_occluder(ctx.scene)
-    hits = primary_hits(ctx.tracer, ctx.camera, ctx.width, ctx.height)
     t0 = time.perf_counter()
-    res = stochastic_lightcuts(tree, hits.gbuf, budget, seed=seed, occluded=occ)
+    if hits is None:
+        hits = primary_hits(ctx.tracer, ctx.camera, ctx.width, ctx.height)
+        _steps(ctx, {"gbuffer": time.perf_counter() - t0})
+    t0 = time.perf_counter()
+    timings: dict = {}
+    res = stochastic_lightcuts(tree, hits.gbuf, budget, seed=seed, occluded=occ, timings=timings)
     ctx.tracer.counters.add_time("shading", t0)
     ctx.tracer.counters.rays_shadow += res.shadow_rays
     ctx.extra["spp"] = res.samples.reshape(ctx.height, ctx.width)
+    _steps(ctx, timings)
+    n = int(res.samples.sum())
+    _count_samples(ctx, n, n)
     return hits, res.radiance
 
 
@@ -258,13 +286,15 @@ def _eccentricity(ctx):
 def run_sl_as(ctx):
     """Stengel's adaptive foveated sampling map (Eq 1 without the luminance term) drives both counts."""
     p = ctx.params
+    t0 = time.perf_counter()
     hits = primary_hits(ctx.tracer, ctx.camera, ctx.width, ctx.height)
     h, w = ctx.height, ctx.width
     afsm = spatiotemporal_feature(acuity_map(_eccentricity(ctx)), hits.gbuf.normal.reshape(h, w, 3),
                                   hits.albedo.reshape(h, w, 3), _velocity(ctx, hits))
     ctx.extra["afsm"] = afsm.astype(np.float32)
     lspp = light_budget(afsm, p["max_lspp"])
-    _, diffuse = _sl(ctx, lspp, p["seed"])
+    _steps(ctx, {"gbuffer": time.perf_counter() - t0})
+    _, diffuse = _sl(ctx, lspp, p["seed"], hits)
     return _finish(ctx, hits, diffuse, light_budget(afsm, p["max_rspp"]), p["seed"])
 
 
@@ -272,6 +302,7 @@ def run_fsl(ctx):
     p = ctx.params
     tree, occ = scene_light_tree(ctx.scene), scene_occluder(ctx.scene)
     h, w = ctx.height, ctx.width
+    t0 = time.perf_counter()
     hits = primary_hits(ctx.tracer, ctx.camera, w, h)
     wl, hl = _low_res(w, h)
     from renderers.tracer import camera_rays
@@ -279,13 +310,18 @@ def run_fsl(ctx):
     x, y = np.meshgrid((np.arange(wl) + 0.5) * w / wl, (np.arange(hl) + 0.5) * h / hl)
     low = Hits(ctx.tracer, np.asarray(ctx.camera.position, dtype=np.float64), camera_rays(ctx.camera, w, h, x, y),
                (hl, wl))
+    ecc, vel = _eccentricity(ctx), _velocity(ctx, hits)
+    _steps(ctx, {"gbuffer": time.perf_counter() - t0})
     t0 = time.perf_counter()
-    res = foveated_lightcuts(tree, hits.gbuf, low.gbuf, _eccentricity(ctx), _velocity(ctx, hits), p["alpha"],
-                             p["max_lspp"], seed=p["seed"], occluded=occ, multires=p["multires"])
+    res = foveated_lightcuts(tree, hits.gbuf, low.gbuf, ecc, vel, p["alpha"], p["max_lspp"], seed=p["seed"],
+                             occluded=occ, multires=p["multires"], fpsm_reading=p["fpsm_reading"])
     ctx.tracer.counters.add_time("shading", t0)
     ctx.tracer.counters.rays_shadow += res.shadow_rays
     ctx.extra.update(fpsm=res.fpsm.map.astype(np.float32), spp=res.samples, reused=int(res.reused.sum()),
-                     steps={k: round(v, 6) for k, v in res.timings.items()})
+                     fpsm_reading=res.fpsm.reading)
+    _steps(ctx, res.timings)
+    n = int(res.samples.sum()) + res.low_res_samples
+    _count_samples(ctx, n, n - int(res.reused.sum()))
     rspp = np.ceil(res.fpsm.map * p["max_rspp"] - 1e-9).astype(np.int64)
     return _finish(ctx, hits, res.radiance, rspp, p["seed"])
 
@@ -297,7 +333,7 @@ def run_sl_gt(ctx):
     hits = None
     acc = None
     for k in range(passes):
-        hits, diffuse = _sl(ctx, int(p["max_lspp"]), p["seed"] * 100003 + k)
+        hits, diffuse = _sl(ctx, int(p["max_lspp"]), p["seed"] * 100003 + k, hits)
         acc = diffuse if acc is None else acc + diffuse
     ctx.extra["passes"] = passes
     return _finish(ctx, hits, acc / passes, int(p["rspp"]), p["seed"], lspp_bounce=4)
@@ -311,7 +347,13 @@ _BPP = 200.0  # full-frame float64 buffers; the per-sample arrays are tiled
 FSL = RendererPlugin(
     "fsl", "foveated stochastic lightcuts (seed 003): FPSM budgets, multi-resolution selection",
     {"alpha": Param(float, 0.1, 0.0, 1.0, low_open=True, high_open=True, help="maximum imperceptibility threshold"),
-     **_MAXES, "multires": Param(bool, True, help="multi-resolution light-sample selection"), **_SEED},
+     **_MAXES, "multires": Param(bool, True, help="multi-resolution light-sample selection"),
+     "fpsm_reading": Param(str, FPSM_READINGS[0], choices=FPSM_READINGS,
+                           help="reading of seed 003 Eq 4-8: derived (Eq 7 with its sign corrected: rho = "
+                                "sqrt(D / -2 ln(M - alpha))), blur (Eq 6 as a spatial blur: rho = 1/rho_derived, "
+                                "edges first, flat regions incl. the fovea least) or retained (map = (M - alpha) / "
+                                "(1 - alpha), no rho); docs/lightcuts.md"),
+     **_SEED},
     run_fsl, bytes_per_pixel=_BPP)
 #: Uniform counts; the presets differ only in how seed 003's tables choose the counts for a comparison with
 #: fsl: equal time (sl_e), equal foveal MSE (sl_f), equal peripheral MSE (sl_p).

@@ -15,6 +15,7 @@ Visibility ``V`` comes from an ``occluded(origins, targets) -> bool`` callback (
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -95,17 +96,32 @@ def ray_offset_for(tree: LightTree, gbuf: GBuffer) -> float:
     return 1e-4 * max(0.5 * float(np.linalg.norm(hi - lo)), 1e-9)
 
 
-def cut_and_sample(tree: LightTree, pos, nrm, budget, pix_id, seed: int, max_budget: int):
-    """Cuts (``build_cuts``) and one hierarchical sample per cut node (``sample_cuts``) for one tile."""
+def _tick(timings: dict | None, step: str, t0: float) -> float:
+    """Add the seconds since ``t0`` to ``timings[step]`` (if ``timings`` is given); returns now."""
+    t = time.perf_counter()
+    if timings is not None:
+        timings[step] = timings.get(step, 0.0) + t - t0
+    return t
+
+
+def cut_and_sample(tree: LightTree, pos, nrm, budget, pix_id, seed: int, max_budget: int,
+                   timings: dict | None = None):
+    """Cuts (``build_cuts``) and one hierarchical sample per cut node (``sample_cuts``) for one tile.
+
+    ``timings``, if given, accumulates the seconds of the two steps under ``cuts`` and ``select``.
+    """
+    t0 = time.perf_counter()
     n = pos.shape[0]
     cut = np.zeros((n, max_budget), dtype=np.int64)
     err = np.zeros((n, max_budget))
     size = K.build_cuts(pos, nrm, budget, tree.bmin, tree.bmax, tree.intensity, tree.n_leaves, clamp2(tree),
                         cut, err)
+    t0 = _tick(timings, "cuts", t0)
     leaf = np.empty((n, max_budget), dtype=np.int64)
     pdf = np.empty((n, max_budget))
     K.sample_cuts(pos, nrm, pix_id, cut, size, tree.bmin, tree.bmax, tree.intensity, tree.n_leaves,
                   clamp2(tree), np.uint64(seed), leaf, pdf)
+    _tick(timings, "select", t0)
     return cut, size, leaf, pdf
 
 
@@ -128,7 +144,7 @@ def shade_tile(tree: LightTree, pos, nrm, alb, leaf, pdf, occluded: Occluder | N
 
 def stochastic_lightcuts(tree: LightTree, gbuf: GBuffer, budget, *, seed: int = 0,
                          occluded: Occluder | None = None, ray_offset: float | None = None,
-                         tile: int = 1 << 16) -> ShadingResult:
+                         tile: int = 1 << 16, timings: dict | None = None) -> ShadingResult:
     """Render direct diffuse lighting with stochastic lightcuts.
 
     Parameters
@@ -145,6 +161,9 @@ def stochastic_lightcuts(tree: LightTree, gbuf: GBuffer, budget, *, seed: int = 
         Shadow-ray origin offset along the normal (default ``ray_offset_for``).
     tile : int
         Pixels per batch (bounds memory: about ``tile * max_budget * 56`` bytes).
+    timings : dict, optional
+        Accumulates seconds per step: ``cuts`` (cut refinement), ``select`` (hierarchical sampling), ``shade``
+        (shading and shadow rays) — the steps of seed 003 Fig 9.
     """
     b = np.broadcast_to(np.asarray(budget), gbuf.shape).reshape(-1)
     if not np.issubdtype(b.dtype, np.integer) and (not np.all(np.isfinite(b)) or np.any(b != np.round(b))):
@@ -164,8 +183,10 @@ def stochastic_lightcuts(tree: LightTree, gbuf: GBuffer, budget, *, seed: int = 
         sl = slice(start, min(start + tile, gbuf.n))
         pos, nrm = gbuf.position[sl], gbuf.normal[sl]
         ids = np.arange(sl.start, sl.stop, dtype=np.int64)
-        _, _, leaf, pdf = cut_and_sample(tree, pos, nrm, b[sl], ids, seed, max_b)
+        _, _, leaf, pdf = cut_and_sample(tree, pos, nrm, b[sl], ids, seed, max_b, timings)
+        t0 = time.perf_counter()
         out[sl], r = shade_tile(tree, pos, nrm, gbuf.albedo[sl], leaf, pdf, occluded, offset)
+        _tick(timings, "shade", t0)
         spp[sl] = (leaf >= 0).sum(axis=1)
         rays += r
     return ShadingResult(out.reshape(gbuf.shape + (3,)), spp.reshape(gbuf.shape), rays)
