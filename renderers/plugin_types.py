@@ -95,6 +95,9 @@ class RendererPlugin:
     #: ``check(params, geometry)`` raises a one-line error when the renderer cannot render for a viewing
     #: geometry (e.g. a foveation mapping undefined on that display); called when a protocol is validated.
     check: Callable[[dict, ViewingGeometry], None] | str | None = None
+    #: ``preview(params) -> params`` for a thumbnail render (the simulated observer's 64-pixel frames): the
+    #: same method without work such a small image cannot show (``None``: the params unchanged).
+    preview: Callable[[dict], dict] | None = None
 
     def preset(self, name: str) -> RendererPlugin:
         """The plug-in of preset ``name``: this one, renamed, with the preset's defaults."""

@@ -88,6 +88,14 @@ def resolve_params(name: str, params: dict | None) -> dict:
     return {k: spec.coerce(f"{name}.{k}", params.get(k, spec.default)) for k, spec in plugin.params.items()}
 
 
+def preview_params(name: str, params: dict | None) -> dict:
+    """``params`` for a thumbnail render of renderer ``name`` (its plug-in's ``preview``; see
+    :class:`~renderers.plugin_types.RendererPlugin`)."""
+    plugin = get(name)
+    params = dict(params or {})
+    return plugin.preview(params) if plugin.preview is not None else params
+
+
 def check_geometry(name: str, params: dict | None, geometry: ViewingGeometry) -> None:
     """Refuse (one line) a renderer that cannot render for ``geometry`` with ``params`` (the plug-in's
     ``check``; e.g. LaFR whose fovea does not fit on the display)."""

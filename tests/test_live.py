@@ -157,3 +157,31 @@ def load_protocol_fov(path):
     from studyapp.runner.protocol import load_protocol
 
     return repr(load_protocol(path).display.fov_y_deg)
+
+
+def test_the_simulated_observer_renders_vafr_thumbnails_at_their_own_nyquist_rate():
+    """VaFR shades ~1e6 LP pixels whatever the image size; the observer's 64-pixel thumbnails cap the acuity
+    curve at their Nyquist rate (preset auto), and VaFR still differs from GT less than LaFR does."""
+    from data_schema.geometry import ViewingGeometry
+    from renderers.catalog import resolve
+    from renderers.registry import preview_params, render
+    from renderers.stimuli import to_srgb8
+    from studyapp.runner.observer import foveated_difference
+
+    assert preview_params("vafr", {"stereo": "dup"}) == {"stereo": "dup", "preset": "auto"}
+    assert preview_params("lafr", {"delta": 2.2}) == {"delta": 2.2}  # no preview hook: unchanged
+    luma = np.array([0.2126, 0.7152, 0.0722])
+    exposure = resolve("cornell").exposure
+    geometry = ViewingGeometry(64, 36, 60.0, 40.0, 12.0)
+    kw = {"gaze": (40.0, 12.0), "camera": {"fov_y": 60.0}}
+
+    def gray(renderer, params):
+        img, stats = render("cornell", renderer, params, 64, 36, **kw)
+        return (to_srgb8(img, exposure) / 255.0) @ luma, stats
+
+    ref, _ = gray("gt", {})
+    vafr, stats = gray("vafr", preview_params("vafr", {}))
+    lafr, _ = gray("lafr", {"delta": 2.2})
+    assert stats["shading_points"] < 10_000  # ~1e6 without the cap
+    ecc = geometry.eccentricity_map()
+    assert foveated_difference(vafr, ref, ecc) < foveated_difference(lafr, ref, ecc)

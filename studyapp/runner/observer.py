@@ -216,7 +216,7 @@ class SimulatedObserver:
         against the ground truth's frames at the same poses and gaze (CPU renderers, the reference)."""
         import time as _time
 
-        from renderers.registry import render
+        from renderers.registry import preview_params, render
         from renderers.stimuli import to_srgb8
 
         live = stim.live
@@ -227,6 +227,7 @@ class SimulatedObserver:
         w, h = SIM_WIDTH, max(8, round(SIM_WIDTH * live.render_size[1] / live.render_size[0]))
         luma = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
         samples = self._live_samples(live, scene)
+        params = preview_params(live.renderer, live.params)  # a thumbnail: no work it cannot show
         ds = []
         d = self.protocol.display
         for k, (t, (gx, gy), pose, _) in enumerate(samples):
@@ -237,7 +238,7 @@ class SimulatedObserver:
                 ref, _ = render(live.scene, gt.renderer, gt.params, w, h, gaze=gaze, camera=cam)
                 _SHARED[ref_key] = (to_srgb8(ref, _exposure(live.scene)) / 255.0) @ luma
             t0 = _time.perf_counter()
-            img, _ = render(live.scene, live.renderer, live.params, w, h, gaze=gaze, camera=cam)
+            img, _ = render(live.scene, live.renderer, params, w, h, gaze=gaze, camera=cam)
             samples[k] = (t, (gx, gy), pose, _time.perf_counter() - t0)
             img = (to_srgb8(img, _exposure(live.scene)) / 255.0) @ luma
             ecc = self.protocol.render_geometry().resized(w, h).with_gaze(gaze).eccentricity_map()
