@@ -9,6 +9,10 @@ rendered, cameras ``-/+ ipd/2`` along the right vector; VaFR also ``rep``: right
 
 from __future__ import annotations
 
+import math
+
+from data_schema.errors import UserError
+
 from . import pipeline as pl
 from .foveation import PRESETS, mapping_for
 from .plugin_types import Param, RendererPlugin
@@ -38,8 +42,17 @@ def _pick(ctx, images):
     return images[-1] if (ctx.params["eye"] == "right" and len(images) > 1) else images[0]
 
 
+def gt_spp(params: dict) -> int:
+    """The checked ``spp`` of a GT render (a square number: the samples form a grid of strata)."""
+    spp = int(params.get("spp", 1))
+    if math.isqrt(spp) ** 2 != spp:
+        raise UserError(f"gt.spp={spp} is invalid: must be a square number (1, 4, 9, 16, ...)")
+    return spp
+
+
 def run_gt(ctx):
-    return _pick(ctx, [pl.render_gt(ctx.tracer, cam, ctx.width, ctx.height) for cam in _eyes(ctx)])
+    spp, filt = gt_spp(ctx.params), ctx.params.get("filter", "box")
+    return _pick(ctx, [pl.render_gt(ctx.tracer, cam, ctx.width, ctx.height, spp, filt) for cam in _eyes(ctx)])
 
 
 def _mapping_params(method: str, p: dict) -> dict:
@@ -94,7 +107,12 @@ def _vafr_preview(params: dict) -> dict:
     return {**params, "preset": "auto"}
 
 
-GT = RendererPlugin("gt", "ground truth: one ray per pixel, every pixel shaded", dict(COMMON), run_gt)
+GT = RendererPlugin(
+    "gt", "ground truth: every pixel shaded, one ray per pixel centre or spp stratified samples",
+    {**COMMON,
+     "spp": Param(int, 1, 1, 256, help="samples per pixel, a square number (stratified, jittered); 1: the centre"),
+     "filter": Param(str, "box", choices=("box", "tent"), help="pixel filter of the samples (box or 1-px tent)")},
+    run_gt)
 VAFR = RendererPlugin(
     "vafr", "visual-acuity-consistent foveated rendering (seed 001): constant LP buffer, FXAA in the LP buffer",
     {**COMMON, **FOVEATED,
