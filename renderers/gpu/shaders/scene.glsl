@@ -1,0 +1,243 @@
+// The uploaded scene (renderers/gpu/upload.py): BVH nodes and triangles (renderers/gpu/bvh.py),
+// materials and lights packed like renderers/tracer.py, and the ray-triangle and BVH traversal code.
+#include "constants_gen.glsl"
+
+struct Node { vec4 lo; vec4 hi; };   // lo.w: first triangle / left child, hi.w: count (0: inner node)
+layout(std430, binding = 0) readonly buffer Nodes { Node nodes[]; };
+layout(std430, binding = 1) readonly buffer Tris { vec4 tris[]; };      // v0|prim, e1|material, e2|0
+layout(std430, binding = 2) readonly buffer Mats { vec4 mats[]; };      // see Surf below
+layout(std430, binding = 3) readonly buffer Lights { vec4 lights[]; };  // pos|kind, intensity|cast, dir|0
+
+const float INF = 1.0 / 0.0;
+const float INV_PI = 0.3183098861837907;
+#define BVH_STACK 66
+
+// Möller-Trumbore; the barycentric bounds are widened by 1e-6 so that rays along shared edges do not slip
+// through (Embree's test is watertight).
+float hit_triangle(int k, vec3 o, vec3 d, float tmax) {
+    vec3 v0 = tris[3 * k].xyz, e1 = tris[3 * k + 1].xyz, e2 = tris[3 * k + 2].xyz;
+    vec3 p = cross(d, e2);
+    float det = dot(e1, p);
+    if (det == 0.0) return INF;
+    float inv = 1.0 / det;
+    vec3 s = o - v0;
+    float u = dot(s, p) * inv;
+    if (u < -1e-6 || u > 1.0 + 1e-6) return INF;
+    vec3 q = cross(s, e1);
+    float v = dot(d, q) * inv;
+    if (v < -1e-6 || u + v > 1.0 + 1e-6) return INF;
+    float t = dot(e2, q) * inv;
+    return (t > 0.0 && t < tmax) ? t : INF;
+}
+
+// Entry distance of the ray into a box, INF if it misses before tmax. The exit distance is widened by a few
+// ulps (Ize 2013) so that rounding does not cull a box whose face a hit lies on.
+float hit_box(vec3 lo, vec3 hi, vec3 o, vec3 inv, float tmax) {
+    vec3 t0 = (lo - o) * inv, t1 = (hi - o) * inv;
+    vec3 tn = min(t0, t1), tf = max(t0, t1);
+    float a = max(max(tn.x, tn.y), max(tn.z, 0.0));
+    float b = min(min(tf.x, tf.y), tf.z) * 1.0000004;
+    return (a <= b && a < tmax) ? a : INF;
+}
+
+// Closest hit (any_hit false) or any hit (shadow rays) along o + t d, 0 < t < tmax: the triangle index in
+// BVH order (-1 on a miss) and t.
+int trace(vec3 o, vec3 d, float tmax, bool any_hit, out float t_hit) {
+    vec3 dd = mix(d, sign(d) * 1e-30 + d, lessThan(abs(d), vec3(1e-30)));
+    dd = mix(dd, vec3(1e-30), equal(dd, vec3(0.0)));
+    vec3 inv = 1.0 / dd;
+    int stack[BVH_STACK];
+    float stack_t[BVH_STACK];
+    int sp = 0;
+    int node = 0;
+    int best_tri = -1;
+    float best = tmax;
+    if (hit_box(nodes[0].lo.xyz, nodes[0].hi.xyz, o, inv, best) == INF) { t_hit = INF; return -1; }
+    while (true) {
+        Node nd = nodes[node];
+        int count = floatBitsToInt(nd.hi.w);
+        int a = floatBitsToInt(nd.lo.w);
+        bool descend = false;
+        if (count > 0) {
+            for (int k = a; k < a + count; k++) {
+                float t = hit_triangle(k, o, d, best);
+                if (t < best) {
+                    best = t;
+                    best_tri = k;
+                }
+            }
+            if (any_hit && best_tri >= 0) break;
+        } else {
+            float tl = hit_box(nodes[a].lo.xyz, nodes[a].hi.xyz, o, inv, best);
+            float tr = hit_box(nodes[a + 1].lo.xyz, nodes[a + 1].hi.xyz, o, inv, best);
+            if (tl < INF || tr < INF) {
+                descend = true;
+                int near = a, far = a + 1;
+                float tfar = tr;
+                if (tr < tl) { near = a + 1; far = a; tfar = tl; }
+                if (tl < INF && tr < INF) {
+                    stack[sp] = far;
+                    stack_t[sp] = tfar;
+                    sp++;
+                }
+                node = near;
+            }
+        }
+        if (!descend) {
+            bool found = false;
+            while (sp > 0) {
+                sp--;
+                if (stack_t[sp] < best) { node = stack[sp]; found = true; break; }
+            }
+            if (!found) break;
+        }
+    }
+    t_hit = best;
+    return best_tri;
+}
+
+// -- shading (renderers/_shade.py, line for line) ------------------------------------------------------------
+uniform vec3 u_ambient;
+uniform vec3 u_background;
+uniform float u_light_cull;
+
+// _hash3 of _shade.py in 64-bit two's-complement arithmetic (numba int64), emulated with 32-bit halves:
+// the low 16 bits of the result depend on bits up to 44 of the products.
+uvec2 mul64(uvec2 a, uint c) {            // (lo, hi) * c mod 2^64
+    uint hi, lo;
+    umulExtended(a.x, c, hi, lo);
+    return uvec2(lo, hi + a.y * c);
+}
+uvec2 sar64(uvec2 a, int s) {             // arithmetic shift right, 0 < s < 32
+    return uvec2((a.x >> s) | (a.y << (32 - s)), uint(int(a.y) >> s));
+}
+uvec2 to64(int x) { return uvec2(uint(x), x < 0 ? 0xFFFFFFFFu : 0u); }
+float hash3(int x, int y, int z) {
+    uvec2 h = mul64(to64(x), 73856093u) ^ mul64(to64(y), 19349663u) ^ mul64(to64(z), 83492791u);
+    h = mul64(h ^ sar64(h, 13), 1274126177u);
+    h = h ^ sar64(h, 16);
+    return float(h.x & 0xFFFFu) / 65535.0;
+}
+float smooth_w(float t) { return t * t * (3.0 - 2.0 * t); }
+float value_noise(vec3 p) {
+    vec3 i = floor(p);
+    vec3 f = vec3(smooth_w(p.x - i.x), smooth_w(p.y - i.y), smooth_w(p.z - i.z));
+    ivec3 b = ivec3(i);
+    float acc = 0.0;
+    for (int dz = 0; dz < 2; dz++) {
+        float wz = dz == 1 ? f.z : 1.0 - f.z;
+        for (int dy = 0; dy < 2; dy++) {
+            float wy = dy == 1 ? f.y : 1.0 - f.y;
+            for (int dx = 0; dx < 2; dx++) {
+                float wx = dx == 1 ? f.x : 1.0 - f.x;
+                acc += wx * wy * wz * hash3(b.x + dx, b.y + dy, b.z + dz);
+            }
+        }
+    }
+    return acc;
+}
+float texture_weight(int kind, float scale, vec3 p, vec3 n) {
+    if (kind == TEX_NONE) return 1.0;
+    vec3 an = abs(n);
+    float s, t;
+    if (an.x >= an.y && an.x >= an.z) { s = p.z / scale; t = p.y / scale; }
+    else if (an.y >= an.z) { s = p.x / scale; t = p.z / scale; }
+    else { s = p.x / scale; t = p.y / scale; }
+    if (kind == TEX_CHECKER) return ((int(floor(s)) + int(floor(t))) & 1) == 0 ? 1.0 : 0.0;
+    if (kind == TEX_BRICK) {
+        float tt = 2.0 * t;
+        float row = floor(tt);
+        float ss = s + 0.5 * float(int(row) & 1);
+        float fs = ss - floor(ss);
+        float ft = tt - row;
+        return (fs < 0.05 || ft < 0.1) ? 0.0 : 1.0;
+    }
+    float q = 1.0 / scale;
+    float nz = 0.65 * value_noise(p * q) + 0.35 * value_noise(2.03 * p * q);
+    return clamp(1.6 * (nz - 0.5) + 0.5, 0.0, 1.0);
+}
+
+struct Surf {
+    vec3 p, n, v, a, ks, base;
+    float kd, s_exp, norm;
+    bool glossy;
+};
+
+// Hit point, normal facing the ray and material of triangle k hit at o + t d (_shade.hit_geometry and the head
+// of _shade.shade_contributions). Material k: vec4(albedo, tex scale), vec4(albedo2, exponent),
+// vec4(emission, specular), vec4(metallic, glossy, texture kind, 0).
+Surf surface(int k, vec3 o, vec3 d, float t) {
+    Surf s;
+    vec3 n = cross(tris[3 * k + 1].xyz, tris[3 * k + 2].xyz);
+    float ln = length(n);
+    if (ln > 0.0) n /= ln;
+    if (dot(n, d) > 0.0) n = -n;
+    s.p = o + d * t;
+    s.n = n;
+    s.v = -d;
+    int m = floatBitsToInt(tris[3 * k + 1].w);
+    vec4 m0 = mats[4 * m], m1 = mats[4 * m + 1], m2 = mats[4 * m + 2], m3 = mats[4 * m + 3];
+    float w = texture_weight(int(m3.z), m0.w, s.p, n);
+    s.a = w * m0.xyz + (1.0 - w) * m1.xyz;
+    s.s_exp = m1.w;
+    bool metallic = m3.x > 0.5;
+    s.glossy = m3.y > 0.5 || metallic;
+    s.kd = metallic ? 0.0 : INV_PI;
+    s.ks = metallic ? s.a : vec3(m2.w);
+    s.norm = (s.s_exp + 8.0) / (8.0 * 3.141592653589793);
+    s.base = m2.xyz + u_ambient * s.a * (metallic ? 0.0 : 1.0);
+    return s;
+}
+
+// Unshadowed contribution of light j (zero when it lights the back or is below the horizon); `glossy` tells
+// whether the lobe was evaluated (the glossy_evaluations counter).
+vec3 light_contribution(Surf s, int j, out bool glossy) {
+    vec4 l0 = lights[3 * j], l1 = lights[3 * j + 1], l2 = lights[3 * j + 2];
+    int kind = int(l0.w);
+    vec3 w;
+    float inv_d2;
+    glossy = false;
+    if (kind == LIGHT_DIRECTIONAL) {
+        w = -l2.xyz;
+        inv_d2 = 1.0;
+    } else {
+        w = l0.xyz - s.p;
+        float inv_d = 1.0 / sqrt(dot(w, w));
+        w *= inv_d;
+        inv_d2 = inv_d * inv_d;
+    }
+    float cos_t = dot(s.n, w);
+    float e = cos_t * inv_d2;
+    if (kind == LIGHT_EMITTER) e *= max(0.0, -dot(l2.xyz, w));
+    if (cos_t <= 0.0 || e <= 0.0) return vec3(0.0);
+    vec3 f = s.kd * s.a;
+    if (s.glossy) {
+        vec3 h = w + s.v;
+        float hl = length(h);
+        if (hl > 0.0) {
+            float nh = dot(s.n, h) / hl;
+            if (nh > 0.0) f += s.ks * (s.norm * pow(nh, s.s_exp));
+        }
+        glossy = true;
+    }
+    return f * e * l1.xyz;
+}
+
+float luminance(vec3 c) { return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z; }
+bool light_casts(int j) { return lights[3 * j + 1].w > 0.5; }
+
+// Shadow ray towards light j from p (normal n): origin offset along n, stops `offset` short of the light
+// (_shade.shadow_rays).
+void shadow_ray(int j, vec3 p, vec3 n, float offset, float far, out vec3 o, out vec3 d, out float dist) {
+    vec4 l0 = lights[3 * j];
+    o = p + offset * n;
+    if (int(l0.w) == LIGHT_DIRECTIONAL) {
+        d = -lights[3 * j + 2].xyz;
+        dist = far;
+    } else {
+        d = l0.xyz - o;
+        float len = length(d);
+        d /= len;
+        dist = max(len - 2.0 * offset, 0.0);
+    }
+}
