@@ -121,7 +121,7 @@ def resolve_samples(rad, ox, oy, r0: int, r1: int, pixel_filter: str) -> np.ndar
 class LPLayout:
     """Column periods ``L``, row counts ``n`` and the shaded mask of a mapping's LP buffer (see :mod:`._lp`)."""
 
-    def __init__(self, mapping):
+    def __init__(self, mapping, table: bool = True):
         self.mapping = mapping
         w, h = mapping.lp_shape
         self.method = mapping.method
@@ -141,6 +141,11 @@ class LPLayout:
         self.mask = np.arange(h)[:, None] < self.n[None, :]
         self.P = np.ascontiguousarray(mapping._params_vector(), dtype=np.float64)
         self.kernel = MAPPING_KERNEL[self.method]
+        if table:
+            self._build_table()
+
+    def _build_table(self):
+        mapping = self.mapping
         # u(r) table for the fast inverse mapping, out to the farthest corner (+2 px): the coarsest of 4, 16, 64
         # samples per pixel whose linear interpolation is within 0.01 LP pixel of the exact mapping at every
         # interval mid-point. Intervals that miss it at the finest step (LaFR's kink at its foveal boundary and
@@ -159,18 +164,26 @@ class LPLayout:
         self.inv_step, self.utab = step, np.ascontiguousarray(utab)
         self.exact = np.ascontiguousarray(np.append(bad, True), dtype=np.uint8)
         self.table_ok = not bad.any()
+
+    def border_footprint(self, gaze=None) -> np.ndarray:
+        """(h, w) bool: the LP pixels the bilinear fetches of the display's border pixels read (gaze: default
+        the mapping's)."""
+        disp = self.mapping.display
+        gx, gy = disp.gaze if gaze is None else gaze
+        need = np.zeros((self.h, self.w), dtype=np.bool_)
+        W, H = disp.width, disp.height
+        bx = np.concatenate([np.arange(W) + 0.5] * 2 + [np.full(H, 0.5), np.full(H, W - 0.5)])
+        by = np.concatenate([np.full(W, 0.5), np.full(W, H - 0.5)] + [np.arange(H) + 0.5] * 2)
+        _lp.mark_footprint(self.kernel, self.P, gx, gy, self.L, self.n, self.w_eff, bx, by, need)
+        return need
+
     def shaded_pixels(self):
         """``(jj, ii, x, y, needed)``: LP pixel indices, their screen positions and which must be shaded."""
         m = self.mapping
         disp = m.display
         jj, ii = np.nonzero(self.mask)
         x, y = m.inverse(ii + 0.5, jj + 0.5)
-        need = np.zeros((self.h, self.w), dtype=np.bool_)
-        W, H = disp.width, disp.height
-        bx = np.concatenate([np.arange(W) + 0.5] * 2 + [np.full(H, 0.5), np.full(H, W - 0.5)])
-        by = np.concatenate([np.full(W, 0.5), np.full(W, H - 0.5)] + [np.arange(H) + 0.5] * 2)
-        _lp.mark_footprint(self.kernel, self.P, disp.gaze_x, disp.gaze_y, self.L, self.n, self.w_eff,
-                           bx, by, need)
+        need = self.border_footprint()
         need[jj, ii] |= disp.contains(x, y)
         sel = need[jj, ii]
         return jj, ii, x, y, sel
@@ -296,6 +309,9 @@ GRID_WARP = True
 GRID_WARP_MAX_DEPTH_RATIO = 1.05
 #: Warped triangles larger than this many LP pixels in either direction are stretched: not rasterised.
 GRID_WARP_MAX_EXTENT = 6.0
+#: A warped triangle replaces a splatted sample only where it is nearer by this relative margin: on a surface
+#: facing the eye the two depths agree to rounding, and the sample (a real shading point) is kept.
+GRID_WARP_SPLAT_MARGIN = 1e-4
 
 
 def reproject(tracer: Tracer, layout: LPLayout, lp_left, jj, ii, xs, ys, prim, tfar, left: Camera,
@@ -339,6 +355,7 @@ def reproject(tracer: Tracer, layout: LPLayout, lp_left, jj, ii, xs, ys, prim, t
         # between the splatted samples (continuous surfaces); depth discontinuities stay holes.
         zbuf = np.full(layout.h * layout.w, np.inf)
         np.minimum.at(zbuf, lin, depth)
+        zbuf *= 1.0 - GRID_WARP_SPLAT_MARGIN  # the depth a triangle must beat
         disp = layout.mapping.display
         u_all = np.zeros(len(jj))
         phi_all = np.zeros(len(jj))
