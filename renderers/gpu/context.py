@@ -21,6 +21,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from data_schema.errors import UserError
 
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
@@ -28,6 +30,8 @@ WAY_OUT = "use --backend cpu"
 #: Test/ops override of the GPU memory the backend may use (MB); default: what the device reports.
 MEMORY_ENV = "STUDYAPP_GPU_MEMORY_MB"
 REQUIRED_VERSION = 430
+#: Texels per row of the scene-table textures (a power of two; every OpenGL 4.3 device allows 16384).
+TEX_WIDTH = 4096
 
 _DEVICE: "Device | None" = None
 
@@ -88,6 +92,10 @@ class Device:
                             f"{self.renderer}): {WAY_OUT}")
         self.max_block = int(info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 1 << 27))
         self.max_groups = int(info.get("GL_MAX_COMPUTE_WORK_GROUP_COUNT", (65535,))[0])
+        self.max_texture = int(info.get("GL_MAX_TEXTURE_SIZE", 16384))
+        import moderngl
+
+        self._nearest = moderngl.NEAREST
         self.software = "llvmpipe" in self.renderer.lower() or "softpipe" in self.renderer.lower()
         self._programs: dict[tuple, object] = {}
         self.allocated = 0
@@ -130,9 +138,53 @@ class Device:
         self.allocated += buf.size
         return buf
 
+    def table_texture(self, what: str, table: np.ndarray):
+        """An RGBA32UI texture holding the rows of ``table`` (n, 4k) float32/int32 as 32-bit words, ``k`` texels
+        per row, :data:`TEX_WIDTH` texels per texture row (read with ``fetch`` in ``shaders/scene.glsl``)."""
+        words = np.ascontiguousarray(table).view(np.uint32).reshape(-1)
+        texels = max(1, -(-words.size // 4))
+        rows = -(-texels // TEX_WIDTH)
+        if rows > self.max_texture:
+            raise UserError(f"{what} is too large for the GPU's memory: {texels:,} texels, the GPU's textures hold "
+                            f"{TEX_WIDTH * self.max_texture:,} ({self.renderer}): {WAY_OUT}")
+        data = np.zeros(rows * TEX_WIDTH * 4, dtype=np.uint32)
+        data[:words.size] = words
+        try:
+            tex = self.ctx.texture((TEX_WIDTH, rows), 4, data.tobytes(), dtype="u4")
+        except Exception as exc:
+            raise UserError(f"the GPU could not allocate {what} ({_first_line(exc)}): {WAY_OUT}") from None
+        tex.filter = (self._nearest, self._nearest)
+        self.allocated += data.nbytes
+        tex.nbytes = data.nbytes
+        return tex
+
+    def float_texture(self, what: str, table: np.ndarray):
+        """An RGBA32F image of the rows of ``table`` (n, 4) float32, :data:`TEX_WIDTH` per texture row."""
+        rows = -(-len(table) // TEX_WIDTH)
+        data = np.zeros((rows * TEX_WIDTH, 4), dtype=np.float32)
+        data[:len(table)] = table
+        tex = self.image(what, (TEX_WIDTH, rows))
+        tex.write(data.tobytes())
+        return tex
+
+    def image(self, what: str, size: tuple[int, int], components: int = 4):
+        """A float32 image (texture) of ``size`` for ``imageLoad``/``imageStore``."""
+        nbytes = 4 * components * size[0] * size[1]
+        self.check_fits(what, {what: nbytes})
+        if max(size) > self.max_texture:
+            raise UserError(f"{what} of {size[0]}x{size[1]} exceeds the GPU's largest texture ({self.max_texture}): "
+                            f"{WAY_OUT}")
+        try:
+            tex = self.ctx.texture(tuple(size), components, dtype="f4")
+        except Exception as exc:
+            raise UserError(f"the GPU could not allocate {what} ({_first_line(exc)}): {WAY_OUT}") from None
+        self.allocated += nbytes
+        tex.nbytes = nbytes
+        return tex
+
     def release(self, buf) -> None:
         if buf is not None:
-            self.allocated -= buf.size
+            self.allocated -= getattr(buf, "nbytes", None) or buf.size
             buf.release()
 
     # -- shaders -------------------------------------------------------------------------------------------------

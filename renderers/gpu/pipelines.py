@@ -65,3 +65,204 @@ def render_gt(fr: Frame, camera, width: int, height: int, spp: int = 1, pixel_fi
         prev_rows = s1 - s0 - 2 * halo
         fr.drain_counters()
     return img
+
+
+# -- the LP buffer -------------------------------------------------------------------------------------------------
+class LPTables:
+    """The LP layout of one mapping on the GPU: parameter vector, per-column table and (VaFR) the u(r) table.
+
+    Built from the CPU's :class:`renderers.pipeline.LPLayout` (one source of truth): ``P`` is
+    ``mapping._params_vector()``; column ``c`` holds ``r(c + 0.5)`` from ``mapping.inverse``, ``L[c] / 2 pi``,
+    ``n[c]`` and ``L[c]``. VaFR's mapping does not depend on the gaze, so its tables (including the u(r) table,
+    built out to the display's diagonal) serve every gaze; LMFR's and LaFR's ``P`` do (``ln(1 + R)``, R the
+    farthest corner), so they are rebuilt per gaze without a table and the shaders evaluate the kernel
+    generated from the CPU code (a table there would cost 14-118 ms of CPU per gaze at 2468 x 2740).
+    """
+
+    def __init__(self, fr: Frame, layout, mapping, dirs=None):
+        self.layout = layout
+        self.method = layout.method
+        self.kernel = layout.kernel
+        self.w, self.h, self.w_eff = layout.w, layout.h, layout.w_eff
+        self.n_mask = int(layout.n.sum())
+        self.c_r = mapping.display.c_r
+        gx, _ = mapping.display.gaze
+        r = mapping.inverse(np.arange(self.w) + 0.5, np.zeros(self.w))[0] - gx
+        cols = np.column_stack([r, layout.L / (2 * math.pi), layout.n, layout.L]).astype(np.float32)
+        dev = fr.dev
+        self.buffers = {11: dev.buffer(layout.P.astype(np.float32))}
+        self.images = {7: dev.float_texture("LP columns", cols),
+                       6: dirs if dirs is not None else self.angle_table(fr, layout)}
+        self.use_table = hasattr(layout, "utab")
+        if self.use_table:
+            self.buffers[13] = dev.buffer(np.column_stack([layout.utab, layout.exact]).astype(np.float32))
+            self.inv_step, self.kmax = float(layout.inv_step), int(layout.utab.size - 2)
+
+    @staticmethod
+    def angle_table(fr: Frame, layout):
+        """(w, h) RG32F image of (cos, sin) of ``2 pi (j + 0.5) / L[c]``, the angle of the inverse mappings
+        (``_kernels.vafr_inverse``/``lmfr_inverse``/``lafr_inverse``), in float64 before rounding."""
+        th = 2.0 * math.pi * (np.arange(layout.h)[:, None] + 0.5) / np.maximum(layout.L, 1e-300)[None, :]
+        tex = fr.dev.image("LP angles", (layout.w, layout.h), 2)
+        tex.write(np.stack([np.cos(th), np.sin(th)], axis=-1).astype(np.float32).tobytes())
+        return tex
+
+    def defines(self) -> dict:
+        return {"METHOD": self.kernel, "USE_TABLE": int(self.use_table)}
+
+    def uniforms(self, gaze) -> dict:
+        u = {"u_gaze": tuple(float(g) for g in gaze), "u_lp_w": self.w, "u_lp_h": self.h, "u_w_eff": self.w_eff}
+        if self.use_table:
+            u.update(u_inv_step=self.inv_step, u_kmax=self.kmax)
+        return u
+
+    @property
+    def dirs(self):
+        return self.images[6]
+
+    def release(self, dev, keep_dirs: bool = False) -> None:
+        for b in self.buffers.values():
+            dev.release(b)
+        dev.release(self.images[7])
+        if not keep_dirs:
+            dev.release(self.images[6])
+
+
+_TABLES: dict[tuple, LPTables] = {}
+
+
+def lp_tables(fr: Frame, method: str, mapping_params: dict, width: int, height: int, fov_y: float, gaze):
+    """The :class:`LPTables` of a mapping (cached: VaFR per display, LMFR/LaFR per display and gaze)."""
+    from ..foveation import make_mapping
+
+    vafr = method == "vafr"
+    key = (id(fr.dev), method, tuple(sorted(mapping_params.items())), width, height, float(fov_y),
+           None if vafr else tuple(gaze))
+    t = _TABLES.get(key)
+    if t is None:
+        # VaFR: the gaze at a corner puts the farthest corner a diagonal away, so the table covers any gaze.
+        mapping = make_mapping(method, width, height, fov_y, (0.0, 0.0) if vafr else gaze, **mapping_params)
+        dirs = None
+        if not vafr:  # keep only the latest gaze of a kernel method; its angle table does not depend on the gaze
+            for k in [k for k in _TABLES if k[:6] == key[:6]]:
+                old = _TABLES.pop(k)
+                dirs = old.dirs
+                old.release(fr.dev, keep_dirs=True)
+        t = LPTables(fr, cpu.LPLayout(mapping, table=vafr), mapping, dirs)
+        _TABLES[key] = t
+    return t
+
+
+def render_lp(fr: Frame, tables: LPTables, camera, width: int, height: int, gaze, pipeline: str):
+    """Shade the LP buffer of one eye into the pooled image ``lp`` (w x h RGBA32F) and return it.
+
+    The shaded pixels are those of :meth:`renderers.pipeline.LPLayout.shaded_pixels`: on screen, or read by a
+    border pixel's bilinear fetch (marked on the CPU per gaze, :meth:`LPLayout.border_footprint`).
+    """
+    w, h = tables.w, tables.h
+    lp = fr.pool.image("lp", (w, h))
+    flags = fr.pool.get("flags", 4 * w * h, clear=True)
+    marks = np.flatnonzero(tables.layout.border_footprint(gaze)).astype(np.int32)
+    cam = camera_uniforms(camera, width, height)
+    uni = {**cam, **tables.uniforms(gaze), "u_out_w": w}
+    out = {"OUT_IMAGE": 1, **tables.defines()}
+    fr.reset_counter("samples")
+    with fr.timer("visibility"):
+        if marks.size:
+            fr.run("lp_flags.comp", marks.size, {13: fr.upload("marks", marks), 14: flags})
+        fr.run("lp_mark.comp", w * h, {**fr.sample_buffers(tables.n_mask), **tables.buffers, 14: flags}, uni, out,
+               {**tables.images, 4: lp})
+    if pipeline == "deferred":
+        gbuf = fr.pool.get("gbuffer", 8 * width * height)
+        with fr.timer("visibility"):
+            fr.run("gbuffer.comp", width * height, {15: gbuf}, {**cam, "u_origin": tuple(camera.position),
+                                                               "u_width": width})
+            fr.run("gen_deferred.comp", tables.n_mask, {**fr.sample_buffers(tables.n_mask), **tables.buffers,
+                                                       15: gbuf}, {**uni, "u_count_at": C["samples"]}, out,
+                   tables.images)
+    fr.shade_batch(camera.position, tables.n_mask, lp, count_at=C["samples"], traced=pipeline == "deferred",
+                   uniforms={"u_out_w": w}, defines=out)
+    return lp
+
+
+def finish_lp(fr: Frame, tables: LPTables, lp, params: dict, width: int, height: int, exposure: float, gaze):
+    """LP anti-aliasing, inverse mapping and (LMFR/LaFR) the foveal Gaussian, into the pooled buffer ``image``
+    (3 floats per pixel); see :func:`renderers.pipeline.finish`."""
+    from .. import antialias as AA
+
+    w, h = tables.w, tables.h
+    vafr = tables.method == "vafr"
+    lp_aa = params.get("fxaa", False) if vafr else params.get("aa", False)
+    uni = {**tables.uniforms(gaze), "u_width": width, "u_height": height}
+    src = lp
+    with fr.timer("antialias"):
+        if lp_aa:
+            fr.run("fill_rows.comp", h, {14: fr.pool.get("flags", 4 * w * h)}, {"u_lp_w": w}, images={4: lp})
+            src = fr.pool.image("lp2", (w, h))
+            if vafr:
+                luma = fr.pool.image("luma", (w, h), 1)
+                fr.run("lp_luma.comp", w * h, None, {"u_lp_w": w, "u_exposure": float(exposure)},
+                       images={4: lp, 6: luma})
+                fr.run("fxaa.comp", w * h, tables.buffers,
+                       {**uni, "u_subpix": 0.75, "u_edge_threshold": 0.166, "u_edge_threshold_min": 0.0833},
+                       {"PAD": 16}, {**tables.images, 4: lp, 6: luma, 5: src})
+            else:
+                fr.run("gauss3.comp", w * h, tables.buffers,
+                       {**uni, "u_k": tuple(float(x) for x in AA._gauss1d(1.0, 1))}, {"PAD": 1},
+                       {**tables.images, 4: lp, 5: src})
+    img = fr.pool.get("image", 12 * width * height)
+    post = lp_aa and not vafr
+    mid = fr.pool.image("screen", (width, height)) if post else img
+    with fr.timer("inverse_map"):
+        fr.run("inverse_map.comp", width * height, {**tables.buffers, **({} if post else {15: mid})}, uni,
+               {**tables.defines(), "OUT_IMAGE": int(post)}, {**tables.images, 4: src, **({5: mid} if post else {})})
+    if post:
+        weights = np.zeros(33, dtype=np.float32)
+        for b in range(1, len(AA.FOVEAL_SIGMAS)):
+            r = AA.FOVEAL_RADII[b]
+            weights[11 * (b - 1):11 * (b - 1) + 2 * r + 1] = AA._gauss1d(AA.FOVEAL_SIGMAS[b], r)
+        with fr.timer("antialias"):
+            fr.run("foveal.comp", width * height, {15: img},
+                   {**uni, "u_c_r": tables.c_r, "u_edges": tuple(float(e) for e in AA.FOVEAL_BANDS_DEG),
+                    "u_radii": tuple(AA.FOVEAL_RADII[1:]), "u_w": tuple(float(x) for x in weights)},
+                   {"OUT_IMAGE": 0}, {4: mid})
+    return img
+
+
+def reproject(fr: Frame, tables: LPTables, left_lp, left, right, width: int, height: int, gaze):
+    """Right-eye LP buffer (pooled image ``lp_right``) from the left one, as
+    :func:`renderers.pipeline.reproject`: splat the left samples into the right view's LP buffer, forward grid
+    warping with a depth test, re-shade the needed pixels nothing reached (counter ``holes``).
+
+    Needs the left eye's sample list still in the sample buffers (call right after :func:`render_lp`).
+    """
+    w, h = tables.w, tables.h
+    right_lp = fr.pool.image("lp_right", (w, h))
+    zbuf = fr.pool.get("zbuf", 4 * w * h)
+    zbuf.clear(chunk=np.array([np.inf], dtype=np.float32).tobytes())
+    ztri = fr.pool.get("ztri", 4 * w * h)
+    ztri.clear(chunk=np.array([np.inf], dtype=np.float32).tobytes())
+    covered = fr.pool.get("covered", 4 * w * h)
+    covered.clear()
+    rep = {0: fr.pool.get("warp", 16 * w * h), 1: zbuf, 2: covered, 3: ztri, 14: fr.pool.get("flags", 4 * w * h),
+           **tables.buffers}
+    f, r, u = right.basis()
+    cam = camera_uniforms(right, width, height)
+    uni = {**tables.uniforms(gaze), **cam, "u_left_pos": tuple(left.position), "u_right_pos": tuple(right.position),
+           "u_right_f": tuple(f), "u_right_r": tuple(r), "u_right_u": tuple(u), "u_out_w": w,
+           "u_max_ratio": cpu.GRID_WARP_MAX_DEPTH_RATIO, "u_max_extent": cpu.GRID_WARP_MAX_EXTENT,
+           "u_splat_margin": cpu.GRID_WARP_SPLAT_MARGIN}
+    images = {**tables.images, 5: left_lp, 4: right_lp}
+    fr.reset_counter("holes")
+    with fr.timer("shading"):
+        fr.run("rep_project.comp", tables.n_mask, {**fr.sample_buffers(tables.n_mask), **rep},
+               {**uni, "u_count_at": C["samples"]}, tables.defines(), tables.images)
+        if cpu.GRID_WARP:
+            quads = max(0, (tables.w_eff - 1) * (h - 1))
+            fr.run("rep_warp.comp", quads, rep, uni, {"PHASE": 1}, images)
+            fr.run("rep_warp.comp", quads, rep, uni, {"PHASE": 2}, images)
+        fr.run("rep_splat.comp", w * h, rep, uni, None, images)
+        fr.run("rep_holes.comp", w * h, {**fr.sample_buffers(tables.n_mask), **rep}, uni, {"OUT_IMAGE": 1}, images)
+    fr.shade_batch(right.position, tables.n_mask, right_lp, count_at=C["holes"], uniforms={"u_out_w": w},
+                   defines={"OUT_IMAGE": 1})
+    return right_lp

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..tracer import Counters, pack_scene
 from . import bvh as B
-from .context import WAY_OUT, Device, get_device
+from .context import TEX_WIDTH, WAY_OUT, Device, get_device
 
 #: The GPU shading keeps the per-light contributions of a point in registers: scenes with more lights (the
 #: lightcuts scenes' virtual point lights) stay on the CPU.
@@ -79,11 +79,10 @@ class _Upload:
         tris.view(np.int32)[:, 7] = scene.material_ids[tree.tris.view(np.int32)[:, 3]]
         mats = _material_table(packed["mat_f"], packed["mat_i"])
         lights = _light_table(packed)
-        device.check_fits(f"scene {scene.name!r}", {"BVH": tree.nodes.nbytes, "triangles": tris.nbytes,
-                                                      "materials": mats.nbytes, "lights": lights.nbytes})
+        tables = {"BVH": tree.nodes, "triangles": tris, "materials": mats, "lights": lights}
+        device.check_fits(f"scene {scene.name!r}", {k: v.nbytes for k, v in tables.items()})
         self.device = device
-        self.buffers = {"nodes": device.buffer(tree.nodes), "tris": device.buffer(tris),
-                        "mats": device.buffer(mats), "lights": device.buffer(lights)}
+        self.textures = [device.table_texture(f"scene {scene.name!r} {k}", v) for k, v in tables.items()]
         self.light_count = k
         self.ambient = tuple(float(x) for x in packed["ambient"])
         self.background = tuple(float(x) for x in packed["background"])
@@ -92,9 +91,9 @@ class _Upload:
         self.seconds = time.perf_counter() - t0
 
     def release(self):
-        for b in self.buffers.values():
-            self.device.release(b)
-        self.buffers = {}
+        for t in self.textures:
+            self.device.release(t)
+        self.textures = []
 
 
 class DeviceScene:
@@ -126,15 +125,15 @@ class DeviceScene:
         self.mask_words = (self.light_count + 31) // 32
 
     def bind_scene(self) -> None:
-        for i, name in enumerate(("nodes", "tris", "mats", "lights")):
-            self.upload.buffers[name].bind_to_storage_buffer(i)
+        for unit, tex in enumerate(self.upload.textures):
+            tex.bind_to_image(unit, read=True, write=False)
 
     def scene_uniforms(self) -> dict:
         return {"u_ambient": self.upload.ambient, "u_background": self.upload.background,
                 "u_light_cull": self.light_cull, "u_offset": self.offset, "u_far": self.far}
 
     def defines(self) -> dict:
-        return {"LIGHT_COUNT": self.light_count, "MASK_WORDS": self.mask_words}
+        return {"LIGHT_COUNT": self.light_count, "MASK_WORDS": self.mask_words, "TEX_WIDTH": TEX_WIDTH}
 
 
 def device_scene(scene, params: dict) -> DeviceScene:

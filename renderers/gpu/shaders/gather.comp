@@ -25,10 +25,7 @@ void main() {
             }
         }
         if (any(isnan(c)) || any(isinf(c))) cnt_add(C_NONFINITE, 1u);
-        int slot = floatBitsToInt(samples[i].w);
-        outbuf[3 * slot] = c.x;
-        outbuf[3 * slot + 1] = c.y;
-        outbuf[3 * slot + 2] = c.z;
+        store_out(floatBitsToInt(samples[i].w), c);
     }
     cnt_end();
 }

@@ -15,8 +15,7 @@ void main() {
         int k = floatBitsToInt(hits[i].x);
         if (k >= 0) {
             vec3 d = samples[i].xyz;
-            vec3 n = normalize(cross(tris[3 * k + 1].xyz, tris[3 * k + 2].xyz));
-            if (dot(n, d) > 0.0) n = -n;
+            vec3 n = facing_normal(k, d);
             vec3 p = u_origin + d * hits[i].y;
             uint rays = 0u;
             for (int w = 0; w < MASK_WORDS; w++) {
