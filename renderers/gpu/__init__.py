@@ -51,7 +51,8 @@ def render(scene, renderer: str, params: dict | None, width: int, height: int, g
     from dataclasses import asdict
 
     from .. import registry as R
-    from ..scene import check_gaze, resolve
+    from ..catalog import resolve
+    from ..scene import check_gaze
 
     t_start = time.perf_counter()
     plugin = R.get(renderer)
