@@ -76,7 +76,6 @@ def render(scene, renderer: str, params: dict | None, width: int, height: int, g
     stats = {k: v for k, v in asdict(c).items() if k != "seconds"}
     stats["seconds"] = {k: round(float(v), 6) for k, v in c.seconds.items()}
     stats["setup_seconds"] = round(setup, 6)
-    ctx.extra.pop("finite_checked", None)
     stats.update(renderer=renderer, params=full, width=width, height=height, gaze=list(gaze), scene=sc.name,
                  lights=sc.light_count(), peak_mb=round(R._peak_mb(), 1), peak_mb_is_per_render=reset,
                  backend="gpu", **ctx.extra)

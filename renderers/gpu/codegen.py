@@ -25,20 +25,45 @@ import math
 
 #: The kernels translated (and their callees, found automatically).
 FOVEATION_ROOTS = ("point",)
-_MATH = {"atan": "atan", "tan": "tan", "cos": "cos", "sin": "sin", "acos": "acos", "sqrt": "sqrt",
+_MATH = {"atan": "fov_atan", "tan": "tan", "cos": "cos", "sin": "sin", "acos": "fov_acos", "sqrt": "sqrt",
          "exp": "exp", "log": "log", "floor": "floor", "log1p": "fov_log1p", "expm1": "fov_expm1"}
+#: Float-accurate helpers: GPU math libraries may be coarse (Mesa's llvmpipe: acos 1.6e-4 absolute error, log
+#: 3.5e-7 absolute near 1); these keep the mappings within ~1e-6 relative of the CPU's float64.
 _HELPERS = """
-// log1p / expm1 in float32 without cancellation (Goldberg's trick; series near 0).
+// log1p / expm1: series near 0 (relative error < 1e-10 for |x| < 0.05), else through log / exp.
 float fov_log1p(float x) {
-    precise float u = 1.0 + x;
-    if (abs(x) < 1e-4) return x * (1.0 - x * (0.5 - x * (1.0 / 3.0)));
-    return log(u) * (x / (u - 1.0));
+    if (abs(x) < 0.05) return x * (1.0 - x * (0.5 - x * (1.0 / 3.0 - x * (0.25 - x * (0.2 - x * (1.0 / 6.0
+        - x * (1.0 / 7.0)))))));
+    return log(1.0 + x);
 }
 float fov_expm1(float x) {
-    if (abs(x) < 1e-4) return x * (1.0 + x * (0.5 + x * (1.0 / 6.0)));
-    precise float u = exp(x);
-    if (u == 1.0) return x;
-    return (u - 1.0) * (x / log(u));
+    if (abs(x) < 0.05) return x * (1.0 + x * (0.5 + x * (1.0 / 6.0 + x * (1.0 / 24.0 + x * (1.0 / 120.0
+        + x * (1.0 / 720.0))))));
+    return exp(x) - 1.0;
+}
+// atan and acos: Cephes atanf / asinf polynomials (relative error ~2e-7 in float32).
+float fov_atan(float x) {
+    float a = abs(x), y = 0.0;
+    if (a > 2.414213562373095) { y = 1.5707963267948966; a = -1.0 / a; }
+    else if (a > 0.41421356237309503) { y = 0.7853981633974483; a = (a - 1.0) / (a + 1.0); }
+    float z = a * a;
+    y += (((8.05374449538e-2 * z - 1.38776856032e-1) * z + 1.99777106478e-1) * z - 3.33329491539e-1) * z * a + a;
+    return x < 0.0 ? -y : y;
+}
+float fov_asin_small(float x) {   // |x| <= 0.5
+    float z = x * x;
+    return ((((4.2163199048e-2 * z + 2.4181311049e-2) * z + 4.5470025998e-2) * z + 7.4953002686e-2) * z
+            + 1.6666752422e-1) * z * x + x;
+}
+float fov_acos(float x) {
+    if (x < -0.5) return 3.141592653589793 - 2.0 * fov_asin_small(sqrt(0.5 * (1.0 + x)));
+    if (x > 0.5) return 2.0 * fov_asin_small(sqrt(0.5 * (1.0 - x)));
+    return 1.5707963267948966 - fov_asin_small(x);
+}
+float fov_atan2(float y, float x) {
+    if (x > 0.0) return fov_atan(y / x);
+    if (x < 0.0) return y >= 0.0 ? fov_atan(y / x) + 3.141592653589793 : fov_atan(y / x) - 3.141592653589793;
+    return y > 0.0 ? 1.5707963267948966 : (y < 0.0 ? -1.5707963267948966 : 0.0);
 }
 """
 
@@ -57,12 +82,12 @@ class _Fn:
 class Translator:
     """Translate functions of one module (see the module docstring for the supported subset)."""
 
-    def __init__(self, module, prefix: str, array_param: str = "P", array_name: str = "FP"):
+    def __init__(self, module, prefix: str, array_param: str = "P", array_name: str = "FP", source: str | None = None):
         self.module = module
         self.prefix = prefix
         self.array_param = array_param
         self.array_name = array_name
-        tree = ast.parse(inspect.getsource(module))
+        tree = ast.parse(source if source is not None else inspect.getsource(module))
         self.fns = {n.name: _Fn(n) for n in tree.body if isinstance(n, ast.FunctionDef)}
         self.consts = {k: v for k, v in vars(module).items()
                        if k.isupper() and isinstance(v, (int, float)) and not isinstance(v, bool)}
@@ -352,7 +377,7 @@ class Translator:
             if f.attr == "hypot":
                 return f"length(vec2({args[0]}, {args[1]}))"
             if f.attr == "atan2":
-                return f"atan({args[0]}, {args[1]})"
+                return f"fov_atan2({args[0]}, {args[1]})"
             if f.attr in _MATH:
                 return f"{_MATH[f.attr]}({', '.join(args)})"
             raise NotImplementedError(f"{fn.name}: math.{f.attr}")

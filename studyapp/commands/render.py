@@ -26,6 +26,9 @@ def register(sub, parser_class) -> None:
     r.add_argument("--gaze", metavar="X,Y", help="gaze point in pixels (default: the centre)")
     r.add_argument("--out", required=True, metavar="FILE.png", help="output PNG (the .npy goes next to it)")
     r.add_argument("--json", action="store_true", help="print the stats record as JSON")
+    r.add_argument("--backend", choices=("cpu", "gpu"), default="cpu",
+                   help="cpu (Embree + numba, default) or gpu (OpenGL 4.3 compute through moderngl; EGL when no "
+                        "window is open, Mesa's llvmpipe on machines without a GPU)")
     r.set_defaults(func=cmd_render)
     s = sub.add_parser("scenes", help="list the built-in scenes",
                        description="List the built-in procedural scenes with triangle and light counts.")
@@ -71,8 +74,9 @@ def cmd_render(args) -> int:
     params = parse_params(args.param)
     gaze = parse_gaze(args.gaze)
     scene = resolve(args.scene)
-    with ticker(f"rendering {scene.name} with {args.renderer}"):
-        img, stats = render(scene, args.renderer, params, args.width, args.height, gaze=gaze)
+    with ticker(f"rendering {scene.name} with {args.renderer} ({args.backend})"):
+        img, stats = render(scene, args.renderer, params, args.width, args.height, gaze=gaze,
+                            backend=args.backend)
     write_png_and_npy(out, img, scene.exposure)
     if args.json:
         from renderers.stimuli import jsonable_stats
@@ -80,8 +84,9 @@ def cmd_render(args) -> int:
         print(json.dumps(jsonable_stats(stats), indent=2))
     else:
         s = stats["seconds"]
+        device = f", {stats['gpu']['renderer']}" if "gpu" in stats else ""
         print(f"wrote {out} ({args.width}x{args.height}, {stats['shading_points']:,} shading points, "
-              f"{s['total']:.2f} s)")
+              f"{s['total']:.2f} s{device})")
     return 0
 
 

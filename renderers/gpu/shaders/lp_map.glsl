@@ -23,7 +23,7 @@ float lp_u(float dx, float dy) {
 
 // Polar angle in [0, 2 pi) (seed 001 Eq 1's indicator).
 float lp_angle(float dx, float dy) {
-    float a = atan(dy, dx);
+    float a = fov_atan2(dy, dx);
     if (a < 0.0) a += 6.283185307179586;
     return a >= 6.283185307179586 ? 0.0 : a;
 }
