@@ -12,7 +12,7 @@ import pytest
 
 from renderers import render as cpu_render
 from renderers.gpu import render as gpu_render
-from renderers.stimuli import to_srgb8
+from renderers.gpu.agreement import agreement
 
 W, H = 160, 120
 #: (renderer, params): every method, FXAA on and off, mono/dup/rep, raycast/deferred, GT with spp.
@@ -27,17 +27,6 @@ CASES = [
 ]
 EXACT = ("offscreen_lp_pixels", "reshaded_pixels", "missed_rays")
 TIES = ("rays_shadow", "shadow_rays_skipped", "glossy_evaluations", "lights_culled", "missed_rays")
-
-
-def agreement(a: np.ndarray, b: np.ndarray, exposure: float = 1.0) -> tuple[float, float]:
-    """PSNR (dB) of the exposed linear images clipped to the display range [0, 1] (peak 1), and the share of
-    pixels whose 8-bit sRGB values differ by at most one level in every channel."""
-    x = np.clip(a.astype(np.float64) * exposure, 0, 1)
-    y = np.clip(b.astype(np.float64) * exposure, 0, 1)
-    mse = float(np.mean((x - y) ** 2))
-    psnr = float("inf") if mse == 0 else 10.0 * np.log10(1.0 / mse)
-    d = np.abs(to_srgb8(a, exposure).astype(int) - to_srgb8(b, exposure).astype(int)).max(axis=2)
-    return psnr, float(np.mean(d <= 1))
 
 
 @pytest.mark.parametrize("renderer,params", CASES, ids=[f"{r}-{'-'.join(f'{k}={v}' for k, v in p.items())}"

@@ -169,15 +169,25 @@ def test_bvh_covers_every_triangle_once():
 
     sc = resolve("interior")
     b = bvh.build(sc.vertices, sc.faces)
-    ints = b.nodes.view(np.int32)
-    leaf = ints[:, 7] > 0
-    ids = np.concatenate([np.arange(a, a + c) for a, c in zip(ints[leaf, 3], ints[leaf, 7])])
+    ints = b.nodes.view(np.int32).reshape(-1, 2, 8)
+    lo, hi = b.nodes.reshape(-1, 2, 8)[..., 0:3], b.nodes.reshape(-1, 2, 8)[..., 4:7]
+    ref, count = ints[..., 3], ints[..., 7]
+    leaf = count > 0
+    ids = np.concatenate([np.arange(a, a + c) for a, c in zip(ref[leaf], count[leaf])])
     assert np.array_equal(np.sort(ids), np.arange(sc.n_triangles))
     assert np.array_equal(np.sort(b.tris.view(np.int32)[:, 3]), np.arange(sc.n_triangles))
-    inner = np.nonzero(~leaf)[0]
-    for child in (ints[inner, 3], ints[inner, 3] + 1):  # children inside their parent's box
-        assert (b.nodes[child, 0:3] >= b.nodes[inner, 0:3]).all() and (b.nodes[child, 4:7] <= b.nodes[inner, 4:7]).all()
-    assert b.depth <= bvh.MAX_DEPTH
+    tri = b.tris.reshape(-1, 3, 4)[..., :3]
+    verts = np.stack([tri[:, 0], tri[:, 0] + tri[:, 1], tri[:, 0] + tri[:, 2]], axis=1)
+    for (n, s) in np.argwhere(leaf):  # every leaf box holds its triangles (up to float rounding of e1, e2)
+        v = verts[ref[n, s]:ref[n, s] + count[n, s]].reshape(-1, 3)
+        assert (v >= lo[n, s] - 1e-4).all() and (v <= hi[n, s] + 1e-4).all()
+    parent = np.full(len(ints), -1)
+    for (n, s) in np.argwhere(~leaf):  # inner children: boxes inside the parent's entry, one parent each
+        c = ref[n, s]
+        assert parent[c] == -1 and c > n
+        parent[c] = n
+        assert (lo[c] >= lo[n, s]).all() and (hi[c] <= hi[n, s]).all()
+    assert (parent[1:] >= 0).all() and b.depth <= bvh.MAX_DEPTH
 
 
 def test_importing_renderers_and_analysis_loads_no_gl():

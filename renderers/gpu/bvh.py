@@ -6,11 +6,13 @@ construction of SAH-based bounding volume hierarchies"); a node becomes a leaf w
 ``MAX_LEAF`` triangles or no split beats intersecting all of them (up to ``MAX_LEAF_FORCED``). Children are
 stored next to each other, so an inner node needs one index.
 
-GPU layout (``std430``; 32 bytes per node, 48 per triangle), read by ``shaders/bvh.glsl``:
+GPU layout (64 bytes per inner node, 48 per triangle), read by ``trace`` in ``shaders/scene.glsl``: only inner
+nodes are stored, each holding both children's boxes, so one visit reads one node and tests leaves directly:
 
-* node ``k``: ``vec4(bmin, a) , vec4(bmax, b)`` with the integer bits of ``a, b`` stored in the float slots;
-  leaf: ``a`` = first triangle, ``b`` = count (> 0); inner node: ``a`` = left child (right = ``a + 1``), ``b = 0``.
-* triangle ``i`` (in leaf order): ``vec4(v0, prim id), vec4(e1 = v1 - v0, 0), vec4(e2 = v2 - v0, 0)``.
+* inner node ``k``: for its left and right child ``vec4(bmin, ref), vec4(bmax, count)`` with the integer bits of
+  ``ref, count`` in the float slots; a leaf child has ``count`` > 0 triangles from ``ref``, an inner child
+  ``count`` = 0 and ``ref`` its node index. A tree that is a single leaf gets a root with an empty right child.
+* triangle ``i`` (in leaf order): ``vec4(v0, prim id), vec4(e1 = v1 - v0, material), vec4(e2 = v2 - v0, 0)``.
 """
 
 from __future__ import annotations
@@ -155,6 +157,28 @@ def _build(tmin, tmax, cent, order, nmin, nmax, na, nb):
     return n_nodes, max_depth
 
 
+def _wide(nmin, nmax, na, nb) -> np.ndarray:
+    """Inner nodes with their children's boxes (the layout above) from the binary tree's node arrays."""
+    if nb[0] > 0:  # a single leaf: a root whose right child is empty (an inverted box that nothing hits)
+        nmin = np.vstack([nmin[:1], nmin[:1], np.full((1, 3), np.inf)])
+        nmax = np.vstack([nmax[:1], nmax[:1], np.full((1, 3), -np.inf)])
+        na = np.array([1, na[0], 0])
+        nb = np.array([0, nb[0], 1])
+    inner = np.nonzero(nb == 0)[0]
+    index = np.full(len(nb), -1, dtype=np.int64)
+    index[inner] = np.arange(len(inner))
+    out = np.zeros((len(inner), 16), dtype=np.float32)
+    ints = out.view(np.int32)
+    for side in (0, 1):
+        child = na[inner] + side
+        leaf = nb[child] > 0
+        out[:, 8 * side:8 * side + 3] = nmin[child]
+        out[:, 8 * side + 4:8 * side + 7] = nmax[child]
+        ints[:, 8 * side + 3] = np.where(leaf, na[child], index[child])
+        ints[:, 8 * side + 7] = np.where(leaf, nb[child], 0)
+    return out
+
+
 class BVH:
     """A built hierarchy: ``nodes`` (n, 8) float32 and ``tris`` (m, 12) float32 in the GPU layout above."""
 
@@ -186,12 +210,7 @@ def build(vertices: np.ndarray, faces: np.ndarray) -> BVH:
     n_nodes, depth = _build(tmin, tmax, cent, order, nmin, nmax, na, nb)
     if n_nodes < 0:
         raise ValueError(f"the scene's BVH would be deeper than {MAX_DEPTH} levels (degenerate geometry)")
-    nodes = np.zeros((n_nodes, 8), dtype=np.float32)
-    nodes[:, 0:3] = nmin[:n_nodes]
-    nodes[:, 4:7] = nmax[:n_nodes]
-    ints = nodes.view(np.int32)
-    ints[:, 3] = na[:n_nodes]
-    ints[:, 7] = nb[:n_nodes]
+    nodes = _wide(nmin[:n_nodes], nmax[:n_nodes], na[:n_nodes], nb[:n_nodes])
     t = tri[order]
     tris = np.zeros((m, 12), dtype=np.float32)
     tris[:, 0:3] = t[:, 0]

@@ -167,15 +167,15 @@ class Device:
         tex.write(data.tobytes())
         return tex
 
-    def image(self, what: str, size: tuple[int, int], components: int = 4):
-        """A float32 image (texture) of ``size`` for ``imageLoad``/``imageStore``."""
+    def image(self, what: str, size: tuple[int, int], components: int = 4, dtype: str = "f4"):
+        """A 32-bit float (``f4``) or unsigned (``u4``) image (texture) of ``size`` for ``imageLoad``/``Store``."""
         nbytes = 4 * components * size[0] * size[1]
         self.check_fits(what, {what: nbytes})
         if max(size) > self.max_texture:
             raise UserError(f"{what} of {size[0]}x{size[1]} exceeds the GPU's largest texture ({self.max_texture}): "
                             f"{WAY_OUT}")
         try:
-            tex = self.ctx.texture(tuple(size), components, dtype="f4")
+            tex = self.ctx.texture(tuple(size), components, dtype=dtype)
         except Exception as exc:
             raise UserError(f"the GPU could not allocate {what} ({_first_line(exc)}): {WAY_OUT}") from None
         self.allocated += nbytes

@@ -68,6 +68,18 @@ def render_gt(fr: Frame, camera, width: int, height: int, spp: int = 1, pixel_fi
 
 
 # -- the LP buffer -------------------------------------------------------------------------------------------------
+def inverse_offsets(layout, u, v):
+    """Screen offsets from the gaze of LP positions ``(u, v)``: the CPU's inverse kernel (float64) without the
+    gaze shift (:func:`renderers.foveation._kernels.map_points`)."""
+    from ..foveation import _kernels as K
+
+    u = np.ascontiguousarray(u, dtype=np.float64)
+    v = np.ascontiguousarray(v, dtype=np.float64)
+    dx, dy = np.empty_like(u), np.empty_like(u)
+    K.map_points(layout.kernel, K.INVERSE, u, v, layout.P, 0.0, 0.0, dx, dy)
+    return dx, dy
+
+
 class LPTables:
     """The LP layout of one mapping on the GPU: parameter vector, per-column table and (VaFR) the u(r) table.
 
@@ -79,52 +91,57 @@ class LPTables:
     generated from the CPU code (a table there would cost 14-118 ms of CPU per gaze at 2468 x 2740).
     """
 
-    def __init__(self, fr: Frame, layout, mapping, dirs=None):
+    def __init__(self, fr: Frame, layout, mapping, offsets=None):
         self.layout = layout
         self.method = layout.method
         self.kernel = layout.kernel
         self.w, self.h, self.w_eff = layout.w, layout.h, layout.w_eff
         self.n_mask = int(layout.n.sum())
         self.c_r = mapping.display.c_r
-        gx, _ = mapping.display.gaze
-        r = mapping.inverse(np.arange(self.w) + 0.5, np.zeros(self.w))[0] - gx
+        # r(c + 0.5): the inverse kernel at angle 0 (r cos 0 = r exactly), relative to the gaze
+        r = inverse_offsets(layout, np.arange(self.w) + 0.5, np.zeros(self.w))[0]
         cols = np.column_stack([r, layout.L / (2 * math.pi), layout.n, layout.L]).astype(np.float32)
         dev = fr.dev
-        self.buffers = {11: dev.buffer(layout.P.astype(np.float32))}
+        vafr = self.method == "vafr"
+        self.buffers = {11: dev.buffer(layout.P.astype(np.float32)),
+                        12: dev.buffer(np.ones(self.w) if vafr else r)}
         self.images = {7: dev.float_texture("LP columns", cols),
-                       6: dirs if dirs is not None else self.angle_table(fr, layout)}
+                       6: offsets if offsets is not None else self.offset_table(fr, layout)}
         self.use_table = hasattr(layout, "utab")
         if self.use_table:
             self.buffers[13] = dev.buffer(np.column_stack([layout.utab, layout.exact]).astype(np.float32))
             self.inv_step, self.kmax = float(layout.inv_step), int(layout.utab.size - 2)
 
     @staticmethod
-    def angle_table(fr: Frame, layout):
-        """(w, h) RG32F image of (cos, sin) of ``2 pi (j + 0.5) / L[c]``, the angle of the inverse mappings
-        (``_kernels.vafr_inverse``/``lmfr_inverse``/``lafr_inverse``), in float64 before rounding."""
-        th = 2.0 * math.pi * (np.arange(layout.h)[:, None] + 0.5) / np.maximum(layout.L, 1e-300)[None, :]
-        tex = fr.dev.image("LP angles", (layout.w, layout.h), 2)
-        tex.write(np.stack([np.cos(th), np.sin(th)], axis=-1).astype(np.float32).tobytes())
+    def offset_table(fr: Frame, layout):
+        """(w, h) RGBA32UI image of two float64 per LP pixel, gaze-independent: VaFR the screen offset of the
+        pixel's centre from the gaze (the CPU's inverse kernel), LMFR/LaFR the unit vector of its row's angle
+        ``2 pi (j + 0.5) / h`` (times the column's radius in the shader, as ``lmfr_inverse`` computes)."""
+        jj, ii = np.mgrid[0:layout.h, 0:layout.w]
+        if layout.method == "vafr":
+            dx, dy = inverse_offsets(layout, ii.ravel() + 0.5, jj.ravel() + 0.5)
+        else:
+            th = 2.0 * math.pi * (jj.ravel() + 0.5) / float(layout.h)
+            dx, dy = np.cos(th), np.sin(th)
+        tex = fr.dev.image("LP offsets", (layout.w, layout.h), 4, dtype="u4")
+        tex.write(np.column_stack([dx, dy]).astype(np.float64).tobytes())
         return tex
 
     def defines(self) -> dict:
         return {"METHOD": self.kernel, "USE_TABLE": int(self.use_table)}
 
     def uniforms(self, gaze) -> dict:
-        u = {"u_gaze": tuple(float(g) for g in gaze), "u_lp_w": self.w, "u_lp_h": self.h, "u_w_eff": self.w_eff}
+        u = {"u_gaze": tuple(float(g) for g in gaze), "u_gaze_d": tuple(float(g) for g in gaze), "u_lp_w": self.w,
+             "u_lp_h": self.h, "u_w_eff": self.w_eff}
         if self.use_table:
             u.update(u_inv_step=self.inv_step, u_kmax=self.kmax)
         return u
 
-    @property
-    def dirs(self):
-        return self.images[6]
-
-    def release(self, dev, keep_dirs: bool = False) -> None:
+    def release(self, dev, keep_offsets: bool = False) -> None:
         for b in self.buffers.values():
             dev.release(b)
         dev.release(self.images[7])
-        if not keep_dirs:
+        if not keep_offsets:
             dev.release(self.images[6])
 
 
@@ -142,13 +159,13 @@ def lp_tables(fr: Frame, method: str, mapping_params: dict, width: int, height: 
     if t is None:
         # VaFR: the gaze at a corner puts the farthest corner a diagonal away, so the table covers any gaze.
         mapping = make_mapping(method, width, height, fov_y, (0.0, 0.0) if vafr else gaze, **mapping_params)
-        dirs = None
-        if not vafr:  # keep only the latest gaze of a kernel method; its angle table does not depend on the gaze
+        offsets = None
+        if not vafr:  # keep only the latest gaze of a kernel method; its row vectors do not depend on the gaze
             for k in [k for k in _TABLES if k[:6] == key[:6]]:
                 old = _TABLES.pop(k)
-                dirs = old.dirs
-                old.release(fr.dev, keep_dirs=True)
-        t = LPTables(fr, cpu.LPLayout(mapping, table=vafr), mapping, dirs)
+                offsets = old.images[6]
+                old.release(fr.dev, keep_offsets=True)
+        t = LPTables(fr, cpu.LPLayout(mapping, table=vafr), mapping, offsets)
         _TABLES[key] = t
     return t
 

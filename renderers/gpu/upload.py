@@ -145,5 +145,5 @@ def device_scene(scene, params: dict) -> DeviceScene:
 def camera_uniforms(camera, width: int, height: int) -> dict:
     """Uniforms of ``shaders/camera.glsl`` for a :class:`~renderers.scene.Camera`."""
     f, r, u = camera.basis()
-    return {"u_cam_f": tuple(f), "u_cam_r": tuple(r), "u_cam_u": tuple(u),
+    return {"u_cam_f": tuple(map(float, f)), "u_cam_r": tuple(map(float, r)), "u_cam_u": tuple(map(float, u)),
             "u_tan": math.tan(math.radians(camera.fov_y) / 2.0), "u_screen": (float(width), float(height))}

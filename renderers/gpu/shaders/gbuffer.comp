@@ -12,9 +12,9 @@ void main() {
     cnt_begin();
     uint i = gid();
     if (i < uint(u_n)) {
-        vec2 xy = vec2(float(int(i) % u_width), float(int(i) / u_width)) + 0.5;
+        dvec2 xy = dvec2(double(int(i) % u_width), double(int(i) / u_width)) + 0.5LF;
         float t;
-        int k = trace(u_origin, camera_ray(xy), INF, false, t);
+        int k = trace(u_origin, camera_ray_d(xy), INF, false, t);
         gbuf[i] = vec2(intBitsToFloat(k), t);
         cnt_add(C_RAYS_PRIMARY, 1u);
     }

@@ -13,9 +13,9 @@ void main() {
     uint i = gid();
     if (i < sample_count()) {
         int idx = floatBitsToInt(samples[i].w);
-        vec2 xy = lp_position(idx % u_lp_w, idx / u_lp_w);
+        dvec2 xy = lp_position_d(idx % u_lp_w, idx / u_lp_w);
         ivec2 p = clamp(ivec2(floor(xy)), ivec2(0), ivec2(u_screen) - 1);
-        samples[i].xyz = camera_ray(vec2(p) + 0.5);
+        samples[i].xyz = camera_ray_d(dvec2(p) + 0.5LF);
         hits[i] = gbuf[p.y * int(u_screen.x) + p.x];
     }
     cnt_end();

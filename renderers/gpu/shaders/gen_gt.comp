@@ -15,8 +15,8 @@ void main() {
     if (i < uint(u_n)) {
         int pix = int(i) / SPP, s = int(i) - pix * SPP;
         int px = pix % u_width, py = u_y0 + pix / u_width;
-        vec2 xy = vec2(px, py) + gt_offset(px, py, s);
-        samples[i] = vec4(camera_ray(xy), intBitsToFloat(u_slot_base + int(i)));
+        dvec2 xy = dvec2(px, py) + gt_offset(px, py, s);
+        samples[i] = vec4(camera_ray_d(xy), intBitsToFloat(u_slot_base + int(i)));
     }
     cnt_end();
 }

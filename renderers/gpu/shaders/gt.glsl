@@ -5,10 +5,10 @@ uint lowbias32(uint x) {
     x ^= x >> 16; x *= HASH_M1; x ^= x >> 15; x *= HASH_M2; x ^= x >> 16;
     return x;
 }
-vec2 gt_offset(int px, int py, int s) {
-    if (SPP == 1) return vec2(0.5);
+dvec2 gt_offset(int px, int py, int s) {   // float64, as the CPU computes it
+    if (SPP == 1) return dvec2(0.5LF);
     uint h = lowbias32((uint(px) * HASH_X) ^ lowbias32(uint(py) ^ lowbias32(uint(s))));
     uint h2 = lowbias32(h ^ HASH_Y);
-    vec2 jit = vec2(float(h >> 8u), float(h2 >> 8u)) * (1.0 / 16777216.0);
-    return (vec2(float(s % SPP_SIDE), float(s / SPP_SIDE)) + jit) / float(SPP_SIDE);
+    dvec2 jit = dvec2(double(h >> 8u), double(h2 >> 8u)) / 16777216.0LF;
+    return (dvec2(double(s % SPP_SIDE), double(s / SPP_SIDE)) + jit) / double(SPP_SIDE);
 }

@@ -10,14 +10,22 @@ uniform int u_w_eff;
 
 int col_n(int c) { return int(cols(c).z); }
 
-// (cos, sin) of each LP pixel's polar angle 2 pi (j + 0.5) / L[c], computed by the CPU in float64 (exact zeros
-// on the axes, where float32 sin(pi) is not).
-layout(binding = 6, rg32f) uniform restrict readonly image2D t_dirs;
+// Screen position of the centre of LP pixel (column i, row j): the inverse mapping (seed 001 Eq 10-11),
+// computed exactly as the CPU does, in float64: offset from the gaze = scale[i] * t_offs[i, j], where the CPU
+// kernels give t_offs (VaFR: the offset itself, scale 1; LMFR/LaFR: the row's (cos, sin), scale r(i + 0.5)),
+// then the gaze is added. Only then is it rounded to float32, so that the display test agrees with the CPU's to
+// the last bit (a float32 position is 1e-4 px off at 2000 px: enough to flip a pixel at the display's edge).
+layout(binding = 6, rgba32ui) uniform restrict readonly uimage2D t_offs;       // two doubles per LP pixel
+layout(std430, binding = 12) readonly buffer ColScale { double col_scale[]; };
+uniform dvec2 u_gaze_d;
 
-// Screen position of the centre of LP pixel (column i, row j): the inverse mapping (seed 001 Eq 10-11).
-vec2 lp_position(int i, int j) {
-    return u_gaze + cols(i).x * imageLoad(t_dirs, ivec2(i, j)).xy;
+dvec2 lp_position_d(int i, int j) {
+    uvec4 q = imageLoad(t_offs, ivec2(i, j));
+    precise dvec2 off = col_scale[i] * dvec2(packDouble2x32(q.xy), packDouble2x32(q.zw));
+    precise dvec2 p = off + u_gaze_d;
+    return p;
 }
+vec2 lp_position(int i, int j) { return vec2(lp_position_d(i, j)); }
 
 // Row r modulo n for any integer r >= -n * 64 (GLSL's % is undefined for negative operands).
 int wrap_row(int r, int n) {

@@ -14,19 +14,19 @@ void main() {
     cnt_begin();
     uint idx = gid();
     bool need = false;
-    vec2 xy = vec2(0.0);
+    dvec2 p = dvec2(0.0);
     if (idx < uint(u_lp_w * u_lp_h)) {
         int i = int(idx) % u_lp_w, j = int(idx) / u_lp_w;
         if (j < col_n(i)) {
-            xy = lp_position(i, j);
+            p = lp_position_d(i, j);
             need = (flags[idx] & 2u) != 0u
-                || (xy.x >= 0.0 && xy.x < u_screen.x && xy.y >= 0.0 && xy.y < u_screen.y);
+                || (p.x >= 0.0LF && p.x < double(u_screen.x) && p.y >= 0.0LF && p.y < double(u_screen.y));
             if (!need) cnt_add(C_OFFSCREEN_LP_PIXELS, 1u);
         }
         flags[idx] = need ? 1u : 0u;
         if (!need) store_out(int(idx), vec3(0.0));
     }
     uint slot = append_slot(need, C_SAMPLES);
-    if (need) samples[slot] = vec4(camera_ray(xy), intBitsToFloat(int(idx)));
+    if (need) samples[slot] = vec4(camera_ray_d(p), intBitsToFloat(int(idx)));
     cnt_end();
 }

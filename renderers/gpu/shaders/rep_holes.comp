@@ -18,8 +18,8 @@ void main() {
     }
     uint slot = append_slot(hole, C_HOLES);
     if (hole) {
-        vec2 xy = lp_position(int(idx) % u_lp_w, int(idx) / u_lp_w);
-        samples[slot] = vec4(camera_ray(xy), intBitsToFloat(int(idx)));
+        dvec2 xy = lp_position_d(int(idx) % u_lp_w, int(idx) / u_lp_w);
+        samples[slot] = vec4(camera_ray_d(xy), intBitsToFloat(int(idx)));
     }
     cnt_end();
 }

@@ -36,7 +36,7 @@ void main() {
                     int qx = px + dx;
                     if (qx < 0 || qx >= u_width) continue;
                     for (int s = 0; s < SPP; s++) {
-                        vec2 o = vec2(dx, dy) + gt_offset(qx, qy, s) - 0.5;
+                        vec2 o = vec2(dvec2(dx, dy) + gt_offset(qx, qy, s) - 0.5LF);
                         float w = max(0.0, 1.0 - abs(o.x)) * max(0.0, 1.0 - abs(o.y));
                         acc += w * sample_at(qx, qy, s);
                         wsum += w;
