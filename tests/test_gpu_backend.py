@@ -196,3 +196,28 @@ def test_importing_renderers_and_analysis_loads_no_gl():
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")]))
     out = subprocess.run([PY, "-c", code], capture_output=True, text=True, env=env, timeout=60, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_window_context_is_used_when_one_is_current(tmp_path):
+    """Inside a pyglet (PsychoPy) window the backend attaches to the window's OpenGL context and leaves no
+    program bound for the window's own drawing (Xvfb: the virtual screen ./run installs)."""
+    script = tmp_path / "win.py"
+    script.write_text(
+        "import pyglet\n"
+        "from pyglet import gl\n"
+        "win = pyglet.window.Window(64, 48, visible=False)\n"
+        "win.switch_to()\n"
+        "from renderers.gpu import render\n"
+        "from renderers.gpu.context import get_device\n"
+        "img, st = render('cornell', 'lmfr', {}, 64, 48)\n"
+        "prog = gl.GLint()\n"
+        "gl.glGetIntegerv(gl.GL_CURRENT_PROGRAM, prog)\n"
+        "gl.glClearColor(0.0, 1.0, 0.0, 1.0)\n"
+        "gl.glClear(gl.GL_COLOR_BUFFER_BIT)\n"
+        "px = (gl.GLubyte * 4)()\n"
+        "gl.glReadPixels(1, 1, 1, 1, gl.GL_RGBA, gl.GL_UNSIGNED_BYTE, px)\n"
+        "print(get_device().source, st['gpu']['context'], prog.value, list(px), img.mean() > 0)\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")]))
+    out = subprocess.run(["xvfb-run", "-a", PY, str(script)], capture_output=True, text=True, env=env,
+                         timeout=120, check=True).stdout.split()
+    assert out[:3] == ["window", "window", "0"] and out[3:7] == ["[0,", "255,", "0,", "255]"] and out[7] == "True"

@@ -223,6 +223,15 @@ class Device:
     def barrier(self) -> None:
         self.ctx.memory_barrier()
 
+    def yield_to_window(self) -> None:
+        """In a window's context: unbind our program so the window's own drawing finds the state it expects
+        (PsychoPy's fixed-function stimuli draw with program 0)."""
+        if self.source == "window":
+            from pyglet import gl
+
+            self.ctx.memory_barrier()
+            gl.glUseProgram(0)
+
     def finish(self) -> None:
         self.ctx.finish()
 

@@ -185,4 +185,5 @@ class Frame:
             raise ValueError(f"the GPU renderer produced {self.totals['nonfinite']:,} non-finite samples")
         for stage, sec in self.timer.seconds().items():
             c.seconds[stage] = c.seconds.get(stage, 0.0) + sec
+        self.dev.yield_to_window()
         return self.totals
