@@ -172,6 +172,7 @@ def run_config(backend: str, method: str, size: str, repeats: int) -> dict:
     if p.returncode != 0:
         raise RuntimeError(f"{backend} {method} {size} failed:\n{p.stderr[-2000:]}")
     row = json.loads(p.stdout.strip().splitlines()[-1])
+    row["load"] = os.getloadavg()[1]  # other jobs on the cores inflate the times: say how busy the machine was
     peak = [ln for ln in p.stderr.splitlines() if "Maximum resident set size" in ln]
     row["peak_mb"] = int(peak[0].split(":")[1]) / 1024.0 if peak else float("nan")
     return row
@@ -203,14 +204,17 @@ def speed_section(rows, elapsed: float, repeats: int) -> list[str]:
         f"times: {gpu[0]['timing'] if gpu else ''}.", "",
         "Mesa's llvmpipe is a software OpenGL 4.5 implementation running on the CPU cores, not a GPU: these "
         "figures say that the backend runs and what it costs there, not how fast it is on a graphics card. The "
-        "same script runs unchanged on a machine with a GPU (headless, EGL) and writes the same table.", "",
+        "same script runs unchanged on a machine with a GPU (headless, EGL) and writes the same table. `load`: "
+        "the machine's 5-minute load average after the configuration (other jobs share the cores; above the core "
+        "count, times are inflated).", "",
         "| method | size | backend | frame ms | ms per eye | visibility | shading | antialias | inverse map | "
-        "shading points | shadow rays | peak MB | frames |",
-        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+        "shading points | shadow rays | peak MB | frames | load |",
+        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         lines.append(f"| {r['method']} | {r['size']} | {r['backend']} | {r['total_ms']:,.0f} | "
                      f"{r['total_ms'] / r['eyes']:,.0f} | " + " | ".join(f"{r[k + '_ms']:,.0f}" for k in STAGES)
-                     + f" | {r['shading_points']:,} | {r['rays_shadow']:,} | {r['peak_mb']:,.0f} | {r['frames']} |")
+                     + f" | {r['shading_points']:,} | {r['rays_shadow']:,} | {r['peak_mb']:,.0f} | {r['frames']} | "
+                     f"{r.get('load', float('nan')):.1f} |")
     lines.append("")
     for method in ("vafr-dup", "gt"):
         pair = {r["backend"]: r for r in rows if r["method"] == method and r["size"] == "640x480"}

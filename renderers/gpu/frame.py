@@ -16,8 +16,7 @@ from .context import StageTimer
 
 #: GPU counters (index = position). Those named like a Counters field are added to it at the end of a frame.
 COUNTERS = ("samples", "holes", "rays_primary", "missed_rays", "shading_points", "glossy_evaluations",
-            "lights_culled", "shadow_rays_skipped", "rays_shadow", "nonfinite", "offscreen_lp_pixels",
-            "covered")
+            "lights_culled", "shadow_rays_skipped", "rays_shadow", "nonfinite", "offscreen_lp_pixels")
 C = {name: i for i, name in enumerate(COUNTERS)}
 _COUNTER_DEFINES = {"COUNTERS": len(COUNTERS), **{f"C_{n.upper()}": i for n, i in C.items()}}
 #: Switches of the shaders, off unless a pass sets them (GLSL's #if may not meet an undefined name).
@@ -28,10 +27,6 @@ BATCH = 1 << 20
 B_SAMPLES, B_HITS, B_MASKS, B_PARTIAL, B_OUT = 6, 7, 8, 9, 10
 
 
-#: Set to a dict to collect seconds per shader (development aid; forces a glFinish after every dispatch).
-PROFILE: dict | None = None
-
-
 class Pool:
     """Grow-only named buffers of one device, reused across frames."""
 
@@ -39,8 +34,8 @@ class Pool:
         self.device = device
         self.bufs: dict[str, object] = {}
 
-    def get(self, name: str, nbytes: int, clear: bool = False):
-        """Buffer ``name`` of at least ``nbytes``; a new one is zeroed (``clear``: only matters when new)."""
+    def get(self, name: str, nbytes: int):
+        """Buffer ``name`` of at least ``nbytes`` (a new one is zeroed)."""
         nbytes = max(16, int(nbytes))
         buf = self.bufs.get(name)
         if buf is None or buf.size < nbytes:
@@ -49,7 +44,6 @@ class Pool:
             buf = self.bufs[name] = self.device.buffer(reserve=nbytes)
             buf.clear()
         return buf
-
 
     def image(self, name: str, size: tuple[int, int], components: int = 4):
         """Float32 image ``name`` of exactly ``size`` (w, h) (re-made when the size changes)."""
@@ -111,12 +105,8 @@ class Frame:
         self.counter_buf.bind_to_storage_buffer(5)
         bind(buffers, images)
         set_uniforms(prog, {**self.ds.scene_uniforms(), **(uniforms or {})})
-        t0 = time.perf_counter() if PROFILE is not None else 0.0
         self.dev.dispatch(prog, n, local)
         self.dev.barrier()
-        if PROFILE is not None:
-            self.dev.finish()
-            PROFILE[name] = PROFILE.get(name, 0.0) + time.perf_counter() - t0
 
     def upload(self, name: str, data: np.ndarray):
         """``data`` in the pooled buffer ``name`` (grown as needed)."""

@@ -12,8 +12,8 @@ import math
 import numpy as np
 
 from .. import pipeline as cpu
+from .frame import B_OUT, BATCH, C, Frame
 from .upload import camera_uniforms
-from .frame import BATCH, B_OUT, B_SAMPLES, C, Frame
 
 
 def read_image(buf, width: int, height: int) -> np.ndarray:
@@ -178,7 +178,7 @@ def render_lp(fr: Frame, tables: LPTables, camera, width: int, height: int, gaze
     """
     w, h = tables.w, tables.h
     lp = fr.pool.image("lp", (w, h))
-    flags = fr.pool.get("flags", 4 * w * h, clear=True)
+    flags = fr.pool.get("flags", 4 * w * h)
     marks = np.flatnonzero(tables.layout.border_footprint(gaze)).astype(np.int32)
     cam = camera_uniforms(camera, width, height)
     uni = {**cam, **tables.uniforms(gaze), "u_out_w": w}
