@@ -112,7 +112,7 @@ GT = RendererPlugin(
     {**COMMON,
      "spp": Param(int, 1, 1, 256, help="samples per pixel, a square number (stratified, jittered); 1: the centre"),
      "filter": Param(str, "box", choices=("box", "tent"), help="pixel filter of the samples (box or 1-px tent)")},
-    run_gt)
+    run_gt, gpu="renderers.gpu.runners:run_gt")
 VAFR = RendererPlugin(
     "vafr", "visual-acuity-consistent foveated rendering (seed 001): constant LP buffer, FXAA in the LP buffer",
     {**COMMON, **FOVEATED,
@@ -121,14 +121,15 @@ VAFR = RendererPlugin(
      "fxaa": Param(bool, True, help="FXAA 3.11 (preset 12) in the LP buffer"),
      "preset": Param(str, "default", choices=tuple(PRESETS), help="acuity curve"),
      "e_max": Param(float, 60.0, 0.0, 90.0, low_open=True, high_open=True, help="largest eccentricity (deg)")},
-    run_foveated("vafr"), bytes_per_pixel=40.0, check=_checker("vafr"), preview=_vafr_preview)
+    run_foveated("vafr"), bytes_per_pixel=40.0, check=_checker("vafr"), preview=_vafr_preview,
+    gpu="renderers.gpu.runners:run_vafr")
 _AA = {"aa": Param(bool, True, help="LMFR anti-aliasing: 3x3 Gaussian in the LP buffer + foveal Gaussian")}
 LMFR = RendererPlugin(
     "lmfr", "kernel log-polar foveated rendering (Meng et al.), u = w z^alpha",
     {**COMMON, **FOVEATED, **_AA,
      "delta": Param(float, 1.8, 1.0, 16.0, low_open=True, help="LP buffer = screen / delta per axis"),
      "alpha": Param(float, 4.0, 0.0, 16.0, low_open=True, help="kernel exponent")},
-    run_foveated("lmfr"), bytes_per_pixel=40.0, check=_checker("lmfr"))
+    run_foveated("lmfr"), bytes_per_pixel=40.0, check=_checker("lmfr"), gpu="renderers.gpu.runners:run_lmfr")
 LAFR = RendererPlugin(
     "lafr", "locomotion-aware foveated rendering (Shi et al.), two-part kernel",
     {**COMMON, **FOVEATED, **_AA,
@@ -136,6 +137,6 @@ LAFR = RendererPlugin(
      "alpha": Param(float, 0.85, 0.0, 1.0, low_open=True, high_open=True, help="foveal kernel parameter"),
      "beta": Param(float, 0.7, 0.0, 10.0, low_open=True, help="peripheral kernel parameter"),
      "a": Param(float, 0.25, 0.0, 1.0, low_open=True, high_open=True, help="LMFR exponent in LaFR convention")},
-    run_foveated("lafr"), bytes_per_pixel=40.0, check=_checker("lafr"))
+    run_foveated("lafr"), bytes_per_pixel=40.0, check=_checker("lafr"), gpu="renderers.gpu.runners:run_lafr")
 
 

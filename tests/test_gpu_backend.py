@@ -97,7 +97,7 @@ def test_too_many_lights_and_cpu_only_renderers(tmp_path):
 
     with pytest.raises(UserError, match="111,858 lights.*use --backend cpu"):
         render("cornell_many", "gt", {}, 8, 6)
-    with pytest.raises(UserError, match="renderer 'fsl' has no GPU implementation.*use --backend cpu"):
+    with pytest.raises(UserError, match="renderer .fsl. has no GPU version: use --backend cpu"):
         render("cornell", "fsl", {}, 8, 6)
 
 

@@ -148,17 +148,18 @@ class LPTables:
 _TABLES: dict[tuple, LPTables] = {}
 
 
-def lp_tables(fr: Frame, method: str, mapping_params: dict, width: int, height: int, fov_y: float, gaze):
-    """The :class:`LPTables` of a mapping (cached: VaFR per display, LMFR/LaFR per display and gaze)."""
-    from ..foveation import make_mapping
+def lp_tables(fr: Frame, method: str, mapping_params: dict, geometry):
+    """The :class:`LPTables` of a mapping for a viewing geometry (cached: VaFR per display, LMFR/LaFR per display
+    and gaze)."""
+    from ..foveation import mapping_for
 
     vafr = method == "vafr"
-    key = (id(fr.dev), method, tuple(sorted(mapping_params.items())), width, height, float(fov_y),
-           None if vafr else tuple(gaze))
+    key = (id(fr.dev), method, tuple(sorted(mapping_params.items())), geometry.width, geometry.height,
+           float(geometry.fov_y_deg), None if vafr else tuple(geometry.gaze))
     t = _TABLES.get(key)
     if t is None:
         # VaFR: the gaze at a corner puts the farthest corner a diagonal away, so the table covers any gaze.
-        mapping = make_mapping(method, width, height, fov_y, (0.0, 0.0) if vafr else gaze, **mapping_params)
+        mapping = mapping_for(method, geometry.with_gaze((0.0, 0.0)) if vafr else geometry, **mapping_params)
         offsets = None
         if not vafr:  # keep only the latest gaze of a kernel method; its row vectors do not depend on the gaze
             for k in [k for k in _TABLES if k[:6] == key[:6]]:

@@ -41,11 +41,10 @@ def run_foveated(method: str):
     def run(ctx):
         p = ctx.params
         fr = Frame(ctx.tracer)
-        tables = P.lp_tables(fr, method, _mapping_params(method, p), ctx.width, ctx.height, ctx.camera.fov_y,
-                             ctx.gaze)
+        tables = P.lp_tables(fr, method, _mapping_params(method, p), ctx.geometry)
         ctx.extra["lp_shape"] = [tables.w, tables.h]
         ctx.extra["lp_pixels"] = tables.n_mask
-        exposure = ctx.scene.exposure
+        exposure = ctx.exposure  # FXAA's luma only: the image stays unexposed
         eyes = _eyes(ctx)
         images = []
         if p["stereo"] == "rep":
