@@ -69,11 +69,11 @@ def test_skipped_work_is_counted():
 
 def test_gaze_follows_without_reupload():
     """Per frame only camera and gaze change: the scene upload is reused, the image moves with the gaze."""
-    from renderers.gpu import upload
+    from renderers.gpu.context import get_device
 
     a, _ = gpu_render("cornell", "lafr", {}, W, H, gaze=(40, 30))
-    n = len(upload._UPLOADS)
+    uploads = dict(get_device().cache["uploads"])
     b, st = gpu_render("cornell", "lafr", {}, W, H, gaze=(120, 90))
-    assert len(upload._UPLOADS) == n and st["setup_seconds"] < 1.0
+    assert get_device().cache["uploads"] == uploads and st["setup_seconds"] < 1.0
     c, _ = cpu_render("cornell", "lafr", {}, W, H, gaze=(120, 90))
     assert agreement(c, b)[1] >= 0.99 and agreement(a, b)[1] < 0.9

@@ -99,6 +99,8 @@ class Device:
         self.software = "llvmpipe" in self.renderer.lower() or "softpipe" in self.renderer.lower()
         self._programs: dict[tuple, object] = {}
         self.allocated = 0
+        #: What lives as long as this context: uploaded scenes, LP tables, the frame buffer pool (by name).
+        self.cache: dict[str, dict] = {}
 
     # -- memory --------------------------------------------------------------------------------------------------
     def memory_budget(self) -> float | None:
@@ -299,7 +301,7 @@ def get_device() -> Device:
 
 
 def reset_device() -> None:
-    """Forget the process's device (its GL objects go with the context)."""
+    """Forget the process's device; its GL objects and caches go with the context."""
     global _DEVICE
     if _DEVICE is not None:
         try:
@@ -307,9 +309,6 @@ def reset_device() -> None:
         except Exception:
             pass
     _DEVICE = None
-    from . import upload
-
-    upload.clear_cache()
 
 
 class StageTimer:

@@ -54,14 +54,12 @@ class Pool:
         return tex
 
 
-_POOLS: dict[int, Pool] = {}
-
-
 def pool_of(device) -> Pool:
-    p = _POOLS.get(id(device))
-    if p is None or p.device is not device:
-        p = _POOLS[id(device)] = Pool(device)
-    return p
+    """The device's buffer pool."""
+    pools = device.cache.setdefault("pool", {})
+    if "pool" not in pools:
+        pools["pool"] = Pool(device)
+    return pools["pool"]
 
 
 def set_uniforms(prog, values: dict) -> None:

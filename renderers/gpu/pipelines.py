@@ -145,29 +145,27 @@ class LPTables:
             dev.release(self.images[6])
 
 
-_TABLES: dict[tuple, LPTables] = {}
-
-
 def lp_tables(fr: Frame, method: str, mapping_params: dict, geometry):
     """The :class:`LPTables` of a mapping for a viewing geometry (cached: VaFR per display, LMFR/LaFR per display
     and gaze)."""
     from ..foveation import mapping_for
 
     vafr = method == "vafr"
-    key = (id(fr.dev), method, tuple(sorted(mapping_params.items())), geometry.width, geometry.height,
+    key = (method, tuple(sorted(mapping_params.items())), geometry.width, geometry.height,
            float(geometry.fov_y_deg), None if vafr else tuple(geometry.gaze))
-    t = _TABLES.get(key)
+    tables = fr.dev.cache.setdefault("lp_tables", {})
+    t = tables.get(key)
     if t is None:
         # VaFR: the gaze at a corner puts the farthest corner a diagonal away, so the table covers any gaze.
         mapping = mapping_for(method, geometry.with_gaze((0.0, 0.0)) if vafr else geometry, **mapping_params)
         offsets = None
         if not vafr:  # keep only the latest gaze of a kernel method; its row vectors do not depend on the gaze
-            for k in [k for k in _TABLES if k[:6] == key[:6]]:
-                old = _TABLES.pop(k)
+            for k in [k for k in tables if k[:5] == key[:5]]:
+                old = tables.pop(k)
                 offsets = old.images[6]
                 old.release(fr.dev, keep_offsets=True)
         t = LPTables(fr, cpu.LPLayout(mapping, table=vafr), mapping, offsets)
-        _TABLES[key] = t
+        tables[key] = t
     return t
 
 

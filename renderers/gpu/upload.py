@@ -1,7 +1,7 @@
 """A scene uploaded to the GPU once: BVH, triangles, materials, lights; per frame only camera and gaze change.
 
 :func:`device_scene` is the factory the renderer registry calls instead of building a CPU
-:class:`~renderers.tracer.Tracer`. Uploads are cached per device by ``Scene.content_hash()`` (geometry and
+:class:`~renderers.tracer.Tracer`. Uploads are cached on the device (``Device.cache``) by ``Scene.content_hash()`` (geometry and
 materials) and ``shadows`` (which lights cast shadow rays); each call returns a fresh :class:`DeviceScene` view
 with its own :class:`~renderers.tracer.Counters`, so every render reports its own work.
 """
@@ -22,14 +22,7 @@ from .context import TEX_WIDTH, WAY_OUT, Device, get_device
 #: lightcuts scenes' virtual point lights) stay on the CPU.
 MAX_LIGHTS = 256
 
-_UPLOADS: dict[tuple, "_Upload"] = {}
 _BVH_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
-
-
-def clear_cache() -> None:
-    for up in _UPLOADS.values():
-        up.release()
-    _UPLOADS.clear()
 
 
 def scene_bvh(scene) -> B.BVH:
@@ -113,9 +106,10 @@ class DeviceScene:
         self.device = device or get_device()
         self.scene = scene
         key = (scene.content_hash(), bool(shadows and scene.shadows))
-        up = _UPLOADS.get(key)
+        uploads = self.device.cache.setdefault("uploads", {})
+        up = uploads.get(key)
         if up is None:
-            up = _UPLOADS[key] = _Upload(self.device, scene, key[1])
+            up = uploads[key] = _Upload(self.device, scene, key[1])
         self.upload = up
         self.light_cull = float(light_cull)
         self.counters = Counters()
