@@ -7,6 +7,10 @@ periphery (e > 5°): MSE, PSNR and SSIM (scikit-image, on luma; in the periphery
 spread over the screen so that SSIM stays bounded at retinal resolution). Speed-ups are GT's total time over
 the renderer's, measured in the same run on this machine.
 
+The 1-spp GT aliases (one ray per pixel centre), so errors are also measured against a reference that does not:
+GT with 16 stratified samples per pixel and a 1-px tent filter (``gt`` ``spp=16, filter=tent``; issue 13 item 7),
+rendered up to ``--reference-max-pixels`` (default 4K; 16x the GT's cost) and reported beside the GT columns.
+
 Writes ``docs/benchmarks.md`` section ``render``, ``docs/bench_render.csv`` and ``docs/bench_render.png``.
 
     python benchmarks/bench_render.py                        # every scene x resolution (hours on 2 cores)
@@ -44,6 +48,8 @@ METHODS = {
     "LMFR(1.8)": ("lmfr", {"delta": 1.8}),
 }
 FOVEA_DEG = 5.0
+#: The anti-aliased reference (issue 13 item 7).
+REFERENCE = ("gt", {"spp": 16, "filter": "tent"})
 
 
 def eccentricity_rows(W, H, fov, y0, y1):
@@ -107,7 +113,7 @@ def errors(img, gt, fov):
     return out
 
 
-def run(scenes, resolutions, methods, out_rows, progress=print):
+def run(scenes, resolutions, methods, out_rows, progress=print, reference_max_pixels: int = 3840 * 2160):
     from renderers import render
     from renderers.catalog import resolve
 
@@ -126,7 +132,17 @@ def run(scenes, resolutions, methods, out_rows, progress=print):
             np.save(gt_path, gt)
             del gt
             gc.collect()
-            out_rows.append(row(scene, res, "GT", st, None, st["seconds"]["total"]))
+            ref_path = None
+            err_gt_ref = None
+            if W * H <= reference_max_pixels:
+                progress(f"{scene} {res}: 16-spp reference")
+                ref, st_r = render(scene, *REFERENCE, W, H)
+                ref_path = os.path.join(tmp, "ref.npy")
+                np.save(ref_path, ref)
+                err_gt_ref = errors(np.load(gt_path, mmap_mode="r"), ref, fov)
+                del ref
+                progress(f"  reference {st_r['seconds']['total']:.1f} s")
+            out_rows.append(row(scene, res, "GT", st, None, st["seconds"]["total"], err_gt_ref))
             progress(f"  GT {st['seconds']['total']:.1f} s")
             for label in methods:
                 name, params = METHODS[label]
@@ -134,17 +150,20 @@ def run(scenes, resolutions, methods, out_rows, progress=print):
                 img, st_m = render(scene, name, params, W, H)
                 gt = np.load(gt_path, mmap_mode="r")
                 err = errors(img, gt, fov)
+                err_ref = errors(img, np.load(ref_path, mmap_mode="r"), fov) if ref_path else None
                 del gt, img
                 gc.collect()
-                out_rows.append(row(scene, res, label, st_m, err, st["seconds"]["total"]))
+                out_rows.append(row(scene, res, label, st_m, err, st["seconds"]["total"], err_ref))
                 progress(f"  {label} {st_m['seconds']['total']:.2f} s, speed-up "
                          f"{st['seconds']['total'] / st_m['seconds']['total']:.1f}x, "
                          f"foveal PSNR {err['psnr_fovea']:.1f} dB")
             os.unlink(gt_path)
+            if ref_path:
+                os.unlink(ref_path)
     os.rmdir(tmp)
 
 
-def row(scene, res, label, st, err, gt_total):
+def row(scene, res, label, st, err, gt_total, err_ref=None):
     s = st["seconds"]
     r = {"scene": scene, "resolution": res, "width": st["width"], "height": st["height"], "method": label,
          "total_s": s["total"], "visibility_s": s["visibility"], "shading_s": s["shading"],
@@ -154,6 +173,7 @@ def row(scene, res, label, st, err, gt_total):
          "lights_culled": st["lights_culled"], "offscreen_lp_pixels": st["offscreen_lp_pixels"]}
     for k in ("mse_fovea", "psnr_fovea", "ssim_fovea", "mse_periphery", "psnr_periphery", "ssim_periphery"):
         r[k] = None if err is None else err[k]
+        r[f"{k}_ref"] = None if err_ref is None else err_ref[k]
     return r
 
 
@@ -194,7 +214,8 @@ def write_outputs(rows, elapsed, merge=True):
         rows = merged(rows, os.path.join(docs, "bench_render.csv"))
     with atomic_path(os.path.join(docs, "bench_render.csv")) as tmp:
         with open(tmp, "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            # rows of runs before the reference columns lack them
+            w = csv.DictWriter(fh, fieldnames=list(dict.fromkeys(k for r in rows for k in r)), restval="")
             w.writeheader()
             w.writerows(rows)
     try:
@@ -221,18 +242,23 @@ def write_outputs(rows, elapsed, merge=True):
              f"Wall time of the last benchmark run {elapsed / 60:.1f} min. Times are one frame of one eye (mono; a binocular `dup` "
              "frame doubles every method, so the ratios hold per eye), ray-casting pipeline unless named, after "
              "the scene and BVH are built. Speed-up = GT total / method total in the same run. Errors on 8-bit "
-             "sRGB against GT: fovea e <= 5°, periphery e > 5°. The machine's 2 cores are shared with other "
+             "sRGB against GT: fovea e <= 5°, periphery e > 5°; `ref` columns: against a 16-spp GT with a "
+             "1-px tent filter (no aliasing; rendered up to 4K, – where not; the GT row then shows the 1-spp GT's "
+             "own error). The machine's 2 cores are shared with other "
              "jobs, so single timings carry noise of tens of per cent. CSV: `docs/bench_render.csv`, plot: "
              "`docs/bench_render.png`.", "",
              "| scene | res | method | total s | vis s | shade s | AA s | inv s | speed-up | shading pts | "
-             "shadow rays | peak MB | PSNR fov | PSNR per | SSIM fov | SSIM per |",
-             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "shadow rays | peak MB | PSNR fov | PSNR per | SSIM fov | SSIM per | PSNR fov ref | PSNR per ref | "
+             "SSIM fov ref |",
+             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         lines.append(f"| {r['scene']} | {r['resolution']} | {r['method']} | {fmt(r['total_s'])} | "
                      f"{fmt(r['visibility_s'])} | {fmt(r['shading_s'])} | {fmt(r['antialias_s'])} | "
                      f"{fmt(r['inverse_map_s'])} | {fmt(r['speedup_vs_gt'], 1)}x | {fmt(r['shading_points'])} | "
                      f"{fmt(r['rays_shadow'])} | {fmt(r['peak_mb'], 0)} | {fmt(r['psnr_fovea'], 1)} | "
-                     f"{fmt(r['psnr_periphery'], 1)} | {fmt(r['ssim_fovea'], 3)} | {fmt(r['ssim_periphery'], 3)} |")
+                     f"{fmt(r['psnr_periphery'], 1)} | {fmt(r['ssim_fovea'], 3)} | {fmt(r['ssim_periphery'], 3)} | "
+                     f"{fmt(r.get('psnr_fovea_ref'), 1)} | {fmt(r.get('psnr_periphery_ref'), 1)} | "
+                     f"{fmt(r.get('ssim_fovea_ref'), 3)} |")
     lines += ["", *targets(rows)]
     replace_section(os.path.join(docs, "benchmarks.md"), "render", lines)
 
@@ -276,6 +302,8 @@ def main(argv=None):
     ap.add_argument("--methods", default=",".join(METHODS))
     ap.add_argument("--fresh", action="store_true", help="drop the rows of earlier runs (default: keep the "
                     "scene x resolution pairs this run does not measure)")
+    ap.add_argument("--reference-max-pixels", type=int, default=3840 * 2160,
+                    help="render the 16-spp reference only up to this many pixels (0: never)")
     ap.add_argument("--plan", default=None, help="scene:res1+res2[:method1/method2];... (overrides --scenes, "
                     "--resolutions and, where given, --methods)")
     args = ap.parse_args(argv)
@@ -290,7 +318,8 @@ def main(argv=None):
     else:
         plan = [(s, args.resolutions.split(","), methods) for s in args.scenes.split(",")]
     for scene, res, meths in plan:
-        run([scene], res, meths, rows, progress=lambda m: print(m, flush=True))
+        run([scene], res, meths, rows, progress=lambda m: print(m, flush=True),
+            reference_max_pixels=args.reference_max_pixels)
         write_outputs(rows, time.perf_counter() - t0, merge=not args.fresh)  # partial results survive
     print("\n".join(targets(rows)))
 

@@ -9,6 +9,10 @@ rendered, cameras ``-/+ ipd/2`` along the right vector; VaFR also ``rep``: right
 
 from __future__ import annotations
 
+import math
+
+from data_schema.errors import UserError
+
 from . import pipeline as pl
 from .foveation import PRESETS, mapping_for
 from .plugin_types import Param, RendererPlugin
@@ -38,8 +42,17 @@ def _pick(ctx, images):
     return images[-1] if (ctx.params["eye"] == "right" and len(images) > 1) else images[0]
 
 
+def gt_spp(params: dict) -> int:
+    """The checked ``spp`` of a GT render (a square number: the samples form a grid of strata)."""
+    spp = int(params.get("spp", 1))
+    if math.isqrt(spp) ** 2 != spp:
+        raise UserError(f"gt.spp={spp} is invalid: must be a square number (1, 4, 9, 16, ...)")
+    return spp
+
+
 def run_gt(ctx):
-    return _pick(ctx, [pl.render_gt(ctx.tracer, cam, ctx.width, ctx.height) for cam in _eyes(ctx)])
+    spp, filt = gt_spp(ctx.params), ctx.params.get("filter", "box")
+    return _pick(ctx, [pl.render_gt(ctx.tracer, cam, ctx.width, ctx.height, spp, filt) for cam in _eyes(ctx)])
 
 
 def _mapping_params(method: str, p: dict) -> dict:
@@ -94,7 +107,12 @@ def _vafr_preview(params: dict) -> dict:
     return {**params, "preset": "auto"}
 
 
-GT = RendererPlugin("gt", "ground truth: one ray per pixel, every pixel shaded", dict(COMMON), run_gt)
+GT = RendererPlugin(
+    "gt", "ground truth: every pixel shaded, one ray per pixel centre or spp stratified samples",
+    {**COMMON,
+     "spp": Param(int, 1, 1, 256, help="samples per pixel, a square number (stratified, jittered); 1: the centre"),
+     "filter": Param(str, "box", choices=("box", "tent"), help="pixel filter of the samples (box or 1-px tent)")},
+    run_gt, gpu="renderers.gpu.runners:run_gt")
 VAFR = RendererPlugin(
     "vafr", "visual-acuity-consistent foveated rendering (seed 001): constant LP buffer, FXAA in the LP buffer",
     {**COMMON, **FOVEATED,
@@ -103,14 +121,15 @@ VAFR = RendererPlugin(
      "fxaa": Param(bool, True, help="FXAA 3.11 (preset 12) in the LP buffer"),
      "preset": Param(str, "default", choices=tuple(PRESETS), help="acuity curve"),
      "e_max": Param(float, 60.0, 0.0, 90.0, low_open=True, high_open=True, help="largest eccentricity (deg)")},
-    run_foveated("vafr"), bytes_per_pixel=40.0, check=_checker("vafr"), preview=_vafr_preview)
+    run_foveated("vafr"), bytes_per_pixel=40.0, check=_checker("vafr"), preview=_vafr_preview,
+    gpu="renderers.gpu.runners:run_vafr")
 _AA = {"aa": Param(bool, True, help="LMFR anti-aliasing: 3x3 Gaussian in the LP buffer + foveal Gaussian")}
 LMFR = RendererPlugin(
     "lmfr", "kernel log-polar foveated rendering (Meng et al.), u = w z^alpha",
     {**COMMON, **FOVEATED, **_AA,
      "delta": Param(float, 1.8, 1.0, 16.0, low_open=True, help="LP buffer = screen / delta per axis"),
      "alpha": Param(float, 4.0, 0.0, 16.0, low_open=True, help="kernel exponent")},
-    run_foveated("lmfr"), bytes_per_pixel=40.0, check=_checker("lmfr"))
+    run_foveated("lmfr"), bytes_per_pixel=40.0, check=_checker("lmfr"), gpu="renderers.gpu.runners:run_lmfr")
 LAFR = RendererPlugin(
     "lafr", "locomotion-aware foveated rendering (Shi et al.), two-part kernel",
     {**COMMON, **FOVEATED, **_AA,
@@ -118,6 +137,6 @@ LAFR = RendererPlugin(
      "alpha": Param(float, 0.85, 0.0, 1.0, low_open=True, high_open=True, help="foveal kernel parameter"),
      "beta": Param(float, 0.7, 0.0, 10.0, low_open=True, help="peripheral kernel parameter"),
      "a": Param(float, 0.25, 0.0, 1.0, low_open=True, high_open=True, help="LMFR exponent in LaFR convention")},
-    run_foveated("lafr"), bytes_per_pixel=40.0, check=_checker("lafr"))
+    run_foveated("lafr"), bytes_per_pixel=40.0, check=_checker("lafr"), gpu="renderers.gpu.runners:run_lafr")
 
 

@@ -43,21 +43,85 @@ def _row_tiles(width: int, height: int):
         yield y0, min(height, y0 + rows)
 
 
-def render_gt(tracer: Tracer, camera: Camera, width: int, height: int) -> np.ndarray:
-    """One ray per pixel centre, every pixel shaded."""
+def render_gt(tracer: Tracer, camera: Camera, width: int, height: int, spp: int = 1,
+              pixel_filter: str = "box") -> np.ndarray:
+    """Every pixel shaded: one ray through its centre, or ``spp`` stratified samples (:func:`gt_sample_offsets`)
+    resolved with a ``box`` filter (the pixel's own samples) or a ``tent`` of radius 1 px (:func:`resolve_samples`)."""
     img = np.empty((height, width, 3), dtype=np.float32)
-    xs = np.arange(width, dtype=np.float64) + 0.5
-    for y0, y1 in _row_tiles(width, height):
-        ys = np.arange(y0, y1, dtype=np.float64) + 0.5
-        X, Y = np.meshgrid(xs, ys)
-        img[y0:y1] = tracer.render_points(camera, width, height, X, Y).reshape(y1 - y0, width, 3)
+    if spp == 1:
+        xs = np.arange(width, dtype=np.float64) + 0.5
+        for y0, y1 in _row_tiles(width, height):
+            ys = np.arange(y0, y1, dtype=np.float64) + 0.5
+            X, Y = np.meshgrid(xs, ys)
+            img[y0:y1] = tracer.render_points(camera, width, height, X, Y).reshape(y1 - y0, width, 3)
+        return img
+    # The tent reads one sample row above and below the tile: those rows are carried over from the previous
+    # tile, so every sample is traced once.
+    halo = 1 if pixel_filter == "tent" else 0
+    carry = (np.empty((0, width, spp, 3), np.float32), np.empty((0, width, spp)), np.empty((0, width, spp)))
+    for y0, y1 in _row_tiles(width * spp, height):
+        s0, n0, s1 = max(0, y0 - halo), min(height, y0 + halo), min(height, y1 + halo)
+        n0 = s0 if y0 == 0 else n0
+        py, px = np.mgrid[n0:s1, 0:width]
+        ox, oy = gt_sample_offsets(px, py, spp)
+        rad = tracer.render_points(camera, width, height, px[..., None] + ox, py[..., None] + oy)
+        rad, ox, oy = (np.concatenate([c, a]) for c, a in zip(carry, (rad.reshape(s1 - n0, width, spp, 3), ox, oy)))
+        img[y0:y1] = resolve_samples(rad, ox, oy, y0 - s0, y1 - s0, pixel_filter)
+        carry = tuple(a[len(a) - 2 * halo:] for a in (rad, ox, oy))
     return img
+
+
+#: Constants of the GT sample jitter (Wellons' lowbias32 integer hash); renderers/gpu/shaders/gt.glsl uses them.
+GT_HASH = {"HASH_M1": 0x7FEB352D, "HASH_M2": 0x846CA68B, "HASH_X": 0x9E3779B1, "HASH_Y": 0x85EBCA77}
+
+
+def _lowbias32(x: np.ndarray) -> np.ndarray:
+    x = x ^ (x >> np.uint32(16))
+    x = x * np.uint32(GT_HASH["HASH_M1"])
+    x = x ^ (x >> np.uint32(15))
+    x = x * np.uint32(GT_HASH["HASH_M2"])
+    return x ^ (x >> np.uint32(16))
+
+
+def gt_sample_offsets(px, py, spp: int):
+    """Sub-pixel positions ``(ox, oy)`` in [0, 1) of the ``spp`` samples of pixels ``(px, py)``, shape
+    ``px.shape + (spp,)``: a ``sqrt(spp)`` x ``sqrt(spp)`` grid of strata, each sample jittered inside its stratum
+    by an integer hash of (pixel, sample index), so both backends place the samples identically."""
+    side = math.isqrt(spp)
+    s = np.arange(spp, dtype=np.uint32)
+    px = np.asarray(px).astype(np.uint32)[..., None]
+    py = np.asarray(py).astype(np.uint32)[..., None]
+    h = _lowbias32((px * np.uint32(GT_HASH["HASH_X"])) ^ _lowbias32(py ^ _lowbias32(s)))
+    h2 = _lowbias32(h ^ np.uint32(GT_HASH["HASH_Y"]))
+    ox = ((s % side) + (h >> np.uint32(8)) / 16777216.0) / side
+    oy = ((s // side) + (h2 >> np.uint32(8)) / 16777216.0) / side
+    return ox, oy
+
+
+def resolve_samples(rad, ox, oy, r0: int, r1: int, pixel_filter: str) -> np.ndarray:
+    """Pixels of rows ``[r0, r1)`` from samples ``rad`` (rows, W, spp, 3) at offsets ``ox, oy`` (rows, W, spp):
+    ``box`` averages each pixel's samples; ``tent`` weights the samples of the 3 x 3 neighbouring pixels by
+    ``(1 - |dx|)(1 - |dy|)`` (distance to the pixel centre, radius 1 px) and normalises."""
+    if pixel_filter == "box":
+        return rad[r0:r1].mean(axis=2)
+    R, W = rad.shape[:2]
+    num = np.zeros((r1 - r0, W, 3))
+    den = np.zeros((r1 - r0, W))
+    for dy in (-1, 0, 1):
+        a, b = max(r0, -dy), min(r1, R - dy)
+        for dx in (-1, 0, 1):
+            c, d = max(0, -dx), min(W, W - dx)
+            w = (np.maximum(0.0, 1.0 - np.abs(dx + ox[a + dy:b + dy, c + dx:d + dx] - 0.5))
+                 * np.maximum(0.0, 1.0 - np.abs(dy + oy[a + dy:b + dy, c + dx:d + dx] - 0.5)))
+            num[a - r0:b - r0, c:d] += np.einsum("rws,rwsk->rwk", w, rad[a + dy:b + dy, c + dx:d + dx])
+            den[a - r0:b - r0, c:d] += w.sum(axis=2)
+    return (num / den[..., None]).astype(np.float32)
 
 
 class LPLayout:
     """Column periods ``L``, row counts ``n`` and the shaded mask of a mapping's LP buffer (see :mod:`._lp`)."""
 
-    def __init__(self, mapping):
+    def __init__(self, mapping, table: bool = True):
         self.mapping = mapping
         w, h = mapping.lp_shape
         self.method = mapping.method
@@ -77,6 +141,11 @@ class LPLayout:
         self.mask = np.arange(h)[:, None] < self.n[None, :]
         self.P = np.ascontiguousarray(mapping._params_vector(), dtype=np.float64)
         self.kernel = MAPPING_KERNEL[self.method]
+        if table:
+            self._build_table()
+
+    def _build_table(self):
+        mapping = self.mapping
         # u(r) table for the fast inverse mapping, out to the farthest corner (+2 px): the coarsest of 4, 16, 64
         # samples per pixel whose linear interpolation is within 0.01 LP pixel of the exact mapping at every
         # interval mid-point. Intervals that miss it at the finest step (LaFR's kink at its foveal boundary and
@@ -95,18 +164,26 @@ class LPLayout:
         self.inv_step, self.utab = step, np.ascontiguousarray(utab)
         self.exact = np.ascontiguousarray(np.append(bad, True), dtype=np.uint8)
         self.table_ok = not bad.any()
+
+    def border_footprint(self, gaze=None) -> np.ndarray:
+        """(h, w) bool: the LP pixels the bilinear fetches of the display's border pixels read (gaze: default
+        the mapping's)."""
+        disp = self.mapping.display
+        gx, gy = disp.gaze if gaze is None else gaze
+        need = np.zeros((self.h, self.w), dtype=np.bool_)
+        W, H = disp.width, disp.height
+        bx = np.concatenate([np.arange(W) + 0.5] * 2 + [np.full(H, 0.5), np.full(H, W - 0.5)])
+        by = np.concatenate([np.full(W, 0.5), np.full(W, H - 0.5)] + [np.arange(H) + 0.5] * 2)
+        _lp.mark_footprint(self.kernel, self.P, gx, gy, self.L, self.n, self.w_eff, bx, by, need)
+        return need
+
     def shaded_pixels(self):
         """``(jj, ii, x, y, needed)``: LP pixel indices, their screen positions and which must be shaded."""
         m = self.mapping
         disp = m.display
         jj, ii = np.nonzero(self.mask)
         x, y = m.inverse(ii + 0.5, jj + 0.5)
-        need = np.zeros((self.h, self.w), dtype=np.bool_)
-        W, H = disp.width, disp.height
-        bx = np.concatenate([np.arange(W) + 0.5] * 2 + [np.full(H, 0.5), np.full(H, W - 0.5)])
-        by = np.concatenate([np.full(W, 0.5), np.full(W, H - 0.5)] + [np.arange(H) + 0.5] * 2)
-        _lp.mark_footprint(self.kernel, self.P, disp.gaze_x, disp.gaze_y, self.L, self.n, self.w_eff,
-                           bx, by, need)
+        need = self.border_footprint()
         need[jj, ii] |= disp.contains(x, y)
         sel = need[jj, ii]
         return jj, ii, x, y, sel
@@ -232,6 +309,9 @@ GRID_WARP = True
 GRID_WARP_MAX_DEPTH_RATIO = 1.05
 #: Warped triangles larger than this many LP pixels in either direction are stretched: not rasterised.
 GRID_WARP_MAX_EXTENT = 6.0
+#: A warped triangle replaces a splatted sample only where it is nearer by this relative margin: on a surface
+#: facing the eye the two depths agree to rounding, and the sample (a real shading point) is kept.
+GRID_WARP_SPLAT_MARGIN = 1e-4
 
 
 def reproject(tracer: Tracer, layout: LPLayout, lp_left, jj, ii, xs, ys, prim, tfar, left: Camera,
@@ -275,6 +355,7 @@ def reproject(tracer: Tracer, layout: LPLayout, lp_left, jj, ii, xs, ys, prim, t
         # between the splatted samples (continuous surfaces); depth discontinuities stay holes.
         zbuf = np.full(layout.h * layout.w, np.inf)
         np.minimum.at(zbuf, lin, depth)
+        zbuf *= 1.0 - GRID_WARP_SPLAT_MARGIN  # the depth a triangle must beat
         disp = layout.mapping.display
         u_all = np.zeros(len(jj))
         phi_all = np.zeros(len(jj))

@@ -71,6 +71,40 @@ def camera_rays(camera: Camera, width: int, height: int, x, y) -> np.ndarray:
     return d
 
 
+def pack_scene(sc: Scene, shadows: bool) -> dict:
+    """Material and light tables of ``sc`` as the shading kernels read them (also uploaded by the GPU backend).
+
+    ``mat_f`` (m, 14) float64 and ``mat_i`` (m, 2) int64 (see :func:`._shade.shade_contributions`); lights in the
+    order point lights, emissive triangles, directional lights: ``L_pos``, ``L_int``, ``L_dir`` (k, 3),
+    ``L_kind`` (k,), ``L_cast`` (k,) bool (``shadows`` and the light's own flag); ``ambient``, ``background``.
+    """
+    mats = sc.materials
+    mat_f = np.array([[*m.albedo, *m.albedo2, *m.emission, m.texture_scale, 2.0 / m.roughness ** 2 - 2.0,
+                       m.specular, float(m.kind == "metallic"), float(m.kind == "glossy")] for m in mats],
+                     dtype=np.float64)
+    mat_i = np.array([[S.TEX_NONE + ("none", "checker", "brick", "noise").index(m.texture),
+                       ("diffuse", "glossy", "metallic").index(m.kind)] for m in mats], dtype=np.int64)
+    pos, inten, dirs, kind, cast = [], [], [], [], []
+    for L in sc.point_lights:
+        pos.append(L.position), inten.append(L.intensity), dirs.append((0, 0, 0))
+        kind.append(S.LIGHT_POINT), cast.append(L.shadows)
+    ep, en, ei = sc.emitters()
+    for p, n, i in zip(ep, en, ei):
+        pos.append(p), inten.append(i), dirs.append(n), kind.append(S.LIGHT_EMITTER), cast.append(True)
+    for L in sc.directional_lights:
+        d = np.asarray(L.direction) / np.linalg.norm(L.direction)
+        pos.append((0, 0, 0)), inten.append(L.irradiance), dirs.append(d)
+        kind.append(S.LIGHT_DIRECTIONAL), cast.append(L.shadows)
+    return {"mat_f": mat_f, "mat_i": mat_i,
+            "L_pos": np.array(pos, dtype=np.float64).reshape(-1, 3),
+            "L_int": np.array(inten, dtype=np.float64).reshape(-1, 3),
+            "L_dir": np.array(dirs, dtype=np.float64).reshape(-1, 3),
+            "L_kind": np.array(kind, dtype=np.int64),
+            "L_cast": np.array(cast, dtype=np.bool_) & bool(shadows),
+            "ambient": np.asarray(sc.ambient, dtype=np.float64),
+            "background": np.asarray(sc.background, dtype=np.float32)}
+
+
 class Tracer:
     """Traces and shades points of one scene; accumulates :class:`Counters`.
 
@@ -93,31 +127,7 @@ class Tracer:
         self._pack(shadows and scene.shadows)
 
     def _pack(self, shadows: bool):
-        sc = self.scene
-        mats = sc.materials
-        self.mat_f = np.array([[*m.albedo, *m.albedo2, *m.emission, m.texture_scale,
-                                2.0 / m.roughness ** 2 - 2.0, m.specular, float(m.kind == "metallic"),
-                                float(m.kind == "glossy")] for m in mats], dtype=np.float64)
-        self.mat_i = np.array([[S.TEX_NONE + ("none", "checker", "brick", "noise").index(m.texture),
-                                ("diffuse", "glossy", "metallic").index(m.kind)] for m in mats], dtype=np.int64)
-        pos, inten, dirs, kind, cast = [], [], [], [], []
-        for L in sc.point_lights:
-            pos.append(L.position), inten.append(L.intensity), dirs.append((0, 0, 0))
-            kind.append(S.LIGHT_POINT), cast.append(L.shadows)
-        ep, en, ei = sc.emitters()
-        for p, n, i in zip(ep, en, ei):
-            pos.append(p), inten.append(i), dirs.append(n), kind.append(S.LIGHT_EMITTER), cast.append(True)
-        for L in sc.directional_lights:
-            d = np.asarray(L.direction) / np.linalg.norm(L.direction)
-            pos.append((0, 0, 0)), inten.append(L.irradiance), dirs.append(d)
-            kind.append(S.LIGHT_DIRECTIONAL), cast.append(L.shadows)
-        self.L_pos = np.array(pos, dtype=np.float64).reshape(-1, 3)
-        self.L_int = np.array(inten, dtype=np.float64).reshape(-1, 3)
-        self.L_dir = np.array(dirs, dtype=np.float64).reshape(-1, 3)
-        self.L_kind = np.array(kind, dtype=np.int64)
-        self.L_cast = np.array(cast, dtype=np.bool_) & bool(shadows)
-        self.ambient = np.asarray(sc.ambient, dtype=np.float64)
-        self.background = np.asarray(sc.background, dtype=np.float32)
+        vars(self).update(pack_scene(self.scene, shadows))
 
     # -- visibility --------------------------------------------------------------------------------------------
     def intersect(self, origin: np.ndarray, dirs: np.ndarray):

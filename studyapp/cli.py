@@ -81,7 +81,8 @@ def cmd_foveation_plots(args) -> int:
 # --- demo -----------------------------------------------------------------------------------------------------
 #: Demo steps after the foveation table and plots: (command module, output sub-folder, what it shows).
 DEMO_STEPS = (
-    ("studyapp.commands.render", "render", "stimuli: the Cornell box with GT and the foveated renderers"),
+    ("studyapp.commands.render", "render",
+     "stimuli: the Cornell box with GT and the foveated renderers, on the CPU and the GPU backend"),
     ("studyapp.commands.lightcuts", "lightcuts", "a lightcuts stimulus: cornell_many (111,858 lights), fsl"),
     ("studyapp.commands.study", "", "simulated participants run two shipped protocols into fresh databases"),
     ("studyapp.commands.analyze", "analysis", "analysis of the simulated studies and of synthetic seed logs"),

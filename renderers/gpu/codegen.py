@@ -1,0 +1,433 @@
+"""GLSL generated from the CPU code, so that the GPU evaluates the same formulas without a second copy.
+
+:func:`foveation_glsl` translates the scalar kernels of :mod:`renderers.foveation._kernels` (the forward and
+inverse mappings of VaFR, LMFR and LaFR; seed 001 Eq 1, 3-12, 14-15) from their Python source into GLSL
+functions prefixed ``fov_``. The parameter vector ``P`` becomes the storage buffer ``FP[]`` (the CPU's
+``FoveationMapping._params_vector()``, uploaded as float32), tuples of two floats become ``vec2``. Types are
+inferred: a name is ``int`` when every value given to it is an integer expression (``int(...)``, an integer
+literal, a ``range`` loop variable, a call returning ``int``), otherwise ``float``.
+
+The translator knows the small Python subset these kernels use (assignments, tuple unpacking of calls,
+``if``/``elif``/``else``, ``for ... in range``, ``return``, arithmetic, comparisons, ``math`` functions) and
+raises ``NotImplementedError`` naming the construct otherwise, so a kernel change that it cannot follow fails
+loudly in the tests rather than drifting apart.
+
+:func:`constants_glsl` emits the integer codes shared with :mod:`renderers._shade` (texture, material and
+light kinds).
+"""
+
+from __future__ import annotations
+
+import ast
+import functools
+import inspect
+import math
+
+#: The kernels translated (and their callees, found automatically).
+FOVEATION_ROOTS = ("point",)
+_MATH = {"atan": "fov_atan", "tan": "tan", "cos": "cos", "sin": "sin", "acos": "fov_acos", "sqrt": "sqrt",
+         "exp": "exp", "log": "log", "floor": "floor", "log1p": "fov_log1p", "expm1": "fov_expm1"}
+#: Float-accurate helpers: GPU math libraries may be coarse (Mesa's llvmpipe: acos 1.6e-4 absolute error, log
+#: 3.5e-7 absolute near 1); these keep the mappings within ~1e-6 relative of the CPU's float64.
+_HELPERS = """
+// log1p / expm1: series near 0 (relative error < 1e-10 for |x| < 0.05), else through log / exp.
+float fov_log1p(float x) {
+    if (abs(x) < 0.05) return x * (1.0 - x * (0.5 - x * (1.0 / 3.0 - x * (0.25 - x * (0.2 - x * (1.0 / 6.0
+        - x * (1.0 / 7.0)))))));
+    return log(1.0 + x);
+}
+float fov_expm1(float x) {
+    if (abs(x) < 0.05) return x * (1.0 + x * (0.5 + x * (1.0 / 6.0 + x * (1.0 / 24.0 + x * (1.0 / 120.0
+        + x * (1.0 / 720.0))))));
+    return exp(x) - 1.0;
+}
+// atan and acos: Cephes atanf / asinf polynomials (relative error ~2e-7 in float32).
+float fov_atan(float x) {
+    float a = abs(x), y = 0.0;
+    if (a > 2.414213562373095) { y = 1.5707963267948966; a = -1.0 / a; }
+    else if (a > 0.41421356237309503) { y = 0.7853981633974483; a = (a - 1.0) / (a + 1.0); }
+    float z = a * a;
+    y += (((8.05374449538e-2 * z - 1.38776856032e-1) * z + 1.99777106478e-1) * z - 3.33329491539e-1) * z * a + a;
+    return x < 0.0 ? -y : y;
+}
+float fov_asin_small(float x) {   // |x| <= 0.5
+    float z = x * x;
+    return ((((4.2163199048e-2 * z + 2.4181311049e-2) * z + 4.5470025998e-2) * z + 7.4953002686e-2) * z
+            + 1.6666752422e-1) * z * x + x;
+}
+float fov_acos(float x) {
+    if (x < -0.5) return 3.141592653589793 - 2.0 * fov_asin_small(sqrt(0.5 * (1.0 + x)));
+    if (x > 0.5) return 2.0 * fov_asin_small(sqrt(0.5 * (1.0 - x)));
+    return 1.5707963267948966 - fov_asin_small(x);
+}
+float fov_atan2(float y, float x) {
+    if (x > 0.0) return fov_atan(y / x);
+    if (x < 0.0) return y >= 0.0 ? fov_atan(y / x) + 3.141592653589793 : fov_atan(y / x) - 3.141592653589793;
+    return y > 0.0 ? 1.5707963267948966 : (y < 0.0 ? -1.5707963267948966 : 0.0);
+}
+"""
+
+
+class _Fn:
+    def __init__(self, node: ast.FunctionDef):
+        self.node = node
+        self.name = node.name
+        self.params = [a.arg for a in node.args.args]
+        self.ret = "float"
+        self.param_types = {p: "float" for p in self.params}
+        self.var_types: dict[str, str] = {}
+        self.calls: set[str] = set()
+
+
+class Translator:
+    """Translate functions of one module (see the module docstring for the supported subset)."""
+
+    def __init__(self, module, prefix: str, array_param: str = "P", array_name: str = "FP", source: str | None = None):
+        self.module = module
+        self.prefix = prefix
+        self.array_param = array_param
+        self.array_name = array_name
+        tree = ast.parse(source if source is not None else inspect.getsource(module))
+        self.fns = {n.name: _Fn(n) for n in tree.body if isinstance(n, ast.FunctionDef)}
+        self.consts = {k: v for k, v in vars(module).items()
+                       if k.isupper() and isinstance(v, (int, float)) and not isinstance(v, bool)}
+
+    # -- analysis ----------------------------------------------------------------------------------------------
+    def closure(self, roots) -> list[str]:
+        order, seen = [], set()
+
+        def visit(name):
+            if name in seen:
+                return
+            seen.add(name)
+            fn = self.fns[name]
+            for call in ast.walk(fn.node):
+                if isinstance(call, ast.Call) and isinstance(call.func, ast.Name) and call.func.id in self.fns:
+                    fn.calls.add(call.func.id)
+                    visit(call.func.id)
+            order.append(name)   # callees first: GLSL needs declarations before use
+
+        for r in roots:
+            visit(r)
+        return order
+
+    def infer(self, names, root_params: dict | None = None) -> None:
+        """Fixed point of variable, parameter and return types. A parameter is ``int`` when every call site
+        passes an integer expression (``root_params`` gives the types of the roots' parameters)."""
+        for name, types in (root_params or {}).items():
+            self.fns[name].param_types.update(types)
+        roots = set(root_params or {})
+        for _ in range(20):
+            changed = False
+            site_types: dict[str, dict[str, set[str]]] = {}
+            for name in names:
+                fn = self.fns[name]
+                assigned: dict[str, set[str]] = {}
+                for node in ast.walk(fn.node):
+                    if isinstance(node, ast.For):
+                        assigned.setdefault(node.target.id, set()).add("int")
+                    elif isinstance(node, ast.Assign):
+                        self._collect_assign(fn, node.targets[0], node.value, assigned)
+                    elif isinstance(node, ast.AugAssign):
+                        assigned.setdefault(node.target.id, set()).add(self.etype(fn, node.value))
+                    elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in self.fns:
+                        callee = self.fns[node.func.id]
+                        params = [q for q in callee.params if q != self.array_param]
+                        args = [a for a in node.args if not self._is_array(a)]
+                        for p, a in zip(params, args):
+                            site_types.setdefault(callee.name, {}).setdefault(p, set()).add(self.etype(fn, a))
+                for var, types in assigned.items():
+                    if var in fn.params:
+                        continue
+                    t = "int" if types == {"int"} else ("vec2" if types == {"vec2"} else "float")
+                    if fn.var_types.get(var) != t:
+                        fn.var_types[var] = t
+                        changed = True
+                rets = {self._ret_type(fn, r.value) for r in ast.walk(fn.node) if isinstance(r, ast.Return)}
+                ret = "vec2" if "vec2" in rets else ("int" if rets == {"int"} else "float")
+                if fn.ret != ret:
+                    fn.ret = ret
+                    changed = True
+            for name in names:
+                if name in roots:
+                    continue
+                fn = self.fns[name]
+                for p in fn.param_types:
+                    if p == self.array_param:
+                        continue
+                    t = "int" if site_types.get(name, {}).get(p) == {"int"} else "float"
+                    if fn.param_types[p] != t:
+                        fn.param_types[p] = t
+                        changed = True
+            if not changed:
+                return
+        raise NotImplementedError("type inference did not converge")
+
+    def _collect_assign(self, fn, target, value, assigned):
+        if isinstance(target, ast.Tuple):
+            if isinstance(value, ast.Tuple):
+                for t, v in zip(target.elts, value.elts):
+                    self._collect_assign(fn, t, v, assigned)
+            else:
+                for t in target.elts:
+                    if isinstance(t, ast.Name):
+                        assigned.setdefault(t.id, set()).add("float")
+        elif isinstance(target, ast.Name):
+            assigned.setdefault(target.id, set()).add(self.etype(fn, value))
+        else:
+            raise NotImplementedError(f"{fn.name}: assignment to {ast.dump(target)}")
+
+    def _ret_type(self, fn, value):
+        if isinstance(value, ast.Tuple):
+            return "vec2"
+        return self.etype(fn, value)
+
+    def _is_array(self, node) -> bool:
+        return isinstance(node, ast.Name) and node.id == self.array_param
+
+    def vtype(self, fn, name: str) -> str:
+        if name in fn.param_types:
+            return fn.param_types[name]
+        if name in fn.var_types:
+            return fn.var_types[name]
+        v = self.consts.get(name)
+        if v is not None:
+            return "int" if isinstance(v, int) else "float"
+        return "float"
+
+    def etype(self, fn, e) -> str:
+        if isinstance(e, ast.Constant):
+            return "int" if isinstance(e.value, int) and not isinstance(e.value, bool) else "float"
+        if isinstance(e, ast.Name):
+            return self.vtype(fn, e.id)
+        if isinstance(e, ast.BinOp):
+            if isinstance(e.op, (ast.Div, ast.Pow)):
+                return "float"
+            a, b = self.etype(fn, e.left), self.etype(fn, e.right)
+            return "int" if a == b == "int" else "float"
+        if isinstance(e, ast.UnaryOp):
+            return self.etype(fn, e.operand)
+        if isinstance(e, ast.IfExp):
+            a, b = self.etype(fn, e.body), self.etype(fn, e.orelse)
+            return "int" if a == b == "int" else "float"
+        if isinstance(e, ast.Call):
+            f = e.func
+            if isinstance(f, ast.Name):
+                if f.id == "int":
+                    return "int"
+                if f.id in ("min", "max", "abs"):
+                    ts = {self.etype(fn, a) for a in e.args}
+                    return "int" if ts == {"int"} else "float"
+                if f.id in self.fns:
+                    return self.fns[f.id].ret
+            return "float"
+        return "float"
+
+    # -- emission ----------------------------------------------------------------------------------------------
+    def emit(self, names) -> str:
+        out = [_HELPERS]
+        for k, v in sorted(self.consts.items()):
+            if isinstance(v, int):
+                out.append(f"const int {self.prefix.upper()}{k} = {v};")
+            else:
+                out.append(f"const float {self.prefix.upper()}{k} = {_flt(v)};")
+        out.append("")
+        for name in names:
+            out.append(self.emit_fn(self.fns[name]))
+        return "\n".join(out) + "\n"
+
+    def emit_fn(self, fn: _Fn) -> str:
+        params = ", ".join(f"{fn.param_types[p]} {p}" for p in fn.params if p != self.array_param)
+        lines = [f"{fn.ret} {self.prefix}{fn.name}({params}) {{"]
+        loop_vars = {n.target.id for n in ast.walk(fn.node) if isinstance(n, ast.For)}
+        for var, t in sorted(fn.var_types.items()):
+            if var not in loop_vars and var != "_":
+                lines.append(f"    {t} {var};")
+        self._tmp = 0
+        body = fn.node.body
+        if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
+            body = body[1:]
+        for st in body:
+            lines += self.stmt(fn, st, 1)
+        lines.append("}")
+        return "\n".join(lines) + "\n"
+
+    def stmt(self, fn, st, depth) -> list[str]:
+        pad = "    " * depth
+        if isinstance(st, ast.Assign):
+            target, value = st.targets[0], st.value
+            if isinstance(target, ast.Tuple):
+                if isinstance(value, ast.Tuple):
+                    tmps, lines = [], []
+                    for v in value.elts:  # evaluate all right-hand sides first (Python semantics)
+                        self._tmp += 1
+                        tmp = f"_v{self._tmp}"
+                        tmps.append(tmp)
+                        lines.append(f"{pad}{self.etype(fn, v)} {tmp} = {self.expr(fn, v)};")
+                    for t, tmp in zip(target.elts, tmps):
+                        lines.append(f"{pad}{t.id} = {tmp};")
+                    return lines
+                self._tmp += 1
+                tmp = f"_t{self._tmp}"
+                lines = [f"{pad}vec2 {tmp} = {self.expr(fn, value)};"]
+                for comp, t in zip("xy", target.elts):
+                    if t.id != "_":
+                        lines.append(f"{pad}{t.id} = {tmp}.{comp};")
+                return lines
+            return [f"{pad}{target.id} = {self.cast(fn, value, self.vtype(fn, target.id))};"]
+        if isinstance(st, ast.AugAssign):
+            op = _BINOPS[type(st.op)]
+            return [f"{pad}{st.target.id} {op}= {self.expr(fn, st.value)};"]
+        if isinstance(st, ast.Return):
+            if isinstance(st.value, ast.Tuple):
+                a, b = (self.expr(fn, v) for v in st.value.elts)
+                return [f"{pad}return vec2({a}, {b});"]
+            return [f"{pad}return {self.cast(fn, st.value, fn.ret)};"]
+        if isinstance(st, ast.If):
+            lines = [f"{pad}if ({self.expr(fn, st.test)}) {{"]
+            for s in st.body:
+                lines += self.stmt(fn, s, depth + 1)
+            if st.orelse:
+                lines.append(f"{pad}}} else {{")
+                for s in st.orelse:
+                    lines += self.stmt(fn, s, depth + 1)
+            lines.append(f"{pad}}}")
+            return lines
+        if isinstance(st, ast.For):
+            it = st.iter
+            if not (isinstance(it, ast.Call) and isinstance(it.func, ast.Name) and it.func.id == "range"):
+                raise NotImplementedError(f"{fn.name}: for loop over {ast.dump(it)}")
+            args = [self.expr(fn, a) for a in it.args]
+            lo, hi = (args[0], args[1]) if len(args) == 2 else ("0", args[0])
+            v = st.target.id
+            lines = [f"{pad}for (int {v} = {lo}; {v} < {hi}; {v}++) {{"]
+            for s in st.body:
+                lines += self.stmt(fn, s, depth + 1)
+            lines.append(f"{pad}}}")
+            return lines
+        if isinstance(st, ast.Expr) and isinstance(st.value, ast.Constant):
+            return []
+        raise NotImplementedError(f"{fn.name}: statement {type(st).__name__}")
+
+    def cast(self, fn, e, want: str) -> str:
+        text = self.expr(fn, e)
+        have = self.etype(fn, e)
+        if want == "float" and have == "int":
+            return f"float({text})"
+        return text
+
+    def expr(self, fn, e) -> str:
+        if isinstance(e, ast.Constant):
+            if isinstance(e.value, bool):
+                return "true" if e.value else "false"
+            if isinstance(e.value, int):
+                return str(e.value)
+            return _flt(float(e.value))
+        if isinstance(e, ast.Name):
+            if e.id in self.consts:
+                return f"{self.prefix.upper()}{e.id}"
+            return e.id
+        if isinstance(e, ast.Attribute):
+            if isinstance(e.value, ast.Name) and e.value.id == "math" and e.attr == "pi":
+                return _flt(math.pi)
+            raise NotImplementedError(f"{fn.name}: attribute {ast.dump(e)}")
+        if isinstance(e, ast.Subscript):
+            if not self._is_array(e.value):
+                raise NotImplementedError(f"{fn.name}: subscript of {ast.dump(e.value)}")
+            return f"{self.array_name}[{self.expr(fn, e.slice)}]"
+        if isinstance(e, ast.BinOp):
+            a, b = self.expr(fn, e.left), self.expr(fn, e.right)
+            if isinstance(e.op, ast.Pow):
+                return f"pow({self.cast(fn, e.left, 'float')}, {self.cast(fn, e.right, 'float')})"
+            if isinstance(e.op, ast.Div):
+                return f"({self.cast(fn, e.left, 'float')} / {self.cast(fn, e.right, 'float')})"
+            if type(e.op) not in _BINOPS:
+                raise NotImplementedError(f"{fn.name}: operator {type(e.op).__name__}")
+            ta, tb = self.etype(fn, e.left), self.etype(fn, e.right)
+            if ta != tb:  # GLSL converts implicitly, but say it (and keep int/float mixing visible)
+                a = f"float({a})" if ta == "int" else a
+                b = f"float({b})" if tb == "int" else b
+            return f"({a} {_BINOPS[type(e.op)]} {b})"
+        if isinstance(e, ast.UnaryOp):
+            if isinstance(e.op, ast.USub):
+                return f"(-{self.expr(fn, e.operand)})"
+            if isinstance(e.op, ast.Not):
+                return f"(!{self.expr(fn, e.operand)})"
+            raise NotImplementedError(f"{fn.name}: unary {type(e.op).__name__}")
+        if isinstance(e, ast.BoolOp):
+            op = " && " if isinstance(e.op, ast.And) else " || "
+            return "(" + op.join(self.expr(fn, v) for v in e.values) + ")"
+        if isinstance(e, ast.Compare):
+            if len(e.ops) != 1:
+                raise NotImplementedError(f"{fn.name}: chained comparison")
+            a, b = self.expr(fn, e.left), self.expr(fn, e.comparators[0])
+            return f"({a} {_CMPOPS[type(e.ops[0])]} {b})"
+        if isinstance(e, ast.IfExp):
+            want = self.etype(fn, e)
+            return (f"({self.expr(fn, e.test)} ? {self.cast(fn, e.body, want)} : "
+                    f"{self.cast(fn, e.orelse, want)})")
+        if isinstance(e, ast.Call):
+            return self.call(fn, e)
+        raise NotImplementedError(f"{fn.name}: expression {type(e).__name__}")
+
+    def call(self, fn, e) -> str:
+        f = e.func
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "math":
+            args = [self.cast(fn, a, "float") for a in e.args]
+            if f.attr == "hypot":
+                return f"length(vec2({args[0]}, {args[1]}))"
+            if f.attr == "atan2":
+                return f"fov_atan2({args[0]}, {args[1]})"
+            if f.attr in _MATH:
+                return f"{_MATH[f.attr]}({', '.join(args)})"
+            raise NotImplementedError(f"{fn.name}: math.{f.attr}")
+        if isinstance(f, ast.Name):
+            if f.id == "int":
+                return f"int({self.expr(fn, e.args[0])})"
+            if f.id in ("min", "max"):
+                want = self.etype(fn, e)
+                a, b = (self.cast(fn, x, want) for x in e.args)
+                return f"{f.id}({a}, {b})"
+            if f.id == "abs":
+                return f"abs({self.expr(fn, e.args[0])})"
+            if f.id in self.fns:
+                callee = self.fns[f.id]
+                params = [p for p in callee.params if p != self.array_param]
+                args = [a for a in e.args if not self._is_array(a)]
+                text = ", ".join(self.cast(fn, a, callee.param_types[p]) for p, a in zip(params, args))
+                return f"{self.prefix}{f.id}({text})"
+        raise NotImplementedError(f"{fn.name}: call of {ast.dump(f)}")
+
+
+_BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Mod: "%", ast.BitAnd: "&", ast.BitOr: "|",
+           ast.BitXor: "^"}
+_CMPOPS = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!="}
+
+
+def _flt(v: float) -> str:
+    if math.isinf(v):
+        return "(1.0 / 0.0)" if v > 0 else "(-1.0 / 0.0)"
+    text = repr(float(v))
+    return text if ("e" in text or "." in text) else text + ".0"
+
+
+@functools.lru_cache(maxsize=None)
+def foveation_glsl() -> str:
+    """GLSL of the foveation kernels: ``fov_point(method, direction, a, b)`` and everything it calls."""
+    from ..foveation import _kernels
+
+    tr = Translator(_kernels, "fov_")
+    names = tr.closure(FOVEATION_ROOTS)
+    tr.infer(names, {"point": {"method": "int", "direction": "int"}})
+    return "// Generated from renderers/foveation/_kernels.py by renderers/gpu/codegen.py: do not edit.\n" \
+        + tr.emit(names)
+
+
+@functools.lru_cache(maxsize=None)
+def constants_glsl() -> str:
+    """The integer codes of :mod:`renderers._shade` as GLSL constants."""
+    from .. import _shade
+
+    names = ("TEX_NONE", "TEX_CHECKER", "TEX_BRICK", "TEX_NOISE", "KIND_DIFFUSE", "KIND_GLOSSY", "KIND_METALLIC",
+             "LIGHT_POINT", "LIGHT_EMITTER", "LIGHT_DIRECTIONAL")
+    return "".join(f"const int {n} = {getattr(_shade, n)};\n" for n in names)

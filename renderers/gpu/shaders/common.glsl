@@ -1,0 +1,29 @@
+// Shared by every compute shader: the 1-D invocation index and the per-workgroup counter reduction.
+// COUNTERS (the number of counters) and the C_* indices are defined by the host (renderers/gpu/frame.py).
+uniform int u_groups_x;
+uniform int u_n;
+
+uint gid() {
+    return gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * uint(u_groups_x) * gl_WorkGroupSize.x;
+}
+
+#ifdef COUNTERS
+layout(std430, binding = 5) buffer Counters { uint counters[]; };
+// Counts add up in shared memory and reach the global buffer once per workgroup: millions of atomics on one
+// address would serialise on a GPU. Call cnt_begin() and cnt_end() in uniform control flow (no early return).
+shared uint s_cnt[COUNTERS];
+void cnt_begin() {
+    if (gl_LocalInvocationIndex < uint(COUNTERS)) s_cnt[gl_LocalInvocationIndex] = 0u;
+    barrier();
+}
+void cnt_add(int k, uint v) {
+    if (v != 0u) atomicAdd(s_cnt[k], v);
+}
+void cnt_end() {
+    barrier();
+    if (gl_LocalInvocationIndex < uint(COUNTERS)) {
+        uint v = s_cnt[gl_LocalInvocationIndex];
+        if (v != 0u) atomicAdd(counters[gl_LocalInvocationIndex], v);
+    }
+}
+#endif

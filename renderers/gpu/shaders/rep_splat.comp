@@ -1,0 +1,21 @@
+#version 430
+// The splats' colours: each left sample whose depth is the minimum at its target LP pixel writes its colour
+// there, unless a warped triangle was nearer by the margin.
+layout(local_size_x = 64) in;
+#include "common.glsl"
+#include "rep.glsl"
+layout(binding = 5, rgba32f) uniform restrict readonly image2D left_lp;
+layout(binding = 4, rgba32f) uniform restrict writeonly image2D right_lp;
+uniform int u_lp_w;
+uniform int u_lp_h;
+
+void main() {
+    uint idx = gid();
+    if (idx < uint(u_lp_w * u_lp_h) && (flags[idx] & 1u) != 0u) {
+        vec4 wv = warp[idx];
+        int lin = floatBitsToInt(wv.w);
+        if (lin >= 0 && floatBitsToUint(wv.z) == zbuf[lin] && ztri[lin] == floatBitsToUint(REP_INF))
+            imageStore(right_lp, ivec2(lin % u_lp_w, lin / u_lp_w),
+                       imageLoad(left_lp, ivec2(int(idx) % u_lp_w, int(idx) / u_lp_w)));
+    }
+}

@@ -1,0 +1,143 @@
+"""A scene uploaded to the GPU once: BVH, triangles, materials, lights; per frame only camera and gaze change.
+
+:func:`device_scene` is the factory the renderer registry calls instead of building a CPU
+:class:`~renderers.tracer.Tracer`. Uploads are cached on the device (``Device.cache``) by ``Scene.content_hash()`` (geometry and
+materials) and ``shadows`` (which lights cast shadow rays); each call returns a fresh :class:`DeviceScene` view
+with its own :class:`~renderers.tracer.Counters`, so every render reports its own work.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import weakref
+
+import numpy as np
+
+from ..tracer import Counters, pack_scene
+from . import bvh as B
+from .context import TEX_WIDTH, WAY_OUT, Device, get_device
+
+#: The GPU shading keeps the per-light contributions of a point in registers: scenes with more lights (the
+#: lightcuts scenes' virtual point lights) stay on the CPU.
+MAX_LIGHTS = 256
+
+_BVH_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def scene_bvh(scene) -> B.BVH:
+    """The scene's BVH (built once per Scene object)."""
+    b = _BVH_CACHE.get(scene)
+    if b is None:
+        b = B.build(scene.vertices, scene.faces)
+        _BVH_CACHE[scene] = b
+    return b
+
+
+def _material_table(mat_f: np.ndarray, mat_i: np.ndarray) -> np.ndarray:
+    """4 vec4 per material: (albedo, tex scale), (albedo2, exponent), (emission, specular),
+    (metallic, glossy, texture kind, 0) -- the columns of ``mat_f``/``mat_i`` (renderers.tracer.pack_scene)."""
+    m = np.zeros((len(mat_f), 16), dtype=np.float32)
+    m[:, 0:3], m[:, 3] = mat_f[:, 0:3], mat_f[:, 9]
+    m[:, 4:7], m[:, 7] = mat_f[:, 3:6], mat_f[:, 10]
+    m[:, 8:11], m[:, 11] = mat_f[:, 6:9], mat_f[:, 11]
+    m[:, 12], m[:, 13], m[:, 14] = mat_f[:, 12], mat_f[:, 13], mat_i[:, 0]
+    return m
+
+
+def _light_table(p: dict) -> np.ndarray:
+    """3 vec4 per light: (position, kind), (intensity, casts shadows), (direction, 0)."""
+    k = len(p["L_kind"])
+    t = np.zeros((max(k, 1), 12), dtype=np.float32)
+    t[:k, 0:3], t[:k, 3] = p["L_pos"], p["L_kind"]
+    t[:k, 4:7], t[:k, 7] = p["L_int"], p["L_cast"]
+    t[:k, 8:11] = p["L_dir"]
+    return t
+
+
+class _Upload:
+    """GPU buffers of one scene (geometry + materials) and one light table."""
+
+    def __init__(self, device: Device, scene, shadows: bool):
+        t0 = time.perf_counter()
+        k = scene.light_count()
+        if k > MAX_LIGHTS:
+            from data_schema.errors import UserError
+
+            raise UserError(f"scene {scene.name!r} has {k:,} lights; the GPU renderers shade up to {MAX_LIGHTS} "
+                            f"per point (the lightcuts renderers are CPU-only): {WAY_OUT}")
+        packed = pack_scene(scene, shadows)
+        tree = scene_bvh(scene)
+        tris = tree.tris.copy()
+        tris.view(np.int32)[:, 7] = scene.material_ids[tree.tris.view(np.int32)[:, 3]]
+        mats = _material_table(packed["mat_f"], packed["mat_i"])
+        lights = _light_table(packed)
+        tables = {"BVH": tree.nodes, "triangles": tris, "materials": mats, "lights": lights}
+        device.check_fits(f"scene {scene.name!r}", {k: v.nbytes for k, v in tables.items()})
+        self.device = device
+        self.textures = [device.table_texture(f"scene {scene.name!r} {k}", v) for k, v in tables.items()]
+        self.light_count = k
+        self.ambient = tuple(float(x) for x in packed["ambient"])
+        self.background = tuple(float(x) for x in packed["background"])
+        self.bvh_depth = tree.depth
+        self.n_nodes = len(tree.nodes)
+        self.seconds = time.perf_counter() - t0
+
+    def release(self):
+        for t in self.textures:
+            self.device.release(t)
+        self.textures = []
+
+
+class DeviceScene:
+    """What a GPU renderer receives as ``ctx.tracer``: the uploaded scene, the settings, the counters.
+
+    Parameters
+    ----------
+    scene : Scene
+    shadows : bool
+        Cast shadow rays (also needs ``scene.shadows`` and the light's flag).
+    light_cull : float
+        ``eps`` of the light culling of :mod:`renderers._shade`.
+    device : Device, optional
+    """
+
+    def __init__(self, scene, *, shadows: bool = True, light_cull: float = 0.01, device: Device | None = None):
+        self.device = device or get_device()
+        self.scene = scene
+        key = (scene.content_hash(), bool(shadows and scene.shadows))
+        uploads = self.device.cache.setdefault("uploads", {})
+        up = uploads.get(key)
+        if up is None:
+            up = uploads[key] = _Upload(self.device, scene, key[1])
+        self.upload = up
+        self.light_cull = float(light_cull)
+        self.counters = Counters()
+        self.offset = 1e-5 * scene.scale
+        self.far = 4.0 * scene.scale
+        self.light_count = max(up.light_count, 1)
+        self.mask_words = (self.light_count + 31) // 32
+
+    def bind_scene(self) -> None:
+        for unit, tex in enumerate(self.upload.textures):
+            tex.bind_to_image(unit, read=True, write=False)
+
+    def scene_uniforms(self) -> dict:
+        return {"u_ambient": self.upload.ambient, "u_background": self.upload.background,
+                "u_light_cull": self.light_cull, "u_offset": self.offset, "u_far": self.far}
+
+    def defines(self) -> dict:
+        return {"LIGHT_COUNT": self.light_count, "MASK_WORDS": self.mask_words, "TEX_WIDTH": TEX_WIDTH}
+
+
+def device_scene(scene, params: dict) -> DeviceScene:
+    """The registry's factory for the GPU backend (``params``: the resolved renderer parameters)."""
+    return DeviceScene(scene, shadows=bool(params.get("shadows", True)),
+                       light_cull=float(params.get("light_cull", 0.0)))
+
+
+def camera_uniforms(camera, width: int, height: int) -> dict:
+    """Uniforms of ``shaders/camera.glsl`` for a :class:`~renderers.scene.Camera`."""
+    f, r, u = camera.basis()
+    return {"u_cam_f": tuple(map(float, f)), "u_cam_r": tuple(map(float, r)), "u_cam_u": tuple(map(float, u)),
+            "u_tan": math.tan(math.radians(camera.fov_y) / 2.0), "u_screen": (float(width), float(height))}

@@ -1,0 +1,223 @@
+"""GPU backend: the EGL context, the capability and error lines, the GLSL generated from the foveation
+kernels, the BVH, the plug-in route and the CLI (issue 13 items 1-4, 9). Needs OpenGL 4.3 through EGL (Mesa's
+llvmpipe in CI): without it these tests fail, they do not skip."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from data_schema.errors import UserError
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+PY = sys.executable
+
+
+def _cli(args, env_extra=None, timeout=120):
+    """Run ``python -m studyapp`` with no display: (returncode, stdout, stderr)."""
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env["PYTHONPATH"] = os.pathsep.join([ROOT, env.get("PYTHONPATH", "")])
+    env.update(env_extra or {})
+    p = subprocess.run([PY, "-m", "studyapp", *args], capture_output=True, text=True, env=env, timeout=timeout,
+                       cwd=ROOT)
+    return p.returncode, p.stdout, p.stderr
+
+
+def _one_error_line(stderr: str, *needles: str) -> str:
+    lines = [ln for ln in stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith("studyapp: error: "), lines[0]
+    for n in needles:
+        assert n in lines[0], (n, lines[0])
+    return lines[0]
+
+
+def test_egl_context_opens_without_a_display():
+    code = ("from renderers.gpu.context import get_device; d = get_device(); "
+            "print(d.source, d.ctx.version_code, d.renderer)")
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env["PYTHONPATH"] = os.pathsep.join([ROOT, env.get("PYTHONPATH", "")])
+    out = subprocess.run([PY, "-c", code], capture_output=True, text=True, env=env, timeout=60, check=True).stdout
+    source, version, _ = out.split(" ", 2)
+    assert source == "egl" and int(version) >= 430
+
+
+def test_cli_backend_gpu_writes_the_png(tmp_path):
+    rc, out, err = _cli(["render", "--scene", "cornell", "--renderer", "lmfr", "--width", "64", "--height", "48",
+                         "--backend", "gpu", "--out", str(tmp_path / "a.png"), "--json"])
+    assert rc == 0, err
+    import json
+
+    stats = json.loads(out)
+    assert stats["backend"] == "gpu" and stats["shading_points"] > 0 and "llvmpipe" in stats["gpu"]["renderer"]
+    assert (tmp_path / "a.png").stat().st_size > 0 and (tmp_path / "a.npy").exists()
+
+
+@pytest.mark.parametrize("env,needles", [
+    ({"MESA_GL_VERSION_OVERRIDE": "3.3"}, ("OpenGL 4.3 compute shaders are not available", "found OpenGL 3.3")),
+    ({"__EGL_VENDOR_LIBRARY_FILENAMES": "/nonexistent.json"}, ("could not open an OpenGL context through EGL",)),
+    ({"STUDYAPP_GPU_MEMORY_MB": "1"}, ("scene 'temple' is too large for the GPU's memory", "needs")),
+], ids=["no-gl43", "no-egl-driver", "scene-too-large"])
+def test_bad_device_one_line_exit_2(tmp_path, env, needles):
+    rc, _, err = _cli(["render", "--scene", "temple", "--renderer", "gt", "--width", "16", "--height", "12",
+                       "--backend", "gpu", "--out", str(tmp_path / "a.png")], env)
+    assert rc == 2
+    _one_error_line(err, *needles, "use --backend cpu")
+    assert not (tmp_path / "a.png").exists()
+
+
+def test_broken_shader_one_line_naming_it(tmp_path, monkeypatch, capsys):
+    """A shader that fails to compile is a bug, but it reaches the user as one line: the shader's name and the
+    compiler's first message, and the way out."""
+    from renderers.gpu import context
+    from studyapp.cli import main
+
+    shaders = tmp_path / "shaders"
+    shaders.mkdir()
+    for f in context.SHADER_DIR.iterdir():
+        (shaders / f.name).write_text(f.read_text())
+    (shaders / "shade.comp").write_text((shaders / "shade.comp").read_text().replace(
+        "cnt_add(C_SHADING_POINTS, 1u);", "cnt_add(C_SHADING_POINTS, undefined_count);"))
+    monkeypatch.setattr(context, "SHADER_DIR", shaders)
+    monkeypatch.setattr(context.get_device(), "_programs", {})
+    rc = main(["render", "--scene", "cornell", "--renderer", "gt", "--width", "8", "--height", "6",
+               "--backend", "gpu", "--out", str(tmp_path / "a.png")])
+    assert rc == 2
+    line = _one_error_line(capsys.readouterr().err, "GPU shader shade.comp failed to compile", "undefined_count",
+                           "use --backend cpu")
+    assert "error" in line
+
+
+def test_too_many_lights_and_cpu_only_renderers(tmp_path):
+    from renderers.gpu import render
+
+    with pytest.raises(UserError, match="111,858 lights.*use --backend cpu"):
+        render("cornell_many", "gt", {}, 8, 6)
+    with pytest.raises(UserError, match="renderer .fsl. has no GPU version: use --backend cpu"):
+        render("cornell", "fsl", {}, 8, 6)
+
+
+def test_generated_foveation_glsl_matches_the_cpu_kernels():
+    """The GPU evaluates the forward and inverse mappings from the CPU's parameter vector with GLSL generated
+    from renderers/foveation/_kernels.py: same values (float32) for all three methods."""
+    from renderers.foveation import make_mapping
+    from renderers.gpu.context import get_device
+
+    dev = get_device()
+    src = """#version 430
+layout(local_size_x = 64) in;
+layout(std430, binding = 11) readonly buffer FovParams { float FP[]; };
+#include "foveation_gen.glsl"
+layout(std430, binding = 1) readonly buffer In { vec2 pts[]; };
+layout(std430, binding = 2) writeonly buffer Out { vec4 res[]; };
+uniform int u_n;
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i < uint(u_n)) res[i] = vec4(fov_point(METHOD, FOV_FORWARD, pts[i].x, pts[i].y),
+                                     fov_point(METHOD, FOV_INVERSE, pts[i].x, pts[i].y));
+}
+"""
+    rng = np.random.default_rng(3)
+    for method, kernel in (("vafr", 0), ("lmfr", 1), ("lafr", 2)):
+        m = make_mapping(method, 1280, 720, 90.0, (500.0, 300.0))
+        d = rng.uniform(-700, 700, size=(512, 2))
+        w, h = m.lp_shape
+        uv = np.column_stack([rng.uniform(0.5, w - 1, 512), rng.uniform(0, h, 512)])
+        fu, fv = m.forward(d[:, 0] + 500.0, d[:, 1] + 300.0)
+        ix, iy = m.inverse(uv[:, 0], uv[:, 1])
+        prog = dev.program("fov_test.comp", {"METHOD": kernel}, source=src)
+        fp = dev.buffer(m._params_vector().astype(np.float32))
+        pin_f = dev.buffer(d.astype(np.float32))
+        pin_i = dev.buffer(uv.astype(np.float32))
+        out = dev.buffer(reserve=16 * 512)
+        res = []
+        for pts in (pin_f, pin_i):
+            fp.bind_to_storage_buffer(11), pts.bind_to_storage_buffer(1), out.bind_to_storage_buffer(2)
+            prog["u_n"] = 512
+            prog.run(8)
+            dev.finish()
+            res.append(np.frombuffer(out.read(), np.float32).reshape(512, 4))
+        # float32: within 1e-3 LP pixel of the CPU's float64 (a 0.01-pixel budget is what the CPU's own u(r)
+        # table allows), and 1e-2 screen pixel back
+        np.testing.assert_allclose(res[0][:, 0], fu, rtol=0, atol=1e-3)
+        np.testing.assert_allclose(res[0][:, 1], fv, rtol=0, atol=1e-3)
+        np.testing.assert_allclose(res[1][:, 2] + 500.0, ix, rtol=0, atol=1e-2)
+        np.testing.assert_allclose(res[1][:, 3] + 300.0, iy, rtol=0, atol=1e-2)
+        for b in (fp, pin_f, pin_i, out):
+            dev.release(b)
+
+
+def test_translator_refuses_what_it_does_not_know():
+    import types
+
+    from renderers.gpu.codegen import Translator
+
+    tr = Translator(types.ModuleType("fake"), "t_", source="def f(x, P):\n    while x > 0:\n        x -= 1\n    return x\n")
+    names = tr.closure(["f"])
+    tr.infer(names)
+    with pytest.raises(NotImplementedError, match="f: statement While"):
+        tr.emit(names)
+
+
+def test_bvh_covers_every_triangle_once():
+    from renderers.catalog import resolve
+    from renderers.gpu import bvh
+
+    sc = resolve("interior")
+    b = bvh.build(sc.vertices, sc.faces)
+    ints = b.nodes.view(np.int32).reshape(-1, 2, 8)
+    lo, hi = b.nodes.reshape(-1, 2, 8)[..., 0:3], b.nodes.reshape(-1, 2, 8)[..., 4:7]
+    ref, count = ints[..., 3], ints[..., 7]
+    leaf = count > 0
+    ids = np.concatenate([np.arange(a, a + c) for a, c in zip(ref[leaf], count[leaf])])
+    assert np.array_equal(np.sort(ids), np.arange(sc.n_triangles))
+    assert np.array_equal(np.sort(b.tris.view(np.int32)[:, 3]), np.arange(sc.n_triangles))
+    tri = b.tris.reshape(-1, 3, 4)[..., :3]
+    verts = np.stack([tri[:, 0], tri[:, 0] + tri[:, 1], tri[:, 0] + tri[:, 2]], axis=1)
+    for (n, s) in np.argwhere(leaf):  # every leaf box holds its triangles (up to float rounding of e1, e2)
+        v = verts[ref[n, s]:ref[n, s] + count[n, s]].reshape(-1, 3)
+        assert (v >= lo[n, s] - 1e-4).all() and (v <= hi[n, s] + 1e-4).all()
+    parent = np.full(len(ints), -1)
+    for (n, s) in np.argwhere(~leaf):  # inner children: boxes inside the parent's entry, one parent each
+        c = ref[n, s]
+        assert parent[c] == -1 and c > n
+        parent[c] = n
+        assert (lo[c] >= lo[n, s]).all() and (hi[c] <= hi[n, s]).all()
+    assert (parent[1:] >= 0).all() and b.depth <= bvh.MAX_DEPTH
+
+
+def test_importing_renderers_and_analysis_loads_no_gl():
+    code = ("import sys, renderers, analysis, renderers.registry, renderers.gpu; "
+            "print([m for m in sys.modules if m.split('.')[0] in ('moderngl', 'glcontext')])")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")]))
+    out = subprocess.run([PY, "-c", code], capture_output=True, text=True, env=env, timeout=60, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_window_context_is_used_when_one_is_current(tmp_path):
+    """Inside a pyglet (PsychoPy) window the backend attaches to the window's OpenGL context and leaves no
+    program bound for the window's own drawing (Xvfb: the virtual screen ./run installs)."""
+    script = tmp_path / "win.py"
+    script.write_text(
+        "import pyglet\n"
+        "from pyglet import gl\n"
+        "win = pyglet.window.Window(64, 48, visible=False)\n"
+        "win.switch_to()\n"
+        "from renderers.gpu import render\n"
+        "from renderers.gpu.context import get_device\n"
+        "img, st = render('cornell', 'lmfr', {}, 64, 48)\n"
+        "prog = gl.GLint()\n"
+        "gl.glGetIntegerv(gl.GL_CURRENT_PROGRAM, prog)\n"
+        "gl.glClearColor(0.0, 1.0, 0.0, 1.0)\n"
+        "gl.glClear(gl.GL_COLOR_BUFFER_BIT)\n"
+        "px = (gl.GLubyte * 4)()\n"
+        "gl.glReadPixels(1, 1, 1, 1, gl.GL_RGBA, gl.GL_UNSIGNED_BYTE, px)\n"
+        "print(get_device().source, st['gpu']['context'], prog.value, list(px), img.mean() > 0)\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")]))
+    out = subprocess.run(["xvfb-run", "-a", PY, str(script)], capture_output=True, text=True, env=env,
+                         timeout=120, check=True).stdout.split()
+    assert out[:3] == ["window", "window", "0"] and out[3:7] == ["[0,", "255,", "0,", "255]"] and out[7] == "True"
