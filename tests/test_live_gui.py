@@ -21,7 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent / "gui"))
 from xvfb import ROOT, Xvfb, missing_tools  # noqa: E402
 
 W, H = 320, 180
-BACKEND = os.environ.get("STUDYAPP_LIVE_TEST_BACKEND", "cpu")
+BACKEND = os.environ.get("STUDYAPP_LIVE_TEST_BACKEND", "gpu")  # the live backend; cpu also works
 
 PROTOCOL = f"""
 schema_version: 1

@@ -16,14 +16,16 @@ PROTOCOLS = ROOT / "protocols"
 SHIPPED = sorted(PROTOCOLS.glob("seed*.yaml"))
 
 
-def test_four_replication_protocols_are_shipped():
-    assert [p.stem for p in SHIPPED] == ["seed001_2afc", "seed001_pilot", "seed003_task1", "seed003_task2"]
+def test_the_replication_protocols_are_shipped():
+    assert [p.stem for p in SHIPPED] == ["seed001_2afc", "seed001_2afc_live", "seed001_pilot", "seed001_pilot_live",
+                                         "seed003_task1", "seed003_task2"]
 
 
 @pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
 def test_shipped_protocols_validate_and_state_their_render_budget(path):
     p = load_protocol(path, check_renderers=False)
-    assert "30 min" in p.data["render_budget"]
+    # pre-rendered sets state what preparing them costs; live ones that nothing is prepared
+    assert ("Nothing is prepared" if p.live else "30 min") in p.data["render_budget"]
     assert p.content_hash == load_protocol(path, check_renderers=False).content_hash
     assert re.fullmatch(r"[0-9a-f]{64}", p.content_hash)
 
@@ -39,6 +41,22 @@ def test_seed001_designs():
     assert len(main) == 90  # 10 pairs x 3 repetitions x 3 scenes (seed: 30 trials per scene)
     for scene in two.scenes:
         assert sum(t.scene == scene for t in main) == 30
+
+
+@pytest.mark.parametrize("name", ["seed001_pilot", "seed001_2afc"])
+def test_seed001_live_replications_keep_the_pre_rendered_designs(name):
+    """Same family, conditions, scenes and schedule as the pre-rendered replication; explored live at the
+    display's native resolution with the renderers' GPU versions (checked: check_renderers=True)."""
+    pre = load_protocol(PROTOCOLS / f"{name}.yaml", check_renderers=False)
+    live = load_protocol(PROTOCOLS / f"{name}_live.yaml", check_renderers=True)
+    assert live.live and live.motion == "explore" and live.data["stimulus"]["gaze"] == "tracker"
+    assert (live.family, live.design_conditions, live.scenes) == (pre.family, pre.design_conditions, pre.scenes)
+    assert set(live.scenes) == {"street_night", "interior", "temple"}
+    g = live.render_geometry()
+    assert (g.width, g.height) == (live.display.width_px, live.display.height_px)  # native resolution
+    assert {live.backend_of(c) for c in live.conditions} == {"gpu"}
+    kinds = lambda p: [t.kind for t in build_schedule(p, "P1", 0)]  # noqa: E731
+    assert kinds(live).count("trial") == kinds(pre).count("trial")
 
 
 def test_seed003_designs():

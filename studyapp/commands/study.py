@@ -51,6 +51,10 @@ def cmd_validate(args) -> int:
     print("schedule (participant P1, seed 0): " + ", ".join(f"{v} {k}" for k, v in kinds.items() if v))
     if renderer_names() is None and any(c.renderer for c in p.conditions.values()):
         print("renderer names not checked: renderers.registry is not importable here")
+    if p.live:
+        backends = sorted({p.backend_of(c) for c, cond in p.conditions.items() if cond.renderer})
+        print(f"stimuli: rendered during the trials ({', '.join(backends)} backend), nothing to prepare")
+        return 0
     missing = missing_stimuli(p)
     print(f"stimuli: {'complete' if not missing else f'{len(missing)} stimulus set(s) missing'} in {p.stimuli_dir}")
     return 0
@@ -268,7 +272,9 @@ def register(subparsers, parser_class) -> None:
 
 
 # -- demo ----------------------------------------------------------------------------------------------------
-DEMO_PROTOCOLS = (("seed003_task1", 5), ("seed001_2afc", 3))  # (shipped protocol, simulated participants)
+#: (shipped protocol, simulated participants): the pre-rendered replications, and a live one (rendered at 64
+#: pixels across along a synthetic gaze path by the simulated observer).
+DEMO_PROTOCOLS = (("seed003_task1", 5), ("seed001_2afc", 3), ("seed001_pilot_live", 2))
 DEMO_SCALE = 0.25
 
 
