@@ -91,7 +91,9 @@ def _presenter_factory(args, protocol):
             kw = {"eyetracker": "pointer", "required_tracker": True}
         elif protocol.live and protocol.gaze_source == "tracker":
             kw = {"eyetracker": "device", "tracker": protocol.eyetracker, "required_tracker": True}
-        return PsychoPyPresenter(gaze_log=args.gaze_log, screenshot_dir=args.screenshot_dir, **kw)
+        gpu = protocol.live and any(protocol.backend_of(c) == "gpu" for c, cond in protocol.conditions.items()
+                                    if cond.renderer)
+        return PsychoPyPresenter(gaze_log=args.gaze_log, screenshot_dir=args.screenshot_dir, gpu=gpu, **kw)
     return make_window
 
 
@@ -125,7 +127,11 @@ def cmd_run(args) -> int:
         if row:
             args.seed = row["seed"]
 
+    session_started = False
+
     def started(sid):
+        nonlocal session_started
+        session_started = True
         for note in notes:
             print(note, file=sys.stderr)
         print(f"session {sid} started ({db})", flush=True)
@@ -136,6 +142,8 @@ def cmd_run(args) -> int:
                               resume=args.resume, scale=args.scale, stimuli_root=None, allow_declared=args.simulate,
                               on_started=started, progress=(lambda d, t: bar(d, t)) if bar else None)
     except PresentationError as exc:  # no display, keyboard backend not ptb, an unreadable frame, ...
+        if not session_started:
+            raise
         raise PresentationError(f"{exc} (answers given so far are saved: continue with --resume)") from None
     catch = ""
     if summary.catch_total:

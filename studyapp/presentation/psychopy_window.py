@@ -37,6 +37,7 @@ whether the gaze left the foveal disc of radius ``fovea_deg`` around the fixatio
 from __future__ import annotations
 
 import collections
+import contextlib
 import math
 import time
 from dataclasses import dataclass, field
@@ -223,6 +224,24 @@ def _stim_labels(trial: TrialDisplay) -> list[str]:
     return families.get(trial.family).labels(len(trial.stimuli))
 
 
+IOHUB_STOP_S = 5.0  # how long the iohub server may take to stop before it is killed
+
+
+def _check_iohub_device(device: str) -> None:
+    """Raise a one-line error unless ``device`` (``eyetracker.hw.<maker>.EyeTracker``) names an iohub device
+    class that is installed, resolved the way iohub resolves it (its module or a plug-in's entry point)."""
+    from psychopy.iohub.devices import importDeviceModule
+
+    module, _, cls = device.rpartition(".")
+    try:
+        found = hasattr(importDeviceModule(f"psychopy.iohub.devices.{module}"), cls)
+    except Exception:  # noqa: BLE001 - iohub raises ModuleNotFoundError or the plug-in's own import error
+        found = False
+    if not found:
+        raise RuntimeError(f"no iohub device {device!r} is installed (e.g. eyetracker.hw.mouse.EyeTracker, "
+                           "eyetracker.hw.sr_research.eyelink.EyeTracker with its psychopy plug-in)")
+
+
 def decode_image(path: Path):
     """Open and fully decode an image file into a PIL image in ``RGB`` (or ``RGBA``) mode."""
     from PIL import Image
@@ -295,6 +314,8 @@ class PsychoPyPresenter:
         from onset, window pixels, top-left origin), flushed and fsynced at the end of each trial.
     screenshot_dir : if set, the back buffer of the first frame of every stimulus shown is saved there as
         ``trial{index:04d}_stim{i}_{n}.png`` (for tests and for checking a protocol; costs a read-back).
+    gpu : open the GPU backend in the window's OpenGL context at :meth:`open` (live trials rendered on the GPU):
+        no OpenGL 4.3 then fails there, in one line, before anything is recorded.
     on_event : called as ``on_event(name, info)`` at ``instructions``, ``black``, ``onset``, ``switch``,
         ``pick``, ``question``, ``pause`` and ``message`` (after the flip that shows it), e.g. to drive tests.
     """
@@ -314,6 +335,7 @@ class PsychoPyPresenter:
         text_height_px: int | None = None,
         tracker: dict | None = None,
         required_tracker: bool = False,
+        gpu: bool = False,
     ):
         if eyetracker not in (None, "mousegaze", "device", "pointer"):
             raise UserError(f"eyetracker={eyetracker!r} is not supported: use None, 'mousegaze', 'device' or "
@@ -329,6 +351,7 @@ class PsychoPyPresenter:
         self.eyetracker = eyetracker
         self.tracker_spec = dict(tracker or {})  # the protocol's eyetracker block (device, settings, calibrate...)
         self.required_tracker = required_tracker  # live gaze-contingent trials cannot run without it
+        self.gpu = gpu  # live trials render on the GPU backend in this window's context: checked at open()
         self.fovea_deg = float(fovea_deg)
         self.screenshot_dir = Path(screenshot_dir) if screenshot_dir is not None else None
         self.gaze_log = Path(gaze_log) if gaze_log is not None else None
@@ -367,7 +390,7 @@ class PsychoPyPresenter:
             raise PresentationError(
                 f"cannot import PsychoPy's window modules: {type(exc).__name__}: {exc}{hint}"
             ) from None
-        self._core, self._visual = core, visual
+        self._core, self._visual, self._logging = core, visual, logging
         self._now = logging.defaultClock.getTime  # the clock of win.flip()'s time stamps
         import pyglet
 
@@ -438,6 +461,8 @@ class PsychoPyPresenter:
             "eyetracker": None,
         }
         self._make_stims()
+        if self.gpu:
+            self.facts["gpu"] = self._open_gpu()
         if self.eyetracker:
             self.facts["eyetracker"] = self._start_eyetracker()
             if self.required_tracker and not self.facts["eyetracker"]["ok"]:
@@ -509,16 +534,49 @@ class PsychoPyPresenter:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
-        if self._io is not None:
-            try:
-                self._tracker.setRecordingState(False)
-                self._io.quit()
-            except Exception:
-                pass
-            self._io = self._tracker = None
+        self._stop_iohub()
         if self.win is not None:
             self.win.close()
             self.win = None
+
+    def _open_gpu(self) -> dict:
+        """The GPU backend's device in this window's context (its one-line error closes the window first)."""
+        from renderers.gpu.context import get_device
+
+        try:
+            device = get_device()
+        except UserError as exc:
+            self.close()
+            raise UserError(f"{exc} (live trials: backend: cpu on the protocol's conditions)") from None
+        return {"context": device.source, "gl_version": device.version, "gl_renderer": device.renderer}
+
+    def _stop_iohub(self) -> None:
+        """Stop recording and the iohub server process (a hub left running keeps this process alive)."""
+        io, tracker, self._io, self._tracker = self._io, self._tracker, None, None
+        if tracker is not None:
+            with contextlib.suppress(Exception):
+                tracker.setRecordingState(False)
+        if io is None:
+            return
+        import io as io_module
+        import threading
+
+        from psychopy.iohub.devices import Computer
+
+        # iohub's quit() waits for its server process without a timeout, and a server stuck in a device's
+        # shutdown would hang the study here: give it IOHUB_STOP_S, then kill it.
+        server = Computer.iohub_process
+        def quit_hub():
+            with contextlib.suppress(Exception), contextlib.redirect_stdout(io_module.StringIO()):
+                io.quit()  # (iohub prints the server's exit code)
+
+        quitting = threading.Thread(target=quit_hub, daemon=True, name="studyapp-iohub-quit")
+        quitting.start()
+        quitting.join(IOHUB_STOP_S)
+        if quitting.is_alive() and server is not None:
+            with contextlib.suppress(Exception):
+                server.kill()
+            quitting.join(2.0)
 
     def _require_open(self):
         if self.win is None:
@@ -541,8 +599,10 @@ class PsychoPyPresenter:
             from psychopy.iohub import launchHubServer
 
             if self.eyetracker == "device":
+                device = self.tracker_spec["device"]
+                _check_iohub_device(device)
                 settings = {"name": "tracker", **(self.tracker_spec.get("settings") or {})}
-                cfg = {self.tracker_spec["device"]: settings}
+                cfg = {device: settings}
             else:
                 cfg = {
                     "eyetracker.hw.mouse.EyeTracker": {
@@ -550,12 +610,20 @@ class PsychoPyPresenter:
                         "controls": {"move": [], "blink": ["LEFT_BUTTON"], "saccade_threshold": 0.5},
                     }
                 }
-            self._io = launchHubServer(window=self.win, **cfg)
+            level = self._logging.console.level
+            self._logging.console.setLevel(self._logging.ERROR)  # "fullScr should be True": not for a tracker
+            try:
+                self._io = launchHubServer(window=self.win, **cfg)
+            finally:
+                self._logging.console.setLevel(level)
             self._tracker = self._io.getDevice("tracker")
+            if self._tracker is None:
+                raise RuntimeError(f"iohub could not create the device {next(iter(cfg))}")
             self._tracker.setRecordingState(True)
-        except Exception as exc:
-            self._io = self._tracker = None
-            return {"kind": self.eyetracker, "ok": False, "reason": f"{type(exc).__name__}: {exc}"}
+        except Exception as exc:  # noqa: BLE001 - the tracker's own failure, reported in one line
+            self._stop_iohub()
+            reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            return {"kind": self.eyetracker, "ok": False, "reason": reason}
         return {"kind": self.eyetracker, "ok": True}
 
     #: Validation targets as fractions of the window (centre, then the four quadrants at 70 % out).
@@ -583,8 +651,11 @@ class PsychoPyPresenter:
             if limit is None or error <= limit:
                 return {"error_deg": error, "attempts": attempts}
         self.close()
-        raise PresentationError(f"eye-tracker validation failed: mean error {min(attempts):.2f}° > "
-                                f"{limit:g}° after {len(attempts)} attempt(s): check the set-up and run again")
+        best = min(attempts)
+        what = (f"mean error {best:.2f}° > {limit:g}°" if math.isfinite(best)
+                else "the tracker reported no gaze while the targets were shown")
+        raise PresentationError(f"eye-tracker validation failed: {what} after {len(attempts)} attempt(s): check "
+                                "the set-up and run again")
 
     def _validate_once(self, attempt: int) -> float:
         geometry = self.display.geometry()
