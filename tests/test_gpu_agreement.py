@@ -38,6 +38,10 @@ def test_gpu_agrees_with_cpu(renderer, params):
     psnr, within = agreement(a, b)
     assert psnr >= 35.0, psnr
     assert within >= 0.99, within
+    if params.get("stereo") in ("dup", "rep"):  # both eyes come back: a binocular presenter shows both
+        assert len(sb["eye_images"]) == len(sa["eye_images"]) == 2
+        for ea, eb in zip(sa["eye_images"], sb["eye_images"]):
+            assert eb.shape == ea.shape and agreement(ea, eb)[1] >= 0.99
     for k in EXACT if params.get("stereo") != "rep" else EXACT[:1]:
         assert sb[k] == sa[k], (k, sa[k], sb[k])
     # Shading points and rays exactly; rep's re-shaded holes to 0.01 % (float32 rasterisation of the warped grid

@@ -185,3 +185,53 @@ def test_the_simulated_observer_renders_vafr_thumbnails_at_their_own_nyquist_rat
     assert stats["shading_points"] < 10_000  # ~1e6 without the cap
     ecc = geometry.eccentricity_map()
     assert foveated_difference(vafr, ref, ecc) < foveated_difference(lafr, ref, ecc)
+
+
+FAMILIES = {
+    "preference": ("family: preference", "design: {conditions: [GT, LaFR, LaFR8], repetitions: 1, n_picks: 2}",
+                   "votes"),
+    "yes_no_reference": ("family: yes_no", "design: {conditions: [LaFR, LaFR8], repetitions: 1, "
+                         "reference: {condition: GT, label: This is the ground truth}}", "response"),
+}
+
+
+@pytest.mark.parametrize("family", sorted(FAMILIES))
+def test_every_trial_family_runs_live(tmp_path, family):
+    """Top two of N with live stimuli, and "is this the ground truth?" with the labelled ground truth shown
+    live first (2AFC: the tests above); every stimulus of every trial has its frames logged."""
+    from data_schema.store import open_store
+    from studyapp.cli import main
+
+    fam, design, dv = FAMILIES[family]
+    text = (LIVE.replace("family: 2afc", fam).replace("design: {repetitions: 2}", design)
+            .replace("  LaFR: {renderer: lafr", "  LaFR8: {renderer: lafr, params: {delta: 8.0}, backend: cpu}\n"
+                     "  LaFR: {renderer: lafr")
+            .replace("analysis: {dv: chosen, unit: participant, test: thurstone}",
+                     f"analysis: {{dv: {dv}, unit: trial, test: summary_table}}"))
+    f = tmp_path / "live.yaml"
+    f.write_text(text)
+    db = tmp_path / "s.db"
+    assert main(["run", str(f), "--participant", "P1", "--simulate", "--db", str(db), "--quiet"]) == 0
+    with open_store(db) as st:
+        planned = st.planned("P1")
+        frames = st.frames("P1")
+    shown = {(r["idx"], r["stimulus"]) for r in frames}
+    assert shown == {(t.idx, k) for t in planned for k in range(len(t.conditions))}
+    if family == "yes_no_reference":
+        assert planned[0].kind == "reference" and planned[0].conditions == ("GT",)
+    else:
+        assert all(len(t.conditions) == 3 for t in planned if t.kind == "trial")
+
+
+def test_exploration_keys_cannot_answer_or_switch(tmp_path):
+    from data_schema.errors import UserError
+    from studyapp.runner.protocol import load_protocol
+
+    explore = LIVE.replace("  motion: path\n", "  motion: explore\n").replace(
+        "  camera_path: [{t: 0, yaw_deg: -3}, {t: 1, yaw_deg: 3}]\n", "")
+    f = tmp_path / "live.yaml"
+    f.write_text(explore)  # 2AFC's default switch keys are the arrows, which turn the camera
+    with pytest.raises(UserError, match=r"keys.switch.left: key 'left' also moves the camera when exploring"):
+        load_protocol(f, check_renderers=False)
+    f.write_text(explore + 'keys: {switch: {q: 0, e: 1}, answer: {"1": A, "2": B}}\n')
+    assert load_protocol(f, check_renderers=False).motion == "explore"

@@ -30,11 +30,6 @@ def run_gt(ctx):
     return _finish(fr, ctx, images)
 
 
-def _wanted(ctx, k: int, n: int) -> bool:
-    """Whether eye ``k`` of ``n`` is the one returned (the other is rendered and timed, not read back)."""
-    return n == 1 or (k == n - 1) == (ctx.params["eye"] == "right")
-
-
 def run_foveated(method: str):
     """The GPU ``run`` of a foveated plug-in (see :func:`renderers.builtin_renderers.run_foveated`)."""
 
@@ -50,16 +45,16 @@ def run_foveated(method: str):
         if p["stereo"] == "rep":
             lp = P.render_lp(fr, tables, eyes[0], ctx.width, ctx.height, ctx.gaze, p["pipeline"])
             right = P.reproject(fr, tables, lp, eyes[0], eyes[1], ctx.width, ctx.height, ctx.gaze)
-            for k, buf in enumerate((lp, right)):
+            for buf in (lp, right):  # both eyes read back: a binocular presenter shows both (eye_images)
                 img = P.finish_lp(fr, tables, buf, p, ctx.width, ctx.height, exposure, ctx.gaze)
-                images.append(P.read_image(img, ctx.width, ctx.height) if _wanted(ctx, k, 2) else None)
+                images.append(P.read_image(img, ctx.width, ctx.height))
             totals = fr.close()
             ctx.extra["reshaded_share"] = totals["holes"] / max(1, totals["samples"])
             return _finish(fr, ctx, images, closed=True)
-        for k, cam in enumerate(eyes):
+        for cam in eyes:
             lp = P.render_lp(fr, tables, cam, ctx.width, ctx.height, ctx.gaze, p["pipeline"])
             img = P.finish_lp(fr, tables, lp, p, ctx.width, ctx.height, exposure, ctx.gaze)
-            images.append(P.read_image(img, ctx.width, ctx.height) if _wanted(ctx, k, len(eyes)) else None)
+            images.append(P.read_image(img, ctx.width, ctx.height))
         return _finish(fr, ctx, images)
 
     return run

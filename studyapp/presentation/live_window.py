@@ -23,7 +23,8 @@ import time
 import numpy as np
 
 from data_schema.geometry import eye_views
-from studyapp.runner.live import EXPLORE_KEYS, FramePacer, FrameRecord, GazeDelay
+from studyapp.runner.live import FramePacer, FrameRecord, GazeDelay
+from studyapp.runner.protocol import EXPLORE_KEYS
 
 from .base import PresentationError, TrialDisplay
 

@@ -25,10 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-#: Keys of free exploration (psychtoolbox key names).
-MOVE_KEYS = {"w": (1, 0), "s": (-1, 0), "a": (0, -1), "d": (0, 1)}
-TURN_KEYS = {"left": (-1, 0), "right": (1, 0), "up": (0, 1), "down": (0, -1)}
-EXPLORE_KEYS = tuple(MOVE_KEYS) + tuple(TURN_KEYS)
+from .protocol import MOVE_KEYS, TURN_KEYS
 
 
 @dataclass(frozen=True)

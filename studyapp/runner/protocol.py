@@ -22,6 +22,12 @@ from data_schema import families
 from data_schema.geometry import Display, ViewingGeometry
 from data_schema.protocol_schema import LoadedYAML, load_yaml, validate_document
 
+#: Keys of free exploration (``motion: explore``; psychtoolbox key names): move forward/back/left/right, turn.
+#: A protocol's answer and switch keys may not use them.
+MOVE_KEYS = {"w": (1, 0), "s": (-1, 0), "a": (0, -1), "d": (0, 1)}
+TURN_KEYS = {"left": (-1, 0), "right": (1, 0), "up": (0, 1), "down": (0, -1)}
+EXPLORE_KEYS = tuple(MOVE_KEYS) + tuple(TURN_KEYS)
+
 DEFAULT_SIMULATION = {"jnd": 0.02, "sensitivity_sd": 0.25, "bias_sd": 0.25, "lapse": 0.02, "criterion_jnd": 1.0,
                       "rt_mu_s": 0.55, "rt_sigma_s": 0.08, "rt_tau_s": 0.25}
 
@@ -409,6 +415,12 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
     overlap = set(answer_keys) & set(switch_keys)
     if overlap:
         raise doc.error(("keys",), f"key {min(overlap)!r} both answers and switches")
+    if kind == "live" and data["stimulus"].get("motion") == "explore":
+        taken = sorted((set(answer_keys) | set(switch_keys)) & set(EXPLORE_KEYS))
+        if taken:
+            where = ("keys", "answer" if taken[0] in answer_keys else "switch", taken[0])
+            raise doc.error(where, f"key {taken[0]!r} also moves the camera when exploring (W/A/S/D and the "
+                            "arrow keys): choose another")
     if "escape" in answer_keys or "escape" in switch_keys:
         raise doc.error(("keys",), "escape is reserved for pausing the session")
 

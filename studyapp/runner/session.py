@@ -207,7 +207,7 @@ def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_r
         display_info = {**asdict(display), "ppd": display.ppd, "fov_y_deg": display.fov_y_deg, "scale": scale,
                         "render_px": [rendered.width, rendered.height], "fixation": list(protocol.fixation),
                         **{k: measured[k] for k in ("window_size_px", "window_pos_px", "window_matches_display",
-                                                    "eyetracker") if k in measured}}
+                                                    "eyetracker", "gl_renderer", "gpu") if k in measured}}
         sid = store.start_session(pid, protocol.content_hash, seed, software_versions(measured.get("software")),
                                   display_info, measured, str(measured.get("presenter", type(presenter).__name__)),
                                   resumed_from=previous)
