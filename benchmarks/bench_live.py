@@ -22,7 +22,6 @@ import argparse
 import json
 import os
 import random
-import sqlite3
 import statistics
 import subprocess
 import sys
@@ -35,6 +34,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.join(ROOT, "tests", "gui"))
+from xvfb import query as _q  # noqa: E402  (read-only queries while the session writes)
 
 METHODS = {
     "gt": "{renderer: gt}",
@@ -70,15 +70,6 @@ analysis: {{dv: response, unit: trial, test: summary_table}}
 """
 
 
-def _q(db: Path, sql: str, *args) -> list:
-    try:
-        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=5)
-        try:
-            return con.execute(sql, args).fetchall()
-        finally:
-            con.close()
-    except sqlite3.OperationalError:
-        return []
 
 
 def _xdotool(env: dict, *args: str) -> None:

@@ -7,7 +7,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import sqlite3
 import subprocess
 import sys
 import time
@@ -19,6 +18,7 @@ from PIL import Image
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "gui"))
 from xvfb import ROOT, Xvfb, missing_tools  # noqa: E402
+from xvfb import query as _q  # noqa: E402
 
 W, H = 320, 180
 BACKEND = os.environ.get("STUDYAPP_LIVE_TEST_BACKEND", "gpu")  # the live backend; cpu also works
@@ -52,15 +52,6 @@ def _gui_tools_installed():
     assert not missing_tools(), f"GUI tests need {missing_tools()} (Debian: xvfb, xdotool; ./run installs them)"
 
 
-def _q(db: Path, sql: str, *args):
-    try:
-        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=5)
-        try:
-            return con.execute(sql, args).fetchall()
-        finally:
-            con.close()
-    except sqlite3.OperationalError:
-        return []
 
 
 def _wait(pred, timeout_s: float, proc=None, what: str = "") -> None:

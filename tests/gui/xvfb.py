@@ -21,6 +21,21 @@ ROOT = HERE.parent.parent
 PYTHON = sys.executable
 
 
+def query(db: Path, sql: str, *args) -> list:
+    """Rows of ``sql`` on the study database ``db``, read-only, while a session may be writing to it (``[]``
+    while it does not exist yet or is busy)."""
+    import sqlite3
+
+    try:
+        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=5)
+        try:
+            return con.execute(sql, args).fetchall()
+        finally:
+            con.close()
+    except sqlite3.OperationalError:
+        return []
+
+
 def missing_tools() -> list[str]:
     """Names of the binaries a GUI test needs and this machine lacks."""
     return [b for b in ("Xvfb", "xdotool") if shutil.which(b) is None]
