@@ -145,7 +145,9 @@ def table(rows: list[dict], facts: dict, window: tuple[int, int], seconds: float
     gl = (facts.get("gpu") or {}).get("gl_renderer") or facts.get("gl_renderer", "?")
     out = [f"Window {window[0]}x{window[1]} ({'both eyes side by side for VaFR dup/rep' if window == SEED_WINDOW else 'one view; VaFR dup/rep: both eyes side by side'}), "
            f"{backend} backend on {gl}; {seconds:g}-s trials, `motion: path`, the mouse as the gaze jumping every "
-           f"250 ms. {os.cpu_count()} cores.", "",
+           f"250 ms. {os.cpu_count()} cores. Frames: new frames rendered in the trial; fps: new frames per second; "
+           "dropped flips: flips PsychoPy counted as late (a render outlasted the refresh interval); latency: "
+           "gaze sample to the flip that showed the frame rendered for it.", "",
            "| method | scene | frames | fps median | fps p5 | render ms (median) | dropped flips | latency p50 ms | latency p95 ms |",
            "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
     for r in sorted(rows, key=lambda r: (r["scene"], r["method"])):
