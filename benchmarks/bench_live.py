@@ -8,8 +8,8 @@ What runs is what a participant sees: ``studyapp run`` on a live yes/no protocol
 scene, ``motion: path``, ``gaze: mouse``) in a PsychoPy window, the mouse jumping to a new point every 250 ms
 (saccades) so that the foveation moves, a key pressed once each trial has played. With a ``DISPLAY`` (a lab
 machine with a GPU) the window opens there; without one, under a private Xvfb server (Mesa llvmpipe: software
-OpenGL on the CPU). ``--seed-size`` opens a 4936 x 2740 window: the seed's 2468 x 2740 per eye for the
-binocular VaFR modes (both eyes side by side), the whole window for the monocular methods.
+OpenGL on the CPU). ``--seed-size`` opens a 4936 x 2740 window with every method binocular: the seed's
+2468 x 2740 per eye, both eyes side by side (``--binocular`` does the same at any window size).
 
 Reported per method and scene, from the session's frames table (data_schema.timing, the summary the exports
 use): frames rendered, frames per second (median, 5th percentile), render time per frame (median), dropped
@@ -36,13 +36,13 @@ sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.join(ROOT, "tests", "gui"))
 from xvfb import query as _q  # noqa: E402  (read-only queries while the session writes)
 
-METHODS = {
-    "gt": "{renderer: gt}",
-    "vafr_dup": "{renderer: vafr, params: {stereo: dup}}",
-    "vafr_rep": "{renderer: vafr, params: {stereo: rep}}",
-    "vafr": "{renderer: vafr}",
-    "lmfr": "{renderer: lmfr}",
-    "lafr": "{renderer: lafr, params: {delta: 1.8}}",
+METHODS = {  # renderer, params
+    "gt": ("gt", {}),
+    "vafr_dup": ("vafr", {"stereo": "dup"}),
+    "vafr_rep": ("vafr", {"stereo": "rep"}),
+    "vafr": ("vafr", {}),
+    "lmfr": ("lmfr", {}),
+    "lafr": ("lafr", {"delta": 1.8}),
 }
 SEED_WINDOW = (2 * 2468, 2740)  # both eyes of the seed's headset side by side
 
@@ -141,9 +141,10 @@ def summarise(db: Path) -> tuple[list[dict], dict]:
     return rows, facts
 
 
-def table(rows: list[dict], facts: dict, window: tuple[int, int], seconds: float, backend: str) -> list[str]:
+def table(rows: list[dict], facts: dict, window: tuple[int, int], seconds: float, backend: str,
+          binocular: bool) -> list[str]:
     gl = (facts.get("gpu") or {}).get("gl_renderer") or facts.get("gl_renderer", "?")
-    out = [f"Window {window[0]}x{window[1]} ({'both eyes side by side for VaFR dup/rep' if window == SEED_WINDOW else 'one view; VaFR dup/rep: both eyes side by side'}), "
+    out = [f"Window {window[0]}x{window[1]} ({'every method binocular, both eyes side by side' if binocular else 'one view; VaFR dup/rep: both eyes side by side'}), "
            f"{backend} backend on {gl}; {seconds:g}-s trials, `motion: path`, the mouse as the gaze jumping every "
            f"250 ms. {os.cpu_count()} cores. Frames: new frames rendered in the trial; fps: new frames per second; "
            "dropped flips: flips PsychoPy counted as late (a render outlasted the refresh interval); latency: "
@@ -157,11 +158,21 @@ def table(rows: list[dict], facts: dict, window: tuple[int, int], seconds: float
     return out
 
 
+def condition(method: str, binocular: bool, backend: str) -> str:
+    """The protocol's condition of ``method`` (YAML flow mapping); binocular: both eyes (stereo dup) unless
+    the method has its own stereo mode."""
+    renderer, params = METHODS[method]
+    if binocular and "stereo" not in params:
+        params = {**params, "stereo": "dup"}
+    return json.dumps({"renderer": renderer, "params": params, "backend": backend})
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--window", default="640x480", help="window size WxH (default 640x480)")
     ap.add_argument("--seed-size", action="store_true", help=f"the seed's headset: a {SEED_WINDOW[0]}x"
-                    f"{SEED_WINDOW[1]} window (2468x2740 per eye)")
+                    f"{SEED_WINDOW[1]} window, every method binocular (2468x2740 per eye)")
+    ap.add_argument("--binocular", action="store_true", help="every method renders both eyes (side by side)")
     ap.add_argument("--scenes", default="temple,cornell")
     ap.add_argument("--methods", default="gt,vafr_dup,vafr_rep,lmfr,lafr")
     ap.add_argument("--seconds", type=float, default=8.0, help="trial duration (default 8)")
@@ -174,7 +185,7 @@ def main(argv=None) -> int:
     unknown = sorted(set(methods) - set(METHODS))
     if unknown:
         ap.error(f"unknown methods {unknown}: choose from {', '.join(METHODS)}")
-    conditions = "\n".join(f"  {m}: {METHODS[m][:-1]}, backend: {args.backend}}}" for m in methods)
+    conditions = "\n".join(f"  {m}: {condition(m, args.binocular or args.seed_size, args.backend)}" for m in methods)
     protocol = PROTOCOL.format(w=window[0], h=window[1], width_cm=round(53.0 * window[0] / 1920, 2),
                                refresh=args.refresh, scenes=args.scenes, conditions=conditions,
                                seconds=args.seconds)
@@ -189,7 +200,7 @@ def main(argv=None) -> int:
             with Xvfb(screen=f"{window[0] + 64}x{window[1] + 64}x24") as x:
                 db = run_session(work, protocol, x.env, args.seconds, 600 * n_trials)
         rows, facts = summarise(db)
-    lines = table(rows, facts, window, args.seconds, args.backend)
+    lines = table(rows, facts, window, args.seconds, args.backend, args.binocular or args.seed_size)
     print("\n".join(lines))
     if args.write:
         from _report import machine_line, replace_section
