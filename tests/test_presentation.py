@@ -196,7 +196,7 @@ def test_open_without_a_display_is_a_one_line_error():
 def test_presenter_options_are_validated():
     from studyapp.presentation.psychopy_window import PsychoPyPresenter
 
-    with pytest.raises(ValueError, match=r"^eyetracker='tobii' is not supported: use None or 'mousegaze'$"):
+    with pytest.raises(ValueError, match=r"^eyetracker='tobii' is not supported: use None, 'mousegaze', 'device' or 'pointer'$"):
         PsychoPyPresenter(eyetracker="tobii")
     with pytest.raises(ValueError, match=r"^fovea_deg=0\.0 is out of range: must be > 0$"):
         PsychoPyPresenter(fovea_deg=0.0)

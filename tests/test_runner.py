@@ -46,7 +46,7 @@ def test_every_shipped_protocol_runs_end_to_end_with_declared_qualities(tmp_path
     n = sum(t.kind != "reference" for t in build_schedule(p, "P1", 0))
     assert len(df) == 2 * n
     main_trials = df[(df.practice == 0) & (df["catch"] == 0)]
-    per = {"seed001_pilot": 3, "seed001_2afc": 90, "seed003_task1": 50, "seed003_task2": 40}[p.name]
+    per = {"seed001_pilot": 3, "seed001_2afc": 90, "seed003_task1": 50, "seed003_task2": 40}[p.name.removesuffix("_live")]
     assert len(main_trials) == 2 * per
     if p.family == "yes_no":
         assert set(df.response.unique()) <= {0.0, 1.0}
@@ -242,8 +242,8 @@ def test_demo_step_writes_databases_and_tidy_csvs(tmp_path):
     msgs = []
     paths = demo_step(tmp_path, msgs.append)
     names = sorted(p.name for p in paths)
-    assert names == ["seed001_2afc.db", "seed001_2afc_pwcmp.csv", "seed001_2afc_trials.csv", "seed003_task1.db",
-                     "seed003_task1_trials.csv"]
+    assert names == ["seed001_2afc.db", "seed001_2afc_pwcmp.csv", "seed001_2afc_trials.csv", "seed001_pilot_live.db",
+                     "seed001_pilot_live_trials.csv", "seed003_task1.db", "seed003_task1_trials.csv"]
     df = S.read_trials(tmp_path / "study" / "seed003_task1.db")
     assert df.participant.nunique() == 5
     means = df[(df.practice == 0) & (df["catch"] == 0)].groupby("condition").response.mean()

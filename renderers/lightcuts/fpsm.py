@@ -287,7 +287,9 @@ def fpsm_map(fb_st, fb_l, alpha, reading: str = "derived") -> tuple[np.ndarray, 
     """
     if check_reading(reading) == "retained":
         a, m, _ = _features(fb_st, fb_l, alpha)
-        return rho_map(fb_st, fb_l, a, "derived"), np.clip((m - a) / (1.0 - a), 0.0, 1.0)
+        # (M - alpha) / (1 - alpha) written as 1 - (1 - M) / (1 - alpha): equal in exact arithmetic, and with
+        # rounded operations it stays monotone in alpha (a larger tolerance never rounds to more samples)
+        return rho_map(fb_st, fb_l, a, "derived"), np.clip(1.0 - (1.0 - m) / (1.0 - a), 0.0, 1.0)
     rho = rho_map(fb_st, fb_l, alpha, reading)
     return rho, normalise_rho(rho)
 
