@@ -1,5 +1,8 @@
 """The scene catalogue: built-in scene names, and :func:`resolve` (a name, a YAML file or a Scene -> Scene).
 
+Scenes are built once per process (built-in ones by name, scene files while they are unchanged), so a Dask
+worker rendering many frames of a scene builds it, and its BVH, once.
+
 Built-in scenes are registered here by name as ``"module:function"`` references, loaded on first use, so that
 listing the names (protocol validation, ``studyapp scenes``) imports no scene code, and no scene module needs
 to import another's catalogue (no import cycles between the scene generators).
@@ -42,6 +45,21 @@ def builtin(name: str) -> Scene:
     return _load(BUILTIN_SCENES[name])()
 
 
+def _scene_file(path: Path) -> Scene:
+    """A scene file's Scene, built once per process while the file is unchanged (a Dask worker renders many
+    frames of one scene)."""
+    try:
+        st = path.stat()
+    except OSError:
+        return load_yaml(path)  # its one-line error
+    return _cached_scene_file(str(path), str(path.resolve()), st.st_mtime_ns, st.st_size)
+
+
+@functools.lru_cache(maxsize=8)
+def _cached_scene_file(path: str, resolved: str, mtime_ns: int, size: int) -> Scene:
+    return load_yaml(Path(path))
+
+
 def scene_exists(name: str, folder: Path | None = None) -> bool:
     """Whether ``name`` is a built-in scene or a scene file (``name``, ``name.yaml``) in ``folder``."""
     if name in BUILTIN_SCENES:
@@ -71,7 +89,7 @@ def resolve(scene, folder: Path | None = None) -> Scene:
             if path is None:
                 raise UserError(f"scene={str(scene)!r} is neither a built-in scene ({', '.join(BUILTIN_SCENES)}) "
                                 "nor a scene file")
-            s = load_yaml(path)
+            s = _scene_file(Path(path))
     else:
         raise UserError(f"scene={scene!r} is invalid: give a built-in name, a YAML path or a Scene")
     if s.light_count() == 0:

@@ -13,9 +13,12 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from data_schema.errors import UserError
 
 
 def to_srgb8(img: np.ndarray, exposure: float = 1.0) -> np.ndarray:
@@ -107,17 +110,42 @@ def stimulus_key(scene, renderer: str, params: dict, width: int, height: int, ga
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 
-def render_stimulus(scene, renderer: str, params: dict | None, width: int, height: int, gaze=None,
-                    camera: dict | None = None, cache_dir: Path = Path("stimulus_cache")) -> Path:
-    """Render (or look up) a stimulus; returns the path of its cached sRGB PNG.
+@dataclass(frozen=True)
+class FrameRequest:
+    """One stimulus frame as a task carries it to a worker: names and parameters, never meshes.
 
-    The linear float32 image is stored next to it as ``.npy`` and the stats as ``.json``. Bad input raises a
-    one-line ValueError before anything is written.
+    ``scene`` is a built-in scene name or a scene file's path (or, in process only, a Scene); ``params`` are
+    the renderer's full, checked parameters; ``key`` is the cache key the client computed
+    (:func:`stimulus_key`), which the worker checks against its own code.
     """
+
+    key: str
+    scene: object
+    renderer: str
+    params: dict
+    width: int
+    height: int
+    gaze: tuple[float, float]
+    camera: dict | None = None
+
+
+@dataclass
+class CacheEntry:
+    """The files of one cache entry: the linear image (``.npy``), the stats (``.json``) and the PNG."""
+
+    key: str
+    image: np.ndarray
+    stats_json: str
+    png: bytes
+
+
+def frame_request(scene, renderer: str, params: dict | None, width: int, height: int, gaze=None,
+                  camera: dict | None = None) -> FrameRequest:
+    """Check a stimulus (one-line ValueError on bad input, before anything is rendered) and compute its key."""
     from data_schema.geometry import check_gaze
 
     from .catalog import resolve
-    from .registry import check_resolution, get, render, resolve_params
+    from .registry import check_resolution, get, resolve_params
 
     sc = resolve(scene)
     full = resolve_params(renderer, params)
@@ -128,18 +156,62 @@ def render_stimulus(scene, renderer: str, params: dict | None, width: int, heigh
     if camera:
         sc.camera.override(camera)
     key = stimulus_key(sc, renderer, full, width, height, gaze, camera)
-    folder = Path(cache_dir) / key[:2]
-    png = folder / f"{key}.png"
+    return FrameRequest(key, scene, renderer, full, int(width), int(height), tuple(gaze), camera)
+
+
+def cached_png(cache_dir, key: str) -> Path:
+    """The PNG of cache entry ``key`` (it exists only when the entry is complete)."""
+    return Path(cache_dir) / key[:2] / f"{key}.png"
+
+
+def render_entry(request: FrameRequest) -> CacheEntry:
+    """Render one frame and return its cache entry's content (runs on a Dask worker, or in process).
+
+    The scene comes from the catalogue's per-process cache (built once per worker). A key that differs from
+    the client's means the worker runs other renderer code: refused, so that no entry lands under a wrong key.
+    """
+    import io
+
+    from .catalog import resolve
+    from .registry import render
+
+    sc = resolve(request.scene)
+    key = stimulus_key(sc, request.renderer, request.params, request.width, request.height, request.gaze,
+                       request.camera)
+    if key != request.key:
+        raise UserError(f"this worker's renderers differ from the client's (cache key {key[:12]} instead of "
+                        f"{request.key[:12]}): install the same studyapp on every worker")
+    img, stats = render(sc, request.renderer, request.params, request.width, request.height, gaze=request.gaze,
+                        camera=request.camera)
+    buf = io.BytesIO()
+    save_png(buf, img, sc.exposure)
+    stats_json = json.dumps({"key": key, **jsonable_stats(stats)}, indent=1, sort_keys=True) + "\n"
+    return CacheEntry(key, np.asarray(img, dtype=np.float32), stats_json, buf.getvalue())
+
+
+def write_entry(cache_dir, entry: CacheEntry) -> Path:
+    """Write a cache entry (each file atomically; the PNG last, so its presence marks a complete entry)."""
+    from data_schema.atomic import write_bytes, write_text
+
+    png = cached_png(cache_dir, entry.key)
+    write_npy(png.with_suffix(".npy"), entry.image)
+    write_text(png.with_suffix(".json"), entry.stats_json)
+    write_bytes(png, entry.png)
+    return png
+
+
+def render_stimulus(scene, renderer: str, params: dict | None, width: int, height: int, gaze=None,
+                    camera: dict | None = None, cache_dir: Path = Path("stimulus_cache")) -> Path:
+    """Render (or look up) a stimulus; returns the path of its cached sRGB PNG.
+
+    The linear float32 image is stored next to it as ``.npy`` and the stats as ``.json``. Bad input raises a
+    one-line ValueError before anything is written.
+    """
+    request = frame_request(scene, renderer, params, width, height, gaze, camera)
+    png = cached_png(cache_dir, request.key)
     if png.is_file():
         return png
-    img, stats = render(sc, renderer, full, width, height, gaze=gaze, camera=camera)
-    from data_schema.atomic import write_text
-
-    write_npy(folder / f"{key}.npy", img)
-    write_text(folder / f"{key}.json", json.dumps({"key": key, **jsonable_stats(stats)}, indent=1, sort_keys=True)
-               + "\n")
-    write_png(png, img, sc.exposure)
-    return png
+    return write_entry(cache_dir, render_entry(request))
 
 
 def jsonable_stats(stats: dict) -> dict:

@@ -18,16 +18,17 @@ from studyapp.progress import Bar
 SHIPPED = Path(__file__).resolve().parents[1] / "protocols"
 
 
-def _protocol(path: str, stimuli: str | None = None, check_renderers: bool = True):
+def _protocol(path: str, stimuli: str | None = None, check_renderers: bool = True, full: bool = False):
     """A protocol file, or a shipped protocol by name (``studyapp run seed001_2afc ...``); a shipped one keeps
-    its stimuli under the current folder (``./stimuli/<name>``), not inside the installed package."""
+    its stimuli under the current folder (``./stimuli/<name>``), not inside the installed package. ``full``:
+    its full-size variant (the protocol's ``full`` block)."""
     from studyapp.runner.protocol import load_protocol
 
     p = Path(path)
     if not p.exists() and not p.suffix and (SHIPPED / f"{path}.yaml").exists():
         return load_protocol(SHIPPED / f"{path}.yaml", stimuli_dir=stimuli, check_renderers=check_renderers,
-                             output_base=Path.cwd())
-    return load_protocol(p, stimuli_dir=stimuli, check_renderers=check_renderers)
+                             output_base=Path.cwd(), full=full)
+    return load_protocol(p, stimuli_dir=stimuli, check_renderers=check_renderers, full=full)
 
 
 def _fmt_seconds(s: float) -> str:
@@ -43,7 +44,7 @@ def cmd_validate(args) -> int:
     from studyapp.runner.schedule import build_schedule
     from studyapp.runner.stimuli import missing_stimuli
 
-    p = _protocol(args.protocol)
+    p = _protocol(args.protocol, full=args.full)
     print(f"{p.path}: valid")
     print(p.describe())
     sched = build_schedule(p, "P1", 0)
@@ -61,13 +62,22 @@ def cmd_validate(args) -> int:
 
 
 def cmd_prepare(args) -> int:
+    from studyapp import cluster
     from studyapp.runner.stimuli import prepare, stimulus_root
 
-    p = _protocol(args.protocol, args.stimuli)
+    spec = cluster.from_args(args)
+    p = _protocol(args.protocol, args.stimuli, full=args.full)
+    if args.full and spec.scheduler is None and not args.yes_on_one_machine:
+        w, h = p.render_size
+        raise CLIError(f"--full renders {p.name} at {w}x{h} with its full-size parameters, a cluster's work (its "
+                       "render_budget states the hours): give a running cluster with --scheduler tcp://HOST:PORT "
+                       "(docs/distributed.md), or add --yes-on-one-machine to render it on this machine anyway")
     bar = Bar("frames")
-    res = prepare(p, scale=args.scale, progress=bar, cache_dir=Path(args.cache) if args.cache else None)
-    print(f"{p.name}: {res['frames']} frame(s) built ({res['rendered']} rendered) in {_fmt_seconds(res['seconds'])}"
-          f" -> {stimulus_root(p, args.scale)}")
+    res = prepare(p, scale=args.scale, progress=bar, cache_dir=Path(args.cache) if args.cache else None,
+                  cluster=spec)
+    bar.close()
+    print(f"{p.name}: {res['frames']} frame(s) built ({res['rendered']} rendered, {res['cached']} from the cache) "
+          f"on {spec.describe()} in {_fmt_seconds(res['seconds'])} -> {stimulus_root(p, args.scale)}")
     return 0
 
 
@@ -103,7 +113,7 @@ def cmd_run(args) -> int:
     from studyapp.runner.stimuli import missing_stimuli, prepare
 
     notes: list[str] = []  # printed once the session has started (errors stay one line)
-    p = _protocol(args.protocol, args.stimuli, check_renderers=not args.simulate)
+    p = _protocol(args.protocol, args.stimuli, check_renderers=not args.simulate, full=args.full)
     db = Path(args.db) if args.db else Path(f"{p.name}.db")
     missing = missing_stimuli(p, args.scale)
     if missing and args.simulate:
@@ -221,6 +231,12 @@ def cmd_export(args) -> int:
 
 
 # -- registration -------------------------------------------------------------------------------------------
+def _full_option(parser) -> None:
+    parser.add_argument("--full", action="store_true",
+                        help="the protocol's full-size variant (its full block: render size and parameters such as "
+                             "the seed's ground-truth samples; stimuli in STIMULI_DIR/full)")
+
+
 def register(subparsers, parser_class) -> None:
     from data_schema.ranges import SCALE, SEED, argtype
 
@@ -228,16 +244,27 @@ def register(subparsers, parser_class) -> None:
                               description="Check a protocol YAML file against data_schema/protocol.schema.json "
                                           "and its cross-references; print its design and schedule size.")
     v.add_argument("protocol", metavar="PROTOCOL", help="protocol YAML file (or the name of a shipped one)")
+    _full_option(v)
     v.set_defaults(func=cmd_validate)
 
     pr = subparsers.add_parser("prepare", help="render a protocol's whole stimulus set",
                                description="Build every stimulus of a protocol through the renderer registry "
-                                           "and the stimulus cache, with a progress bar and the time left.")
+                                           "and the stimulus cache, with a progress bar and the time left: one "
+                                           "Dask task per frame on a local cluster (one worker per core), a "
+                                           "running cluster (--scheduler) or in this process (--serial). Frames "
+                                           "already in the cache are not rendered again, so a stopped prepare "
+                                           "resumes where it stopped.")
     pr.add_argument("protocol", metavar="PROTOCOL")
     pr.add_argument("--scale", type=argtype("--scale", SCALE), default=1.0, metavar="F",
                     help="shrink the resolution by F in (0, 1] for dry runs (default: 1)")
     pr.add_argument("--stimuli", metavar="DIR", help="stimulus folder (default: the protocol's stimuli_dir)")
     pr.add_argument("--cache", metavar="DIR", help="renderer cache folder (default: next to the stimuli)")
+    _full_option(pr)
+    pr.add_argument("--yes-on-one-machine", action="store_true",
+                    help="with --full and no --scheduler: render the full-size set on this machine anyway")
+    from studyapp.cluster import add_arguments
+
+    add_arguments(pr)
     pr.set_defaults(func=cmd_prepare)
 
     r = subparsers.add_parser("run", help="run (or resume) a participant's session",
@@ -255,6 +282,7 @@ def register(subparsers, parser_class) -> None:
                    help="use the stimulus set prepared with --scale F (default: 1)")
     r.add_argument("--stimuli", metavar="DIR", help="stimulus folder (default: the protocol's stimuli_dir)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    _full_option(r)
     r.add_argument("--eyetracker", choices=("mousegaze",),
                    help="record gaze through psychopy.iohub and flag trials where it left the fovea "
                         "(mousegaze: the mouse simulates the eye, for testing)")

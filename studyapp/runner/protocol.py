@@ -9,10 +9,18 @@ The protocol's ``display`` (pixels, physical width, viewing distance) is a :clas
 the only source of the visual angle the stimuli subtend. Every stimulus is rendered at ``stimulus.render_px``
 (default: the display's pixels) with a camera of the display's vertical visual angle, and shown over the
 whole display (:meth:`Protocol.render_geometry`).
+
+Full size
+---------
+A protocol may carry a ``full`` block: the render size and per-condition renderer parameters of its
+full-size variant (e.g. seed 003's 2048 + 2048 ground-truth samples), loaded with ``full=True``
+(``studyapp prepare/run --full``). The variant is the same protocol with those values in place: its own content
+hash (a study database of one variant refuses the other) and its stimuli in ``<stimuli_dir>/full``.
 """
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 from dataclasses import dataclass, field
@@ -103,6 +111,7 @@ class Protocol:
     min_fps: float | None = None  # live: the timing check's floor
     explore: dict = field(default_factory=dict)
     eyetracker: dict | None = None
+    full: bool = False  # the full-size variant (the protocol's full block in place)
 
     @property
     def live(self) -> bool:
@@ -149,7 +158,7 @@ class Protocol:
         d, (w, h) = self.display, self.render_size
         return (f"{self.name} {self.version}: {self.family}, {len(self.scenes)} scene(s), {n} condition(s), "
                 f"{self.repetitions} repetition(s), display {d.width_px}x{d.height_px} ({d.fov_y_deg:.1f}° high, "
-                f"{d.ppd:.1f} px/deg), stimuli rendered at {w}x{h}")
+                f"{d.ppd:.1f} px/deg), stimuli rendered at {w}x{h}{' (full size)' if self.full else ''}")
 
 
 def content_hash(data: dict) -> str:
@@ -278,6 +287,36 @@ def _check_renderers_on_display(doc, conditions, display, render_size, fixation)
                                 f"display ({w}x{h} px, {display.fov_y_deg:.1f}°): {exc}") from None
 
 
+def _full_size(doc: LoadedYAML, data: dict, check_renderers: bool) -> dict:
+    """``data`` with its ``full`` block in place: ``stimulus.render_px`` and the conditions' params replaced."""
+    spec = data.get("full")
+    if spec is None:
+        raise doc.error(("name",), "the protocol has no full block (full: {render_px: [W, H], conditions: "
+                        "{NAME: {params: {...}}}}): --full needs one")
+    out = copy.deepcopy(data)
+    w, h = spec["render_px"]
+    d = data["display"]
+    if abs(w * d["height_px"] / d["width_px"] - h) > 1.0:
+        raise doc.error(("full", "render_px"), f"{w}x{h} has not the display's aspect ratio "
+                        f"({d['width_px']}x{d['height_px']}): a stimulus covers the whole display")
+    out.setdefault("stimulus", {})["render_px"] = [w, h]
+    reg = _registry() if check_renderers else None
+    for name, over in spec.get("conditions", {}).items():
+        where = ("full", "conditions", name)
+        cond = out["conditions"].get(name)
+        if cond is None:
+            raise doc.error(where, f"unknown condition {name!r}: defined are {', '.join(out['conditions'])}")
+        if "renderer" not in cond:
+            raise doc.error(where, f"condition {name!r} has no renderer: only renderer conditions have params")
+        cond["params"] = {**cond.get("params", {}), **over["params"]}
+        if reg is not None:
+            try:
+                reg.resolve_params(cond["renderer"], cond["params"])
+            except ValueError as exc:
+                raise doc.error(where + ("params",), str(exc)) from None
+    return out
+
+
 def _inside(doc: LoadedYAML, base: Path, field: tuple, relative: str) -> Path:
     """``base / relative``, refused when it leaves the protocol's folder (``..``, an absolute path): a protocol
     file never makes studyapp read or write elsewhere; a folder elsewhere is given on the command line."""
@@ -310,7 +349,8 @@ def _check_condition(doc, conditions, field_path, name, allow_roles=("main", "ca
         raise doc.error(field_path, f"condition {name!r} has role {conditions[name].role}")
 
 
-def load_protocol(path, stimuli_dir=None, check_renderers: bool = True, output_base: Path | None = None) -> Protocol:
+def load_protocol(path, stimuli_dir=None, check_renderers: bool = True, output_base: Path | None = None,
+                  full: bool = False) -> Protocol:
     """Read, validate and complete a protocol file.
 
     Parameters
@@ -326,6 +366,8 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True, output_b
         When ``renderers.registry`` is importable, renderer names and parameters are checked against it
         (default); False skips the check (simulated runs, which render nothing, and do not import the
         renderers).
+    full : bool
+        The full-size variant (the protocol's ``full`` block in place; stimuli in ``<stimuli_dir>/full``).
 
     Raises
     ------
@@ -333,7 +375,7 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True, output_b
         One line naming the file, the line and the field.
     """
     path = Path(path)
-    return _build(load_yaml(path), path, stimuli_dir, check_renderers, output_base)
+    return _build(load_yaml(path), path, stimuli_dir, check_renderers, output_base, full)
 
 
 def protocol_from_data(data: dict, label: str, check_renderers: bool = True) -> Protocol:
@@ -344,8 +386,11 @@ def protocol_from_data(data: dict, label: str, check_renderers: bool = True) -> 
     return _build(doc, Path.cwd() / "recorded.yaml", None, check_renderers, None)
 
 
-def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, output_base) -> Protocol:
+def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, output_base,
+           full: bool = False) -> Protocol:
     data = validate_document(doc)
+    if full:
+        data = _full_size(doc, data, check_renderers)
     base = path.resolve().parent
     family = data["family"]
     conditions = _conditions(doc, data, base, check_renderers)
@@ -463,6 +508,8 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
     sdir = Path(stimuli_dir) if stimuli_dir is not None else _inside(
         doc, Path(output_base).resolve() if output_base is not None else base, ("stimuli_dir",),
         data.get("stimuli_dir", f"stimuli/{data['name']}"))
+    if full:
+        sdir = sdir / "full"
     return Protocol(
         path=path, data=data, name=data["name"], version=data["version"], family=family,
         question=data["question"], instructions=data.get("instructions", ""), block=data.get("block", ""),
@@ -479,4 +526,4 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
         practice=practice, breaks=data.get("breaks"), catch=catch, simulation=simulation, analysis=analysis,
         stimuli_dir=sdir, content_hash=content_hash(data), motion=stim.get("motion", "path"),
         gaze_source=stim.get("gaze", "fixation"), min_fps=stim.get("min_fps"), explore=dict(stim.get("explore", {})),
-        eyetracker=data.get("eyetracker"))
+        eyetracker=data.get("eyetracker"), full=full)

@@ -148,12 +148,18 @@ def render_function():
 
 
 def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, cache_dir: Path | None = None,
-            progress: Callable[[int, int, float], None] | None = None, render=None) -> dict:
+            progress: Callable[[int, int, float], None] | None = None, render=None, cluster=None) -> dict:
     """Build every missing stimulus of ``protocol``: render renderer conditions, derive degraded ones.
 
-    ``progress(done_frames, total_frames, seconds_left)`` is called after every frame; the time left is the
-    mean seconds per rendered frame so far times the frames left. Returns counts and the elapsed time.
+    Every missing frame of a renderer condition is one task (:func:`studyapp.cluster.render_frames`) on
+    ``cluster`` (a :class:`~studyapp.cluster.ClusterSpec`; default: in this process), rendered into the
+    content-addressed cache and copied into the stimulus folder atomically as it arrives, so a killed
+    ``prepare`` resumes where it stopped. ``render`` replaces :func:`renderers.stimuli.render_stimulus` in
+    process (tests). ``progress(done_frames, total_frames, seconds_left)`` is called after every frame; the time
+    left is the frames left times the wall time per frame so far. Returns counts and the elapsed time.
     """
+    from studyapp.cluster import SERIAL, render_frames
+
     SCALE.check("--scale", scale)
     geometry = protocol.render_geometry(scale)
     root_dir = stimulus_root(protocol, scale, root)
@@ -169,36 +175,44 @@ def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, ca
             raise UserError(f"missing stimulus file {missing} (condition {need.condition}, scene {need.scene}): "
                              "folder conditions are rendered elsewhere")
         todo.append((need, cond, frames))
-    n_render = sum(len(fr) for _, c, fr in todo if c.renderer)
     total = sum(len(fr) for _, _, fr in todo)
-    if n_render and render is None:
-        render = render_function()
-    t0, done, rendered, t_render = time.perf_counter(), 0, 0, 0.0
+    jobs, targets = [], []
     for need, cond, frames in todo:
         if cond.renderer:
             for i, dst in enumerate(frames):
                 if dst.is_file():
-                    done += 1
                     continue
-                t1 = time.perf_counter()
-                png = render(protocol.scene_ref(need.scene), cond.renderer, dict(cond.params), geometry.width,
-                             geometry.height, geometry.gaze, camera=frame_camera(protocol, need.scene, i),
-                             cache_dir=cache)
-                dst.parent.mkdir(parents=True, exist_ok=True)
-                with atomic_path(dst) as tmp:
-                    shutil.copyfile(png, tmp)
-                t_render += time.perf_counter() - t1
-                rendered += 1
-                done += 1
-                if progress:
-                    left = (n_render - rendered) * (t_render / rendered) if rendered else math.nan
-                    progress(done, total, left)
-        else:
+                jobs.append((f"condition {need.condition}, scene {need.scene}, frame {i}",
+                             {"scene": protocol.scene_ref(need.scene), "renderer": cond.renderer,
+                              "params": dict(cond.params), "width": geometry.width, "height": geometry.height,
+                              "gaze": geometry.gaze, "camera": frame_camera(protocol, need.scene, i)}))
+                targets.append(dst)
+    spec = cluster or SERIAL
+    if jobs and render is None:
+        render = render_function()  # one line if the renderers are not usable here
+    t0 = time.perf_counter()
+    count = {"done": total - len(jobs) - sum(len(fr) for _, c, fr in todo if not c.renderer)}
+
+    def copied(i, png):
+        dst = targets[i]
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_path(dst) as tmp:
+            shutil.copyfile(png, tmp)
+        count["done"] += 1
+
+    def rendered(done, n, left):
+        if progress:
+            progress(count["done"], total, left)
+
+    res = render_frames(jobs, cache, spec, copied, rendered, render=render if spec.in_process else None)
+    for need, cond, frames in todo:
+        if not cond.renderer:
             make_derived(protocol, need, scale, root)
-            done += len(frames)
+            count["done"] += len(frames)
             if progress:
-                progress(done, total, (n_render - rendered) * (t_render / rendered) if rendered else 0.0)
-    return {"frames": total, "rendered": rendered, "seconds": time.perf_counter() - t0}
+                progress(count["done"], total, 0.0)
+    return {"frames": total, "rendered": res["rendered"], "cached": res["cached"],
+            "seconds": time.perf_counter() - t0}
 
 
 # -- synthetic stimulus sets (demo, tests, dry runs without renderers) --------------------------------------

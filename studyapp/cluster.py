@@ -1,0 +1,335 @@
+"""Offline rendering on Dask distributed: the one module that imports dask (lazily).
+
+Who renders (:class:`ClusterSpec`, the options of :func:`add_arguments`):
+
+- by default a ``LocalCluster`` of one single-threaded worker process per core, started and stopped by the
+  command (``--workers N`` sizes it; each worker's numba kernels get ``cores // N`` threads);
+- ``--scheduler tcp://HOST:PORT`` (or the environment variable ``DASK_SCHEDULER_ADDRESS``): a running
+  scheduler and its workers, on this machine or a lab's (docs/distributed.md);
+- ``--workers 1`` or ``--serial``: in this process, no Dask at all.
+
+What runs: :func:`run_tasks` submits one task per unit of work (a frame), drives the progress bar and the time
+left from the futures as they complete (``as_completed``), and turns a failing task into one line naming it
+(``condition X, scene Y, frame N: <the worker's error>``, exit status 2). A worker that dies mid-task is
+replaced by the scheduler: its task runs again elsewhere (``distributed.scheduler.allowed-failures`` times).
+:func:`render_frames` is the stimulus-cache front end used by ``prepare`` and ``lightcuts tables``: the
+client computes each frame's cache key (:func:`renderers.stimuli.frame_request`), submits only frames not yet
+in the cache (content-addressed, so reruns resume and identical frames render once), a worker renders one
+frame through :func:`renderers.stimuli.render_entry` (the scene from its per-process catalogue) and returns the
+entry's content, and the client writes it atomically (:func:`renderers.stimuli.write_entry`; workers need not
+share the client's file system). Results are byte-identical to an in-process run.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import os
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from data_schema.errors import UserError
+
+#: The environment variable naming a running scheduler (Dask's own name for it).
+ENV_SCHEDULER = "DASK_SCHEDULER_ADDRESS"
+#: Seconds to wait for a scheduler to answer before giving up in one line.
+CONNECT_TIMEOUT_S = 5.0
+
+
+@dataclass(frozen=True)
+class ClusterSpec:
+    """Where tasks run: a running scheduler, a local cluster of ``workers`` processes, or this process."""
+
+    scheduler: str | None = None
+    workers: int | None = None
+    serial: bool = False
+
+    @property
+    def local_workers(self) -> int:
+        return self.workers or os.cpu_count() or 1
+
+    @property
+    def in_process(self) -> bool:
+        return self.scheduler is None and (self.serial or self.local_workers == 1)
+
+    def describe(self) -> str:
+        if self.scheduler:
+            return f"the Dask scheduler {self.scheduler}"
+        if self.in_process:
+            return "this process"
+        return f"a local cluster of {self.local_workers} workers"
+
+
+SERIAL = ClusterSpec(serial=True)
+
+
+def add_arguments(parser) -> None:
+    """The cluster options of a command: ``--scheduler``, ``--workers``, ``--serial``."""
+    from data_schema.ranges import Range, argtype
+
+    g = parser.add_argument_group("cluster (docs/distributed.md)")
+    g.add_argument("--scheduler", metavar="ADDR",
+                   help=f"a running Dask scheduler, e.g. tcp://HOST:8786 (default: ${ENV_SCHEDULER}, else a local "
+                        "cluster started for this command)")
+    g.add_argument("--workers", type=argtype("--workers", Range(1, 1024, integer=True)), metavar="N",
+                   help="worker processes of the local cluster (default: one per core; 1 renders in this process)")
+    g.add_argument("--serial", action="store_true", help="render in this process, without Dask")
+
+
+def from_args(args) -> ClusterSpec:
+    """The :class:`ClusterSpec` of parsed :func:`add_arguments` options (and ``$DASK_SCHEDULER_ADDRESS``)."""
+    scheduler = getattr(args, "scheduler", None)
+    if getattr(args, "serial", False) and scheduler:
+        raise UserError("--serial and --scheduler exclude each other: choose one")
+    if scheduler and getattr(args, "workers", None):
+        raise UserError("--workers sizes the local cluster: the workers of --scheduler are started with "
+                        "`dask worker` (docs/distributed.md)")
+    if not scheduler and not getattr(args, "serial", False) and not getattr(args, "workers", None):
+        scheduler = os.environ.get(ENV_SCHEDULER) or None
+    return ClusterSpec(scheduler=scheduler, workers=getattr(args, "workers", None),
+                       serial=bool(getattr(args, "serial", False)))
+
+
+@contextlib.contextmanager
+def connect(spec: ClusterSpec) -> Iterator:
+    """A Dask ``Client`` for ``spec`` (None in process); a local cluster is stopped on exit."""
+    if spec.in_process:
+        yield None
+        return
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError as exc:
+        raise UserError(f"Dask distributed is not installed here ({exc}): pip install 'dask[distributed]', or "
+                        "render in this process with --serial") from None
+    import logging
+
+    if spec.scheduler:
+        client = _client(Client, spec.scheduler)
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    n = spec.local_workers
+    threads = str(max(1, (os.cpu_count() or 1) // n))
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                           silence_logs=logging.ERROR, env={"NUMBA_NUM_THREADS": threads})
+    try:
+        client = Client(cluster, set_as_default=False)
+        try:
+            yield client
+        finally:
+            client.close()
+    finally:
+        cluster.close()
+
+
+def _client(client_class, address: str):
+    """A ``Client`` of the scheduler at ``address``, or one line (within ``CONNECT_TIMEOUT_S``) saying why not."""
+    import gc
+    import socket
+    import sys
+    import threading
+
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    where = f"--scheduler {address}" if os.environ.get(ENV_SCHEDULER) != address else \
+        f"{ENV_SCHEDULER}={address}"
+    hint = "start one with `dask scheduler` (docs/distributed.md), or drop --scheduler to use a local cluster"
+    try:
+        scheme, loc = parse_address(address, strict=True)
+        host, port = parse_host_port(loc)
+    except (ValueError, TypeError) as exc:
+        raise UserError(f"{where}: not a scheduler address ({_first_line(exc)}): give tcp://HOST:PORT") from None
+    if scheme == "tcp":  # nothing listening: say so at once, not after Dask's retries
+        try:
+            socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S).close()
+        except OSError as exc:
+            raise UserError(f"{where}: no Dask scheduler answers there ({exc.strerror or exc}): {hint}") from None
+    # In a thread with a deadline: a service that accepts the connection but is no scheduler never answers.
+    box: dict = {}
+
+    def make():
+        try:
+            box["client"] = client_class(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+        except Exception as exc:  # noqa: BLE001 - reported below in one line
+            box["reason"] = _first_line(exc)
+
+    thread = threading.Thread(target=make, name="studyapp-connect", daemon=True)
+    thread.start()
+    thread.join(2 * CONNECT_TIMEOUT_S)
+    if "client" in box:
+        return box["client"]
+    reason = box.get("reason", f"no answer in {2 * CONNECT_TIMEOUT_S:g} s")
+    hook = sys.unraisablehook
+    try:  # the half-made Client complains from __del__: keep the error one line
+        sys.unraisablehook = lambda *a: None
+        gc.collect()
+    finally:
+        sys.unraisablehook = hook
+    raise UserError(f"{where}: no Dask scheduler answers there ({reason}): {hint}")
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def task_error(label: str, exc: BaseException) -> UserError:
+    """One line naming the task and the worker's error (its first line)."""
+    name = type(exc).__name__
+    if name == "KilledWorker":
+        why = "every worker that ran it died (distributed.scheduler.allowed-failures reached; out of memory?)"
+    elif isinstance(exc, UserError):
+        why = _first_line(exc)
+    else:
+        why = f"{name}: {_first_line(exc)}"
+    return UserError(f"{label}: {why}")
+
+
+@dataclass(frozen=True)
+class Ref:
+    """An argument of a task that is the result of an earlier task (named ``name``)."""
+
+    name: str
+
+
+@dataclass(frozen=True)
+class Task:
+    """One unit of work: ``fn(*args)`` on a worker. ``name`` is its Dask key (unique; content-addressed where
+    possible, so that equal work is shared); ``label`` names it in errors (``condition X, scene Y, frame N``)."""
+
+    name: str
+    label: str
+    fn: Callable
+    args: tuple = ()
+
+
+def run_tasks(tasks: list[Task], spec: ClusterSpec, on_result: Callable[[Task, object], None] | None = None,
+              progress: Callable[[int, int, float], None] | None = None, client=None) -> float:
+    """Run ``tasks`` (dependencies before dependents) on ``spec``; ``on_result(task, result)`` runs on the client
+    as each completes (in completion order), then ``progress(done, total, seconds_left)``; the time left is the
+    tasks left times the wall time per completed task so far. A failing task cancels the rest and raises one
+    line (:func:`task_error`); results handed to ``on_result`` before it stay. Returns the wall seconds."""
+    t0 = time.perf_counter()
+    if not tasks:
+        return 0.0
+    if client is None and not spec.in_process:
+        with connect(spec) as c:
+            return run_tasks(tasks, spec, on_result, progress, client=c)
+    total = len(tasks)
+
+    def report(done):
+        if progress:
+            progress(done, total, (total - done) * (time.perf_counter() - t0) / done)
+
+    if client is None:
+        last_use = {a.name: i for i, t in enumerate(tasks) for a in t.args if isinstance(a, Ref)}
+        results: dict[str, object] = {}
+        for i, t in enumerate(tasks):
+            try:
+                res = t.fn(*(results[a.name] if isinstance(a, Ref) else a for a in t.args))
+            except Exception as exc:  # noqa: BLE001 - reported as the worker's error, one line
+                raise task_error(t.label, exc) from exc
+            if t.name in last_use:
+                results[t.name] = res
+            for a in t.args:
+                if isinstance(a, Ref) and last_use[a.name] == i:
+                    del results[a.name]
+            if on_result:
+                on_result(t, res)
+            report(i + 1)
+        return time.perf_counter() - t0
+
+    from distributed import as_completed
+
+    futures, by_key = {}, {}
+    for t in tasks:
+        args = tuple(futures[a.name] if isinstance(a, Ref) else a for a in t.args)
+        futures[t.name] = client.submit(t.fn, *args, key=t.name, pure=False, retries=0)
+        by_key[futures[t.name].key] = t
+    pending = list(futures.values())
+    done = 0
+    try:
+        for fut in as_completed(pending, loop=client.loop):
+            task = by_key[fut.key]
+            if fut.status == "error":
+                raise task_error(task.label, fut.exception())
+            if fut.status != "finished":  # cancelled or lost with the scheduler
+                raise UserError(f"{task.label}: cancelled: the Dask scheduler {spec.scheduler or '(local)'} went "
+                                "away; run the command again to continue (frames done are kept)")
+            res = fut.result()
+            fut.release()  # the worker may drop the result once no dependent needs it
+            futures.pop(task.name, None)
+            if on_result:
+                on_result(task, res)
+            del res
+            done += 1
+            report(done)
+    finally:
+        if futures:
+            client.cancel(list(futures.values()))
+    return time.perf_counter() - t0
+
+
+def render_frames(frames: list[tuple[str, dict]], cache_dir, spec: ClusterSpec,
+                  on_frame: Callable[[int, Path], None] | None = None,
+                  progress: Callable[[int, int, float], None] | None = None, render=None) -> dict:
+    """Bring every frame into the stimulus cache ``cache_dir``; ``on_frame(index, png)`` runs on the client as
+    frame ``frames[index]`` is there. A frame is ``(label, kwargs of renderers.stimuli.render_stimulus)``.
+
+    In process each frame goes through ``render`` (default :func:`renderers.stimuli.render_stimulus`, which
+    looks the frame up first). On a cluster the client computes every key first, hands frames already cached to
+    ``on_frame`` at once and submits one task per missing key (a key shared by several frames renders once).
+    Returns ``{"rendered": tasks run, "cached": frames found in the cache, "seconds": wall time}``.
+    """
+    from renderers import stimuli
+
+    t0 = time.perf_counter()
+    if spec.in_process:
+        render = render or stimuli.render_stimulus
+        tasks = [Task(f"frame-{i}", label, functools.partial(render, **kw, cache_dir=cache_dir))
+                 for i, (label, kw) in enumerate(frames)]
+        index = {t.name: i for i, t in enumerate(tasks)}
+        run_tasks(tasks, spec, (lambda t, png: on_frame(index[t.name], png)) if on_frame else None, progress)
+        return {"rendered": len(tasks), "cached": 0, "seconds": time.perf_counter() - t0}
+    if render is not None:
+        raise ValueError("a custom render function runs in process only (spec.serial)")
+    todo: dict[str, list[int]] = {}
+    requests = {}
+    cached = 0
+    for i, (label, kw) in enumerate(frames):
+        try:
+            req = stimuli.frame_request(**kw)
+        except ValueError as exc:
+            raise task_error(label, exc) from None
+        if not isinstance(req.scene, str):
+            raise TypeError(f"{label}: a task carries a scene's name or file, not a Scene object")
+        png = stimuli.cached_png(cache_dir, req.key)
+        if png.is_file():
+            cached += 1
+            if on_frame:
+                on_frame(i, png)
+            continue
+        requests.setdefault(req.key, (label, req))
+        todo.setdefault(req.key, []).append(i)
+    tasks = [Task(f"stimulus-{key}", label, stimuli.render_entry, (req,)) for key, (label, req) in requests.items()]
+
+    def written(task, entry):
+        if entry.key != task.name[len("stimulus-"):]:
+            raise UserError(f"{task.label}: a worker returned the entry {entry.key[:12]} for another frame")
+        png = stimuli.write_entry(cache_dir, entry)
+        for i in todo[entry.key]:
+            if on_frame:
+                on_frame(i, png)
+
+    def counted(done, total, left):
+        if progress:
+            progress(cached + done, cached + total, left)
+
+    if cached and progress:
+        progress(cached, cached + len(tasks), float("nan"))
+    run_tasks(tasks, spec, written, counted)
+    return {"rendered": len(tasks), "cached": cached, "seconds": time.perf_counter() - t0}
