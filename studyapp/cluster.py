@@ -231,7 +231,7 @@ def run_tasks(tasks: list[Task], spec: ClusterSpec, on_result: Callable[[Task, o
         for i, t in enumerate(tasks):
             try:
                 res = t.fn(*(results[a.name] if isinstance(a, Ref) else a for a in t.args))
-            except Exception as exc:  # noqa: BLE001 - reported as the worker's error, one line
+            except Exception as exc:
                 raise task_error(t.label, exc) from exc
             if t.name in last_use:
                 results[t.name] = res
