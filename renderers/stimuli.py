@@ -2,10 +2,15 @@
 
 The cache key is the SHA-256 of: the scene's content hash (geometry, materials, lights, camera, display), the
 renderer name, its full parameter dict (defaults filled in), the resolution, the gaze, the camera overrides and
-the code version (a hash of every ``.py`` file of the ``renderers`` package). A stimulus is stored as
-``<cache_dir>/<key[:2]>/<key>.png`` (8-bit sRGB) with the linear float32 image ``<key>.npy`` and the stats
-``<key>.json`` next to it. Each file is written to a temporary name and renamed; the PNG is renamed last, so
-its presence means the entry is complete. A cached render costs one hash and one lookup.
+the code version (a hash of every ``.py`` file of the ``renderers`` package), and the backend unless it is the
+CPU. A stimulus is stored as ``<cache_dir>/<key[:2]>/<key>.png`` (8-bit sRGB) with the linear float32 image
+``<key>.npy`` and the stats ``<key>.json`` next to it. Each file is written to a temporary name and renamed; the
+PNG is renamed last, so its presence means the entry is complete. A cached render costs one hash and one lookup.
+
+The same entry is made in process (:func:`render_stimulus`) or split for a cluster (``studyapp.cluster``): the
+client checks a frame and computes its key (:func:`frame_request`), a worker renders it into the entry's content
+(:func:`render_entry`: names and parameters in, the image, stats and PNG bytes out) and the client writes it
+(:func:`write_entry`); both routes give the same bytes.
 """
 
 from __future__ import annotations
@@ -102,11 +107,15 @@ def _canon(x):
     return x
 
 
-def stimulus_key(scene, renderer: str, params: dict, width: int, height: int, gaze, camera=None) -> str:
-    """The cache key (hex SHA-256) of a stimulus; ``scene`` must be resolved (a Scene)."""
+def stimulus_key(scene, renderer: str, params: dict, width: int, height: int, gaze, camera=None,
+                 backend: str = "cpu") -> str:
+    """The cache key (hex SHA-256) of a stimulus; ``scene`` must be resolved (a Scene). The backend enters the
+    key only when it is not the CPU (whose keys stay as they were)."""
     doc = {"scene": scene.content_hash(), "renderer": renderer, "params": _canon(params), "width": int(width),
            "height": int(height), "gaze": _canon(list(gaze)), "camera": _canon(camera or {}),
            "code": code_version()}
+    if backend != "cpu":
+        doc["backend"] = backend
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 
@@ -127,6 +136,7 @@ class FrameRequest:
     height: int
     gaze: tuple[float, float]
     camera: dict | None = None
+    backend: str = "cpu"
 
 
 @dataclass
@@ -140,7 +150,7 @@ class CacheEntry:
 
 
 def frame_request(scene, renderer: str, params: dict | None, width: int, height: int, gaze=None,
-                  camera: dict | None = None) -> FrameRequest:
+                  camera: dict | None = None, backend: str = "cpu") -> FrameRequest:
     """Check a stimulus (one-line ValueError on bad input, before anything is rendered) and compute its key."""
     from data_schema.geometry import check_gaze
 
@@ -155,8 +165,8 @@ def frame_request(scene, renderer: str, params: dict | None, width: int, height:
     gaze = check_gaze(gaze, width, height)
     if camera:
         sc.camera.override(camera)
-    key = stimulus_key(sc, renderer, full, width, height, gaze, camera)
-    return FrameRequest(key, scene, renderer, full, int(width), int(height), tuple(gaze), camera)
+    key = stimulus_key(sc, renderer, full, width, height, gaze, camera, backend)
+    return FrameRequest(key, scene, renderer, full, int(width), int(height), tuple(gaze), camera, backend)
 
 
 def cached_png(cache_dir, key: str) -> Path:
@@ -177,12 +187,12 @@ def render_entry(request: FrameRequest) -> CacheEntry:
 
     sc = resolve(request.scene)
     key = stimulus_key(sc, request.renderer, request.params, request.width, request.height, request.gaze,
-                       request.camera)
+                       request.camera, request.backend)
     if key != request.key:
         raise UserError(f"this worker's renderers differ from the client's (cache key {key[:12]} instead of "
                         f"{request.key[:12]}): install the same studyapp on every worker")
     img, stats = render(sc, request.renderer, request.params, request.width, request.height, gaze=request.gaze,
-                        camera=request.camera)
+                        camera=request.camera, backend=request.backend)
     buf = io.BytesIO()
     save_png(buf, img, sc.exposure)
     stats_json = json.dumps({"key": key, **jsonable_stats(stats)}, indent=1, sort_keys=True) + "\n"
@@ -201,13 +211,14 @@ def write_entry(cache_dir, entry: CacheEntry) -> Path:
 
 
 def render_stimulus(scene, renderer: str, params: dict | None, width: int, height: int, gaze=None,
-                    camera: dict | None = None, cache_dir: Path = Path("stimulus_cache")) -> Path:
+                    camera: dict | None = None, cache_dir: Path = Path("stimulus_cache"),
+                    backend: str = "cpu") -> Path:
     """Render (or look up) a stimulus; returns the path of its cached sRGB PNG.
 
     The linear float32 image is stored next to it as ``.npy`` and the stats as ``.json``. Bad input raises a
     one-line ValueError before anything is written.
     """
-    request = frame_request(scene, renderer, params, width, height, gaze, camera)
+    request = frame_request(scene, renderer, params, width, height, gaze, camera, backend)
     png = cached_png(cache_dir, request.key)
     if png.is_file():
         return png

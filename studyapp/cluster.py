@@ -22,6 +22,8 @@ share the client's file system). Results are byte-identical to an in-process run
 
 from __future__ import annotations
 
+import asyncio
+import concurrent.futures
 import contextlib
 import functools
 import os
@@ -255,12 +257,17 @@ def run_tasks(tasks: list[Task], spec: ClusterSpec, on_result: Callable[[Task, o
     try:
         for fut in as_completed(pending, loop=client.loop):
             task = by_key[fut.key]
+            if task.name not in futures:  # handed over already
+                continue
             if fut.status == "error":
                 raise task_error(task.label, fut.exception())
-            if fut.status != "finished":  # cancelled or lost with the scheduler
+            try:  # a result lost with a dying worker is computed again: wait for it
+                res = fut.result()
+            except (concurrent.futures.CancelledError, asyncio.CancelledError):
                 raise UserError(f"{task.label}: cancelled: the Dask scheduler {spec.scheduler or '(local)'} went "
-                                "away; run the command again to continue (frames done are kept)")
-            res = fut.result()
+                                "away; run the command again to continue (frames done are kept)") from None
+            except Exception as exc:  # noqa: BLE001 - the worker's error, one line
+                raise task_error(task.label, exc) from None
             fut.release()  # the worker may drop the result once no dependent needs it
             futures.pop(task.name, None)
             if on_result:

@@ -111,9 +111,9 @@ class LoopbackCluster:
         self.client.wait_for_workers(2, timeout=60)
 
     def _start(self, cmd, name):
-        log = open(self.folder / f"{name}.log", "w")
-        return subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=_env(), cwd=self.folder,
-                                start_new_session=True)
+        with open(self.folder / f"{name}.log", "w") as log:  # the child keeps its own copy of the handle
+            return subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=_env(), cwd=self.folder,
+                                    start_new_session=True)
 
     def _log(self, name):
         return (self.folder / f"{name}.log").read_text()[-2000:]
@@ -144,7 +144,7 @@ def loopback(tmp_path_factory):
 
 def _cli(argv, cwd):
     return subprocess.run([sys.executable, "-m", "studyapp", *argv], cwd=cwd, env=_env(), capture_output=True,
-                          text=True, timeout=300)
+                          text=True, timeout=300, check=False)
 
 
 # -- options ---------------------------------------------------------------------------------------------------
@@ -267,6 +267,49 @@ def test_a_failing_frame_on_a_worker_is_one_line_and_a_rerun_completes(tiny, tmp
     assert {s["params"]["delta"] for s in stats if s["renderer"] == "lafr"} == {4.0, 2.0}
 
 
+def test_replay_of_a_live_trial_on_the_cluster_equals_the_serial_replay(tmp_path, loopback):
+    from test_live import LIVE
+
+    from studyapp.cli import main
+
+    f = tmp_path / "live.yaml"
+    f.write_text(LIVE)
+    db = tmp_path / "s.db"
+    assert main(["run", str(f), "--participant", "P1", "--simulate", "--db", str(db), "--quiet"]) == 0
+    outs = {}
+    for how in (["--serial"], ["--scheduler", loopback.address]):
+        out = tmp_path / how[0]
+        assert main(["replay", "--db", str(db), "--participant", "P1", "--trial", "0", "--out", str(out),
+                     "--cache", str(tmp_path / f"cache{how[0]}"), *how]) == 0
+        outs[how[0]] = out
+    a, b = (_files(o) for o in outs.values())
+    assert a.keys() == b.keys() and len([k for k in a if k.endswith(".png")]) >= 4
+    assert {k: v for k, v in a.items() if k != "frames.csv"} == {k: v for k, v in b.items() if k != "frames.csv"}
+
+
+def test_lightcuts_tables_render_their_ground_truths_on_the_cluster(tmp_path, loopback, monkeypatch):
+    """The GT of each scene is a task; lightcut_tables then finds it in the cache (no render of its own)."""
+    import argparse
+
+    from renderers import registry
+    from renderers.lightcuts.scenes import SCENES
+    from renderers.lightcuts.tables import gt_frame
+    from renderers.stimuli import render_stimulus
+    from studyapp.commands.lightcuts import _ground_truths
+
+    args = argparse.Namespace(width=32, height=18, gt_samples=16, seed=0, cache=str(tmp_path / "cache"),
+                              scheduler=loopback.address, workers=None, serial=False)
+    _ground_truths(args, ["study", "yard"])
+    assert len(list((tmp_path / "cache").rglob("*.png"))) == 2
+
+    def boom(*a, **kw):
+        raise AssertionError("rendered again")
+
+    monkeypatch.setattr(registry, "render", boom)
+    for name in ("study", "yard"):  # what lightcut_tables asks for, with the scene it builds
+        render_stimulus(**gt_frame(SCENES[name](), 32, 18, gt_lspp=16, gt_rspp=16), cache_dir=tmp_path / "cache")
+
+
 def test_sigkill_of_a_worker_mid_task_and_the_set_is_byte_identical_to_serial(tiny, tmp_path, loopback,
                                                                                serial_result):
     """prepare runs as a CLI subprocess on the loopback cluster; once a frame is in the cache, the worker that
@@ -282,7 +325,7 @@ def test_sigkill_of_a_worker_mid_task_and_the_set_is_byte_identical_to_serial(ti
         while killed is None and time.monotonic() < deadline and proc.poll() is None:
             busy = {w: keys for w, keys in loopback.client.processing().items() if keys}
             if busy and any(cache.rglob("*.png")):
-                worker = sorted(busy)[0]
+                worker = min(busy)
                 killed = (loopback.pid_of(worker), busy[worker])
                 os.kill(killed[0], signal.SIGKILL)
             time.sleep(0.02)
@@ -312,5 +355,6 @@ def test_dask_is_imported_only_when_a_cluster_runs():
     code = ("import sys, studyapp.cli, studyapp.cluster, studyapp.runner.stimuli, renderers.stimuli; "
             "studyapp.cli.build_parser(); print(sorted(m for m in sys.modules if m.split('.')[0] in "
             "('dask', 'distributed')))")
-    r = subprocess.run([sys.executable, "-c", code], env=_env(), capture_output=True, text=True, timeout=120)
+    r = subprocess.run([sys.executable, "-c", code], env=_env(), capture_output=True, text=True, timeout=120,
+                       check=False)
     assert r.stdout.strip() == "[]", r.stderr

@@ -6,7 +6,7 @@ import pytest
 
 from studyapp.cli import main
 
-TINY = ["--scenes", "study", "--width", "32", "--height", "18", "--gt-samples", "16"]
+TINY = ["--scenes", "study", "--width", "32", "--height", "18", "--gt-samples", "16", "--serial"]
 
 
 def test_tables_json_records_and_files(tmp_path, capsys):

@@ -127,7 +127,7 @@ def test_replay_re_renders_the_logged_frames_and_scores_them_along_the_gaze(tmp_
         logged = st.frames("P1", 0)
     out = tmp_path / "replay"
     assert main(["replay", "--db", str(db), "--participant", "P1", "--trial", "0", "--out", str(out),
-                 "--quality"]) == 0
+                 "--quality", "--serial", "--cache", str(tmp_path / "cache")]) == 0
     rows = (out / "frames.csv").read_text().splitlines()
     assert len(rows) == 1 + len(logged)
     assert sorted(p.name for p in out.iterdir()) == ["GT", "LaFR", "frames.csv", "gaze.csv", "gt", "quality.csv",

@@ -166,7 +166,7 @@ def test_real_renderers_prepare_and_a_simulated_run_from_their_images(tmp_path):
     assert {"gt", "lafr"} <= renderer_names()
     f = tmp_path / "tiny.yaml"
     f.write_text(TINY)
-    assert main(["prepare", str(f), "--cache", str(tmp_path / "cache")]) == 0
+    assert main(["prepare", str(f), "--cache", str(tmp_path / "cache"), "--serial"]) == 0
     p = load_protocol(f)
     frames = frame_paths(p, "LaFR", "cornell")
     assert len(frames) == 2 and all(x.is_file() for x in frames)

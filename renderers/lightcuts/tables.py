@@ -64,6 +64,14 @@ def check_budget(budget) -> str:
     return budget
 
 
+def gt_frame(scene, width: int, height: int, *, gt_lspp: int = 2048, gt_rspp: int = 2048, seed: int = 0,
+             camera: dict | None = None) -> dict:
+    """The GT render of :func:`lightcut_tables` as :func:`renderers.stimuli.render_stimulus` arguments (so that
+    a cluster can put it into the stimulus cache first: ``studyapp lightcuts tables``)."""
+    return {"scene": scene, "renderer": "sl_gt", "params": {"lspp": gt_lspp, "rspp": gt_rspp, "seed": seed + 1},
+            "width": width, "height": height, "gaze": None, "camera": camera}
+
+
 def lightcut_tables(scene, width: int, height: int, *, alphas=(0.025, 0.05, 0.1, 0.2, 0.4), alpha: float = 0.1,
                     max_lspp: int = 48, max_rspp: int = 48, gt_lspp: int = 2048, gt_rspp: int = 2048,
                     fovea_deg: float = 5.0, seed: int = 0, camera: dict | None = None,
@@ -110,12 +118,13 @@ def lightcut_tables(scene, width: int, height: int, *, alphas=(0.025, 0.05, 0.1,
                 st = {**st, "seconds": again["seconds"], "steps": again.get("steps", st.get("steps"))}
         return img, st
 
-    gt_params = {"lspp": gt_lspp, "rspp": gt_rspp, "seed": seed + 1}
+    gt_request = gt_frame(sc, width, height, gt_lspp=gt_lspp, gt_rspp=gt_rspp, seed=seed, camera=camera)
+    gt_params = gt_request["params"]
     if cache_dir is not None:
         from renderers.stimuli import render_stimulus
 
         say(f"{sc.name}: sl_gt {gt_params} (stimulus cache)")
-        png = render_stimulus(sc, "sl_gt", gt_params, width, height, None, camera=camera, cache_dir=cache_dir)
+        png = render_stimulus(**gt_request, cache_dir=cache_dir)
         gt = np.load(png.with_suffix(".npy"))
         glossy = None  # taken from Ours' G-buffer below (same primary hits)
     else:

@@ -15,7 +15,9 @@ the renderer and parameters of the condition shown, at the logged camera pose, f
 (display pixels mapped onto the render). The CPU renderers are the reference (--backend cpu, the default).
 Writes DIR/<condition>/frame_NNNNN.png (+ .npy, linear), DIR/gt/frame_NNNNN.png (the protocol's ground truth
 at the same pose), DIR/gaze.csv and DIR/frames.csv; --quality also writes the foveal and peripheral error of
-every frame at its gaze (DIR/quality.csv, the same as `studyapp quality --gt DIR/gt --gaze-csv DIR/gaze.csv`)."""
+every frame at its gaze (DIR/quality.csv, the same as `studyapp quality --gt DIR/gt --gaze-csv DIR/gaze.csv`).
+Every image is one Dask task (a local cluster by default, --scheduler for a running one, --serial in this
+process) through the stimulus cache (--cache): frames already rendered are not rendered again."""
 
 
 def register(sub, parser_class) -> None:
@@ -34,6 +36,12 @@ def register(sub, parser_class) -> None:
                    help="re-render every K-th rendered frame (default: all)")
     r.add_argument("--quality", action="store_true", help="also score every frame against the ground truth at "
                    "its gaze (fovea and periphery)")
+    r.add_argument("--cache", metavar="DIR", default="stimulus_cache",
+                   help="stimulus cache of the re-rendered frames (default: ./stimulus_cache): a stopped replay "
+                        "resumes, frames already rendered are copied")
+    from studyapp.cluster import add_arguments
+
+    add_arguments(r)
     r.set_defaults(func=cmd_replay)
 
 
@@ -64,52 +72,63 @@ def replay_frames(db: Path, participant: str, trial: int) -> tuple[object, objec
 
 
 def cmd_replay(args) -> int:
-    from data_schema.atomic import atomic_dir, check_dir_target, write_text
-    from renderers.registry import render
-    from renderers.stimuli import write_png_and_npy
+    import json
+    import shutil
+
+    from data_schema.atomic import atomic_dir, atomic_files, check_dir_target, write_text
+    from studyapp import cluster
     from studyapp.progress import Bar
     from studyapp.runner.live import Pose
 
+    spec = cluster.from_args(args)
     db, out = Path(args.db), check_dir_target(args.out, marker="frames.csv")
     protocol, planned, frames = replay_frames(db, args.participant, args.trial)
     frames = frames[:: args.every]
     geometry = protocol.render_geometry()
     sx = geometry.width / protocol.display.width_px  # logged gaze: display pixels -> render pixels
     gt = protocol.ground_truth
+    # One task per image: the condition's frame and, at the same pose and gaze, the ground truth's.
+    jobs, targets, rows, gaze_rows = [], [], [], []
+    for f in frames:
+        cond = protocol.conditions[planned.conditions[f["stimulus"]]]
+        pose = Pose((f["pos_x"], f["pos_y"], f["pos_z"]), (f["look_x"], f["look_y"], f["look_z"]))
+        gaze = None if f["gaze_x"] is None else (min(geometry.width, max(0.0, f["gaze_x"] * sx)),
+                                                min(geometry.height, max(0.0, f["gaze_y"] * sx)))
+        what = {"scene": protocol.scene_ref(planned.scene), "width": geometry.width, "height": geometry.height,
+                "gaze": gaze, "camera": pose.camera(protocol.display.fov_y_deg)}
+        name = f"frame_{f['frame']:05d}.png"
+        label = f"trial {args.trial}, condition {cond.name}, scene {planned.scene}, frame {f['frame']}"
+        jobs.append((label, {**what, "renderer": cond.renderer, "params": cond.params, "backend": args.backend}))
+        targets.append(f"{cond.name}/{name}")
+        if gt is not None:
+            g = protocol.conditions[gt]
+            jobs.append((f"{label} (ground truth {gt})", {**what, "renderer": g.renderer, "params": g.params}))
+            targets.append(f"gt/{name}")
+        rows.append([f["frame"], cond.name, f["flip_s"], "" if gaze is None else gaze[0],
+                     "" if gaze is None else gaze[1], *pose.position, *pose.look_at, None, f"{cond.name}/{name}"])
+        if gaze is not None:
+            gaze_rows.append([f"{cond.name}/{name}", gaze[0], gaze[1]])
+    render_s = {}
     bar = Bar("frames")
-    rows, gaze_rows = [], []
     with atomic_dir(out, marker="frames.csv") as tmp:
-        for k, f in enumerate(frames):
-            cond = protocol.conditions[planned.conditions[f["stimulus"]]]
-            pose = Pose((f["pos_x"], f["pos_y"], f["pos_z"]), (f["look_x"], f["look_y"], f["look_z"]))
-            gaze = None if f["gaze_x"] is None else (min(geometry.width, max(0.0, f["gaze_x"] * sx)),
-                                                    min(geometry.height, max(0.0, f["gaze_y"] * sx)))
-            camera = pose.camera(protocol.display.fov_y_deg)
-            scene = protocol.scene_ref(planned.scene)
-            name = f"frame_{f['frame']:05d}.png"
-            img, stats = render(scene, cond.renderer, cond.params, geometry.width, geometry.height, gaze=gaze,
-                                camera=camera, backend=args.backend)
-            from renderers.catalog import resolve
+        def copy(i, png):
+            dst = tmp / targets[i]
+            with atomic_files([dst.with_suffix(".npy"), dst]) as (t_npy, t_png):
+                shutil.copyfile(png.with_suffix(".npy"), t_npy)
+                shutil.copyfile(png, t_png)
+            render_s[targets[i]] = json.loads(png.with_suffix(".json").read_text())["seconds"]["total"]
 
-            exposure = resolve(scene).exposure
-            write_png_and_npy(tmp / cond.name / name, img, exposure)
-            if gt is not None:
-                g = protocol.conditions[gt]
-                gimg, _ = render(scene, g.renderer, g.params, geometry.width, geometry.height, gaze=gaze,
-                                 camera=camera, backend="cpu")
-                write_png_and_npy(tmp / "gt" / name, gimg, exposure)
-            rows.append([f["frame"], cond.name, f["flip_s"], "" if gaze is None else gaze[0],
-                         "" if gaze is None else gaze[1], *pose.position, *pose.look_at,
-                         stats["seconds"]["total"], f"{cond.name}/{name}"])
-            if gaze is not None:
-                gaze_rows.append([f"{cond.name}/{name}", gaze[0], gaze[1]])
-            bar(k + 1, len(frames))
+        cluster.render_frames(jobs, Path(args.cache), spec, copy, bar)
+        bar.close()
+        for r in rows:
+            r[-2] = render_s[r[-1]]
         write_text(tmp / "frames.csv", _csv(["frame", "condition", "flip_s", "gaze_x", "gaze_y", "pos_x", "pos_y",
                                              "pos_z", "look_x", "look_y", "look_z", "render_s", "file"], rows))
         write_text(tmp / "gaze.csv", _csv(["file", "gaze_x", "gaze_y"], gaze_rows))
         if args.quality and gt is not None:
             _quality(tmp, protocol.display.fov_y_deg, gaze_rows)
-    print(f"replayed {len(frames)} frame(s) of trial {args.trial} of {args.participant} into {out}")
+    print(f"replayed {len(frames)} frame(s) of trial {args.trial} of {args.participant} into {out} on "
+          f"{spec.describe()}")
     return 0
 
 
