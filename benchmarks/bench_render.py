@@ -1,7 +1,10 @@
 """Benchmark: run time against error of GT, VaFR, LMFR and LaFR on the built-in scenes (issue 4 item 7).
 
-For each scene x resolution, GT is rendered first (its image is kept on disk), then each foveated renderer;
-every render's per-stage seconds, shading points, rays and peak memory are recorded, and its error against GT
+For each scene x resolution, GT and each foveated renderer are rendered, one Dask task per frame, in this process
+by default (frame times of an unshared machine: the committed figures), on a local cluster with ``--workers N``
+(its workers share the machine: frame times grow, errors are the same) or on a lab's cluster with ``--scheduler``
+(a sweep over its machines; start them with ``dask worker --nthreads 1``, docs/distributed.md); every render's
+per-stage seconds, shading points, rays and peak memory are recorded, and its error against GT
 is measured on the 8-bit sRGB images (what participants see) in the fovea (e <= 5°, seed 001 Eq 3) and in the
 periphery (e > 5°): MSE, PSNR and SSIM (scikit-image, on luma; in the periphery on up to 8 crops of 512 x 512
 spread over the screen so that SSIM stays bounded at retinal resolution). Speed-ups are GT's total time over
@@ -23,12 +26,10 @@ from __future__ import annotations
 
 import argparse
 import csv
-import gc
 import itertools
 import math
 import os
 import sys
-import tempfile
 import time
 
 import numpy as np
@@ -62,9 +63,11 @@ def eccentricity_rows(W, H, fov, y0, y1):
 
 
 def srgb(a):
+    """The 8-bit sRGB image as floats in [0, 1] (``a``: linear, or already 8-bit)."""
     from renderers.stimuli import to_srgb8
 
-    return to_srgb8(a).astype(np.float32) / 255.0
+    a = np.asarray(a)
+    return (a if a.dtype == np.uint8 else to_srgb8(a)).astype(np.float32) / 255.0
 
 
 def errors(img, gt, fov):
@@ -113,54 +116,87 @@ def errors(img, gt, fov):
     return out
 
 
-def run(scenes, resolutions, methods, out_rows, progress=print, reference_max_pixels: int = 3840 * 2160):
+#: (scene, renderer, params) already rendered once by this process (see :func:`render_task`).
+_WARM: set = set()
+
+
+def render_task(scene, name, params, W, H):
+    """One frame (a Dask task, or in process): its 8-bit sRGB image (what the errors are measured on) and stats.
+
+    A process's first render of a (scene, renderer, params) is preceded by an untimed 96 x 64 one, so that
+    compiled kernels (numba caches) are loaded and the scene's BVH is built before any timing.
+    """
     from renderers import render
+    from renderers.stimuli import to_srgb8
+
+    warm = (scene, name, repr(sorted(params.items())))
+    if warm not in _WARM:
+        render(scene, name, params, 96, 64)
+        _WARM.add(warm)
+    img, st = render(scene, name, params, W, H)
+    return to_srgb8(img), st
+
+
+def _fov(scene):
     from renderers.catalog import resolve
 
-    tmp = tempfile.mkdtemp(prefix="bench_render_")
-    # Warm-up: load every compiled kernel (numba caches) and build each scene's BVH before any timing.
-    for scene in scenes:
-        for name, params in [("gt", {})] + [METHODS[m] for m in methods]:
-            render(scene, name, params, 96, 64)
-    for scene in scenes:
-        fov = resolve(scene).camera.fov_y
-        for res in resolutions:
-            W, H = RESOLUTIONS[res]
-            progress(f"{scene} {res}: GT")
-            gt, st = render(scene, "gt", {}, W, H)
-            gt_path = os.path.join(tmp, "gt.npy")
-            np.save(gt_path, gt)
-            del gt
-            gc.collect()
-            ref_path = None
-            err_gt_ref = None
-            if W * H <= reference_max_pixels:
-                progress(f"{scene} {res}: 16-spp reference")
-                ref, st_r = render(scene, *REFERENCE, W, H)
-                ref_path = os.path.join(tmp, "ref.npy")
-                np.save(ref_path, ref)
-                err_gt_ref = errors(np.load(gt_path, mmap_mode="r"), ref, fov)
-                del ref
-                progress(f"  reference {st_r['seconds']['total']:.1f} s")
-            out_rows.append(row(scene, res, "GT", st, None, st["seconds"]["total"], err_gt_ref))
-            progress(f"  GT {st['seconds']['total']:.1f} s")
-            for label in methods:
-                name, params = METHODS[label]
-                progress(f"{scene} {res}: {label}")
-                img, st_m = render(scene, name, params, W, H)
-                gt = np.load(gt_path, mmap_mode="r")
-                err = errors(img, gt, fov)
-                err_ref = errors(img, np.load(ref_path, mmap_mode="r"), fov) if ref_path else None
-                del gt, img
-                gc.collect()
-                out_rows.append(row(scene, res, label, st_m, err, st["seconds"]["total"], err_ref))
-                progress(f"  {label} {st_m['seconds']['total']:.2f} s, speed-up "
-                         f"{st['seconds']['total'] / st_m['seconds']['total']:.1f}x, "
-                         f"foveal PSNR {err['psnr_fovea']:.1f} dB")
-            os.unlink(gt_path)
-            if ref_path:
-                os.unlink(ref_path)
-    os.rmdir(tmp)
+    return resolve(scene).camera.fov_y
+
+
+def gt_row_task(gt, ref, scene, res):
+    """The GT's row (its own error against the reference, where there is one)."""
+    err_ref = None if ref is None else errors(gt[0], ref[0], _fov(scene))
+    return row(scene, res, "GT", gt[1], None, gt[1]["seconds"]["total"], err_ref)
+
+
+def errors_task(gt, ref, frame, scene, res, label):
+    """A method's row: its errors against GT (and the reference, where there is one)."""
+    fov = _fov(scene)
+    return row(scene, res, label, frame[1], errors(frame[0], gt[0], fov), gt[1]["seconds"]["total"],
+               None if ref is None else errors(frame[0], ref[0], fov))
+
+
+def run(scenes, resolutions, methods, out_rows, progress=print, reference_max_pixels: int = 3840 * 2160,
+        spec=None, client=None):
+    """Render and measure ``scenes`` x ``resolutions`` x (GT, the reference up to ``reference_max_pixels``,
+    ``methods``): one task per frame and one per row of error measurements (on the cluster, next to the frames:
+    the client receives rows, never images), on ``spec`` (a ``studyapp.cluster.ClusterSpec``; default in
+    process) through ``client``."""
+    import uuid
+
+    from benchmarks import bench_render as B  # tasks by reference: workers import this module
+    from studyapp.cluster import SERIAL, Ref, Task, run_tasks
+
+    run_id = uuid.uuid4().hex[:8]
+    tasks = []
+    for scene, res in itertools.product(scenes, resolutions):
+        W, H = RESOLUTIONS[res]
+        gt = f"bench-{run_id}-{scene}-{res}-GT"
+        tasks.append(Task(gt, f"{scene} {res}: GT", B.render_task, (scene, "gt", {}, W, H), fetch=False))
+        ref = None
+        if W * H <= reference_max_pixels:
+            ref = Ref(f"bench-{run_id}-{scene}-{res}-reference")
+            tasks.append(Task(ref.name, f"{scene} {res}: 16-spp reference", B.render_task,
+                              (scene, *REFERENCE, W, H), fetch=False))
+        tasks.append(Task(f"{gt}-row", f"{scene} {res}: GT", B.gt_row_task, (Ref(gt), ref, scene, res)))
+        for label in methods:
+            name, params = METHODS[label]
+            key = f"bench-{run_id}-{scene}-{res}-{label}"
+            tasks += [Task(key, f"{scene} {res}: {label}", B.render_task, (scene, name, params, W, H), fetch=False),
+                      Task(f"{key}-row", f"{scene} {res}: {label} errors", B.errors_task,
+                           (Ref(gt), ref, Ref(key), scene, res, label))]
+    rows = {}
+
+    def done(task, r):
+        rows[task.name] = r
+        if r["method"] == "GT":
+            progress(f"{r['scene']} {r['resolution']}: GT {r['total_s']:.1f} s")
+        else:
+            progress(f"{r['scene']} {r['resolution']}: {r['method']} {r['total_s']:.2f} s, speed-up "
+                     f"{r['speedup_vs_gt']:.1f}x, foveal PSNR {r['psnr_fovea']:.1f} dB")
+
+    run_tasks(tasks, spec or SERIAL, done, client=client)
+    out_rows += [rows[t.name] for t in tasks if t.fetch]
 
 
 def row(scene, res, label, st, err, gt_total, err_ref=None):
@@ -206,7 +242,7 @@ def merged(rows, path):
     return keep + list(rows)
 
 
-def write_outputs(rows, elapsed, merge=True):
+def write_outputs(rows, elapsed, merge=True, where="this process"):
     from data_schema.atomic import atomic_path
 
     docs = os.path.join(ROOT, "docs")
@@ -239,7 +275,9 @@ def write_outputs(rows, elapsed, merge=True):
     except ImportError:
         pass
     lines = ["## Renderers: run time against error (`benchmarks/bench_render.py`)", "", machine_line(),
-             f"Wall time of the last benchmark run {elapsed / 60:.1f} min. Times are one frame of one eye (mono; a binocular `dup` "
+             f"Wall time of the last benchmark run {elapsed / 60:.1f} min, rendered on {where} (a local cluster "
+             "runs its workers side by side, each with cores / workers numba threads: frame times are then those "
+             "of a shared machine). Times are one frame of one eye (mono; a binocular `dup` "
              "frame doubles every method, so the ratios hold per eye), ray-casting pipeline unless named, after "
              "the scene and BVH are built. Speed-up = GT total / method total in the same run. Errors on 8-bit "
              "sRGB against GT: fovea e <= 5°, periphery e > 5°; `ref` columns: against a 16-spp GT with a "
@@ -296,7 +334,10 @@ def targets(rows):
 
 
 def main(argv=None):
+    from studyapp import cluster
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    cluster.add_arguments(ap)
     ap.add_argument("--scenes", default="temple,street_night,interior,street_day")
     ap.add_argument("--resolutions", default="2K,4K,8K,retinal")
     ap.add_argument("--methods", default=",".join(METHODS))
@@ -317,10 +358,15 @@ def main(argv=None):
             plan.append((parts[0], parts[1].split("+"), parts[2].split("/") if len(parts) > 2 else methods))
     else:
         plan = [(s, args.resolutions.split(","), methods) for s in args.scenes.split(",")]
-    for scene, res, meths in plan:
-        run([scene], res, meths, rows, progress=lambda m: print(m, flush=True),
-            reference_max_pixels=args.reference_max_pixels)
-        write_outputs(rows, time.perf_counter() - t0, merge=not args.fresh)  # partial results survive
+    spec = cluster.from_args(args)
+    if spec == cluster.ClusterSpec():  # no cluster asked for: frame times of an unshared machine
+        spec = cluster.SERIAL
+    with cluster.connect(spec) as client:
+        for scene, res, meths in plan:
+            run([scene], res, meths, rows, progress=lambda m: print(m, flush=True),
+                reference_max_pixels=args.reference_max_pixels, spec=spec, client=client)
+            write_outputs(rows, time.perf_counter() - t0, merge=not args.fresh,
+                          where=spec.describe())  # partial results survive
     print("\n".join(targets(rows)))
 
 

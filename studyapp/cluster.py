@@ -201,12 +201,15 @@ class Ref:
 @dataclass(frozen=True)
 class Task:
     """One unit of work: ``fn(*args)`` on a worker. ``name`` is its Dask key (unique; content-addressed where
-    possible, so that equal work is shared); ``label`` names it in errors (``condition X, scene Y, frame N``)."""
+    possible, so that equal work is shared); ``label`` names it in errors (``condition X, scene Y, frame N``).
+    ``fetch=False``: the result stays on the cluster for the tasks that take it (a full image), the client only
+    counts it."""
 
     name: str
     label: str
     fn: Callable
     args: tuple = ()
+    fetch: bool = True
 
 
 def run_tasks(tasks: list[Task], spec: ClusterSpec, on_result: Callable[[Task, object], None] | None = None,
@@ -240,8 +243,9 @@ def run_tasks(tasks: list[Task], spec: ClusterSpec, on_result: Callable[[Task, o
             for a in t.args:
                 if isinstance(a, Ref) and last_use[a.name] == i:
                     del results[a.name]
-            if on_result:
+            if on_result and t.fetch:
                 on_result(t, res)
+            del res
             report(i + 1)
         return time.perf_counter() - t0
 
@@ -250,31 +254,44 @@ def run_tasks(tasks: list[Task], spec: ClusterSpec, on_result: Callable[[Task, o
     futures, by_key = {}, {}
     for t in tasks:
         args = tuple(futures[a.name] if isinstance(a, Ref) else a for a in t.args)
-        futures[t.name] = client.submit(t.fn, *args, key=t.name, pure=False, retries=0)
+        futures[t.name] = client.submit(t.fn, *args, key=t.name, pure=False)
         by_key[futures[t.name].key] = t
     pending = list(futures.values())
     done = 0
+    gone = (f"cancelled: the Dask scheduler {spec.scheduler or '(local)'} went away; run the command again to "
+            "continue (frames done are kept)")
     try:
-        for fut in as_completed(pending, loop=client.loop):
-            task = by_key[fut.key]
-            if task.name not in futures:  # handed over already
+        for batch in as_completed(pending, loop=client.loop).batches():
+            wanted = []
+            for fut in batch:
+                task = by_key[fut.key]
+                if task.name not in futures:  # handed over already
+                    continue
+                if fut.status == "error":
+                    raise task_error(task.label, fut.exception())
+                if task.fetch:
+                    wanted.append((task, fut))
+                    continue
+                futures.pop(task.name).release()  # its dependents hold it on the cluster
+                done += 1
+                report(done)
+            if not wanted:
                 continue
-            if fut.status == "error":
-                raise task_error(task.label, fut.exception())
-            try:  # a result lost with a dying worker is computed again: wait for it
-                res = fut.result()
+            try:  # the batch's results in one round trip (one lost with a dying worker is computed again)
+                results = client.gather([f for _, f in wanted])
             except (concurrent.futures.CancelledError, asyncio.CancelledError):
-                raise UserError(f"{task.label}: cancelled: the Dask scheduler {spec.scheduler or '(local)'} went "
-                                "away; run the command again to continue (frames done are kept)") from None
+                raise UserError(f"{wanted[0][0].label}: {gone}") from None
             except Exception as exc:  # noqa: BLE001 - the worker's error, one line
+                task = next((t for t, f in wanted if f.status == "error"), wanted[0][0])
                 raise task_error(task.label, exc) from None
-            fut.release()  # the worker may drop the result once no dependent needs it
-            futures.pop(task.name, None)
-            if on_result:
-                on_result(task, res)
-            del res
-            done += 1
-            report(done)
+            for (task, fut), res in zip(wanted, results):
+                fut.release()  # the worker may drop the result once no dependent needs it
+                futures.pop(task.name, None)
+                if on_result:
+                    on_result(task, res)
+                done += 1
+                report(done)
+            del results, res
     finally:
         if futures:
             client.cancel(list(futures.values()))
