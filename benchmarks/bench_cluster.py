@@ -75,7 +75,7 @@ def speedup(folder: Path, frames: int, repeats: int) -> dict:
     proto = folder / "bench.yaml"
     proto.write_text(PROTOCOL.format(frames=float(frames)))
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    out: dict[str, dict[str, list]] = {"1": {"wall": [], "cpu": []}, "2": {"wall": [], "cpu": []}}
+    out: dict[str, dict[str, list]] = {w: {"wall": [], "cpu": [], "load": []} for w in ("1", "2")}
     sets = {}
     for rep in range(repeats):
         for workers in (1, 2):
@@ -89,11 +89,12 @@ def speedup(folder: Path, frames: int, repeats: int) -> dict:
                 raise SystemExit(r.stderr)
             out[str(workers)]["wall"].append(wall)
             out[str(workers)]["cpu"].append(cpu)
+            out[str(workers)]["load"].append(os.getloadavg()[0])
             print(f"prepare, {workers} worker(s), run {rep + 1}: {wall:.1f} s wall, {cpu:.1f} CPU s; "
                   f"load {os.getloadavg()[0]:.1f}", flush=True)
             sets[workers] = _files(stim)
     n = 2 * 3 * frames
-    med = {w: {k: statistics.median(v) for k, v in d.items()} for w, d in out.items()}
+    med = {w: {k: statistics.median(d[k]) for k in ("wall", "cpu")} for w, d in out.items()}
     return {"frames": n, "runs": out, "median": med, "speedup": med["1"]["wall"] / med["2"]["wall"],
             "identical": sets[1] == sets[2]}
 
@@ -123,7 +124,8 @@ def overhead(n_tasks: int) -> dict:
 
 
 def budget() -> dict:
-    """Seconds per frame of each (condition, scene) of the seed 003 protocols at both sizes, and the frames."""
+    """Seconds per frame of each (condition, scene) of the seed 003 protocols at both sizes (measured here, in
+    process), and the frames each protocol renders: ``{"seconds": [...], "frames": [...]}``."""
     from renderers.registry import render
     from studyapp.commands.study import SHIPPED
     from studyapp.runner.camera import frame_camera
@@ -131,41 +133,57 @@ def budget() -> dict:
     from studyapp.runner.stimuli import needed_stimuli
 
     seconds: dict = {}
-    frames: dict = {}
+    frames = []
     for name in SEED003:
         for full in (False, True):
             p = load_protocol(SHIPPED / f"{name}.yaml", full=full)
             g = p.render_geometry()
             w, h = PROBE if full else (g.width, g.height)
-            scale = g.width * g.height / (w * h)
-            count = {}
             for need in needed_stimuli(p):
                 cond = p.conditions[need.condition]
                 if not cond.renderer:
                     continue
-                count[(need.condition, need.scene)] = p.n_frames
-                key = (cond.renderer, json.dumps(cond.params, sort_keys=True), need.scene, full)
+                key = _pair(cond.renderer, cond.params, need.scene, full)
+                frames.append({"protocol": name, "full": full, "condition": need.condition, "scene": need.scene,
+                               "frames": p.n_frames, "pair": key})
                 if key not in seconds:
                     render(p.scene_ref(need.scene), cond.renderer, cond.params, 16, 9)  # kernels, BVH
                     cam = frame_camera(p, need.scene, 1)
                     _, st = render(p.scene_ref(need.scene), cond.renderer, cond.params, w, h, camera=cam)
-                    seconds[key] = (st["seconds"]["total"], scale)
+                    scale = g.width * g.height / (w * h)
+                    seconds[key] = {"seconds": st["seconds"]["total"], "probe": [w, h], "scale": scale}
                     print(f"{cond.renderer} {cond.params} {need.scene} at {w}x{h}: {st['seconds']['total']:.2f} s "
                           f"(x{scale:g} -> {st['seconds']['total'] * scale:.1f} s at {g.width}x{g.height}); "
                           f"load {os.getloadavg()[0]:.1f}", flush=True)
-            frames[(name, full)] = [(c, s, n, p.conditions[c].renderer, json.dumps(p.conditions[c].params,
-                                                                                   sort_keys=True))
-                                    for (c, s), n in count.items()]
-    out = {}
-    for (name, full), rows in frames.items():
-        total = 0.0
-        by_condition: dict[str, float] = {}
-        for cond, scene, n, renderer, params in rows:
-            t, scale = seconds[(renderer, params, scene, full)]
-            by_condition[cond] = by_condition.get(cond, 0.0) + n * t * scale
-            total += n * t * scale
-        out[f"{name}{' --full' if full else ''}"] = {"frames": sum(r[2] for r in rows), "cpu_s": total,
-                                                      "by_condition": by_condition}
+    return {"seconds": seconds, "frames": frames}
+
+
+def _pair(renderer: str, params: dict, scene: str, full: bool) -> str:
+    return f"{renderer} {json.dumps(params, sort_keys=True)} {scene}{' full' if full else ''}"
+
+
+#: Seed 003's own sequences: 8 s at 90 fps, 2468 x 2740 per eye (one eye), 5 conditions x 5 scenes.
+SEED_FRAMES, SEED_PX = 8 * 90, (2468, 2740)
+
+
+def budget_table(measured: dict) -> dict:
+    """CPU seconds per protocol (and condition) from :func:`budget`'s measurements, and seed 003's own size."""
+    sec = {k: v["seconds"] * v["scale"] for k, v in measured["seconds"].items()}
+    out: dict = {}
+    for f in measured["frames"]:
+        name = f"{f['protocol']}{' --full' if f['full'] else ''}"
+        row = out.setdefault(name, {"frames": 0, "cpu_s": 0.0, "by_condition": {}})
+        t = f["frames"] * sec[f["pair"]]
+        row["frames"] += f["frames"]
+        row["cpu_s"] += t
+        row["by_condition"][f["condition"]] = row["by_condition"].get(f["condition"], 0.0) + t
+    # the seed's sequences: every main condition x scene of Task 1 at full size, per frame, scaled to its pixels
+    main = [f for f in measured["frames"] if f["protocol"] == SEED003[0] and f["full"]
+            and f["condition"] in ("EC", "CC1", "CC2", "CC3", "CC4") and f["scene"] != "cornell"]
+    px = SEED_PX[0] * SEED_PX[1] / (1920 * 1080)
+    out["seed 003's own: 8 s at 90 fps, 2468x2740"] = {
+        "frames": SEED_FRAMES * len(main), "cpu_s": SEED_FRAMES * px * sum(sec[f["pair"]] for f in main),
+        "by_condition": {}}
     return out
 
 
@@ -173,53 +191,60 @@ def _hours(s: float) -> str:
     return f"{s / 3600:.1f} h" if s >= 3600 else f"{s / 60:.1f} min"
 
 
-def report(res: dict, uptime: str) -> None:
+def report(res: dict) -> None:
     from _report import machine_line, replace_section
 
     lines = ["## Offline rendering on a cluster (`benchmarks/bench_cluster.py`)", "",
-             machine_line() + f" `uptime` at the start and end: {uptime}. The cores are shared with other jobs, "
-             "so wall times carry their load; every run is niced.", ""]
+             machine_line() + " The cores are shared with other jobs (load averages below, from `uptime`), so wall "
+             "times carry their load; every run is niced. Raw results: `docs/bench_cluster.json`.", ""]
     if "speedup" in res:
         s = res["speedup"]
         m = s["median"]
         lines += [f"`studyapp prepare` of {s['frames']} frames (interior and street_night at 960x540: GT, VaFR, "
                   f"LaFR(1.8)), a fresh process per run, {len(s['runs']['1']['wall'])} runs of each, alternating; "
                   "medians. `--workers 1` renders in process (numba's kernels use both cores); `--workers 2` starts "
-                  "a local cluster of 2 single-threaded workers (numba: 1 thread each).", "",
+                  "a local cluster of 2 single-threaded workers (numba: 1 thread each). Load averages (1, 5, 15 "
+                  f"min) at the start and end: {s.get('load', '?')}; after each run (1 min): 1 worker "
+                  f"{', '.join(f'{x:.1f}' for x in s['runs']['1'].get('load', []))}, 2 workers "
+                  f"{', '.join(f'{x:.1f}' for x in s['runs']['2'].get('load', []))}.", "",
                   "| workers | wall s (median) | CPU s (median) | runs (wall s) |", "|---:|---:|---:|---|"]
         for w in ("1", "2"):
             lines.append(f"| {w} | {m[w]['wall']:.1f} | {m[w]['cpu']:.1f} | "
                          f"{', '.join(f'{x:.1f}' for x in s['runs'][w]['wall'])} |")
         ok = "met" if s["speedup"] >= 1.7 else "missed"
         lines += ["", f"Speed-up of 2 workers over 1: **{s['speedup']:.2f}x** (target >= 1.7x: {ok}); the stimulus "
-                  f"sets are {'byte-identical' if s['identical'] else 'DIFFERENT'}. In process the command used "
-                  f"{m['1']['cpu'] / m['1']['wall']:.2f} cores on average (numba's parallel shading), so two "
-                  f"workers could at best gain {2 * m['1']['wall'] / m['1']['cpu']:.2f}x on 2 cores; the cluster "
-                  f"spent {m['2']['cpu'] - m['1']['cpu']:+.1f} CPU s more (each worker loads the kernels and builds "
-                  "the scenes and their BVHs once; task traffic).", ""]
+                  f"sets are {'byte-identical' if s['identical'] else 'DIFFERENT'}. In process the command got "
+                  f"{m['1']['cpu'] / m['1']['wall']:.2f} cores on average, the cluster "
+                  f"{m['2']['cpu'] / m['2']['wall']:.2f}; the cluster spent {m['2']['cpu'] - m['1']['cpu']:+.1f} "
+                  "CPU s more (each worker process imports Dask and the renderers, loads the compiled kernels and "
+                  "builds the scenes and their BVHs once; task traffic).", ""]
     if "overhead" in res:
         o = res["overhead"]
         lines += [f"Scheduling overhead: {o['tasks']} trivial tasks through `studyapp.cluster.run_tasks` on a local "
                   f"cluster of 2 workers take **{o['per_task_ms']:.2f} ms per task** (median of 3 rounds; in "
                   f"process {o['per_task_serial_ms']:.3f} ms); starting the cluster takes {o['start_s']:.1f} s and "
-                  f"stopping it {o['stop_s']:.1f} s (once per command).", ""]
+                  f"stopping it {o['stop_s']:.1f} s (once per command). Load: {o.get('load', '?')}.", ""]
     replace_section(str(ROOT / "docs" / "benchmarks.md"), "cluster", lines)
     if "budget" in res:
-        b = res["budget"]
-        rows = ["| protocol | frames | CPU time | 1 worker | 2 workers (this machine) | 16 workers | 64 workers |",
-                "|---|---:|---:|---:|---:|---:|---:|"]
+        b = budget_table(res["budget"])
+        rows = ["| protocol | frames | 1 worker (CPU time) | 2 workers (this machine) | 16 workers | 64 workers |",
+                "|---|---:|---:|---:|---:|---:|"]
         for name, v in b.items():
-            rows.append(f"| `{name}` | {v['frames']} | {_hours(v['cpu_s'])} | {_hours(v['cpu_s'])} | "
+            rows.append(f"| `{name}` | {v['frames']:,} | {_hours(v['cpu_s'])} | "
                         f"{_hours(v['cpu_s'] / 2)} | {_hours(v['cpu_s'] / 16)} | {_hours(v['cpu_s'] / 64)} |")
         detail = []
         for name, v in b.items():
+            if not v["by_condition"]:
+                continue
             parts = ", ".join(f"{c} {_hours(t)}" for c, t in sorted(v["by_condition"].items()))
             detail.append(f"- `{name}`: {parts}.")
         lines = ["Measured by `benchmarks/bench_cluster.py --part budget` (" + machine_line() +
-                 f" `uptime`: {uptime}): one frame of every (condition, scene) in one process, at the protocol's "
+                 f" Load averages at the start and end: {res['budget'].get('load', '?')}, so frame times are "
+                 "those of a shared machine): one frame of every (condition, scene) in one process, at the protocol's "
                  f"size, and for `--full` at {PROBE[0]}x{PROBE[1]} scaled by the pixel count to 1920x1080. "
                  "Budget = frames x seconds per frame / workers (workers of this machine's speed, one frame "
-                 "each; add the cluster's start-up and about a millisecond per frame of scheduling).", "",
+                 "each; add the cluster's start-up, seconds, and its scheduling, milliseconds per frame: "
+                 "docs/benchmarks.md).", "",
                  *rows, "", "CPU time by condition:", "", *detail]
         replace_section(str(ROOT / "docs" / "distributed.md"), "budget", lines)
 
@@ -232,23 +257,21 @@ def main(argv=None):
     ap.add_argument("--tasks", type=int, default=500)
     ap.add_argument("--from-json", metavar="FILE", help="write the sections from an earlier run's results")
     args = ap.parse_args(argv)
-    uptime = subprocess.run(["uptime"], capture_output=True, text=True, check=False).stdout.strip()
-    parts = args.part.split(",")
+    parts = [p for p in args.part.split(",") if p]
     res = json.loads(Path(args.from_json).read_text()) if args.from_json else {}
     with tempfile.TemporaryDirectory(prefix="bench_cluster_") as tmp:
-        if "speedup" in parts:
-            res["speedup"] = speedup(Path(tmp), args.frames, args.repeats)
-        if "overhead" in parts:
-            res["overhead"] = overhead(args.tasks)
-        if "budget" in parts:
-            res["budget"] = budget()
-    end = subprocess.run(["uptime"], capture_output=True, text=True, check=False).stdout.strip()
-    res.setdefault("uptime", f"{uptime.split('load average:')[-1].strip()} -> {end.split('load average:')[-1].strip()}")
+        for part, run in (("speedup", lambda: speedup(Path(tmp), args.frames, args.repeats)),
+                          ("overhead", lambda: overhead(args.tasks)), ("budget", budget)):
+            if part in parts:
+                before = os.getloadavg()
+                res[part] = run()
+                res[part]["load"] = f"{' '.join(f'{x:.2f}' for x in before)} -> " \
+                                    f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}"
     out = ROOT / "docs" / "bench_cluster.json"
     from data_schema.atomic import write_text
 
     write_text(out, json.dumps(res, indent=1, default=str) + "\n")
-    report(res, res["uptime"])
+    report(res)
     print(json.dumps({k: v for k, v in res.items() if k != "budget"}, indent=1, default=str))
 
 

@@ -310,6 +310,28 @@ def test_lightcuts_tables_render_their_ground_truths_on_the_cluster(tmp_path, lo
         render_stimulus(**gt_frame(SCENES[name](), 32, 18, gt_lspp=16, gt_rspp=16), cache_dir=tmp_path / "cache")
 
 
+def test_a_killed_prepare_resumes_where_it_stopped(tiny, tmp_path, loopback, serial_result):
+    """SIGKILL of the command itself once some frames are in the stimulus folder: running it again renders only
+    the frames that had not reached the cache, and the set equals the serial one."""
+    stim, cache = tmp_path / "stim", tmp_path / "cache"
+    argv = [sys.executable, "-m", "studyapp", "prepare", str(tiny), "--scheduler", loopback.address, "--stimuli",
+            str(stim), "--cache", str(cache)]
+    proc = subprocess.Popen(argv, cwd=tmp_path, env=_env(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        while proc.poll() is None and time.monotonic() < deadline and not list(stim.rglob("*.png")):
+            time.sleep(0.01)
+        proc.kill()
+    finally:
+        proc.wait()
+    kept = len(list(cache.rglob("*.png")))
+    assert 1 <= kept <= 9 and not list(stim.rglob(".*.tmp")) and not list(cache.rglob(".*.tmp"))
+    res = prepare(load_protocol(tiny, stimuli_dir=stim), cache_dir=cache,
+                  cluster=cluster.ClusterSpec(scheduler=loopback.address))
+    assert res["rendered"] == 9 - kept
+    assert (_files(stim), _files(cache)) == serial_result
+
+
 def test_sigkill_of_a_worker_mid_task_and_the_set_is_byte_identical_to_serial(tiny, tmp_path, loopback,
                                                                                serial_result):
     """prepare runs as a CLI subprocess on the loopback cluster; once a frame is in the cache, the worker that
