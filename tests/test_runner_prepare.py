@@ -27,9 +27,10 @@ class FakeRenderer:
     """Stands in for renderers.stimuli.render_stimulus: a flat image whose grey level encodes the call."""
 
     def __init__(self, folder: Path):
-        self.folder, self.calls = folder, []
+        self.folder, self.calls, self.backends = folder, [], []
 
-    def __call__(self, scene, renderer, params, width, height, gaze, camera=None, cache_dir=None):
+    def __call__(self, scene, renderer, params, width, height, gaze, camera=None, cache_dir=None, backend="cpu"):
+        self.backends.append(backend)
         self.calls.append((scene, renderer, tuple(sorted(params.items())), width, height, tuple(gaze),
                            None if camera is None else tuple(sorted(camera.items()))))
         out = self.folder / f"r{len(self.calls)}.png"
@@ -251,3 +252,20 @@ def test_a_stimulus_prepared_for_a_20_degree_display_is_the_20_degree_render(tmp
     m = mapping_for("vafr", p.render_geometry())
     assert float(m.display.radius(5.0)) == pytest.approx(math.tan(math.radians(5.0)) / p.render_geometry().c_r)
     assert float(m.display.radius(10.0)) == pytest.approx(54 / 2)  # the top edge is 10 degrees up
+
+
+def test_prepare_renders_each_condition_on_its_backend(tmp_path):
+    text = (PROTOCOLS / "seed001_2afc.yaml").read_text()
+    text = text.replace("LaFR(2.2): {renderer: lafr, params: {delta: 2.2}, quality: 0.55}",
+                        "LaFR(2.2): {renderer: lafr, params: {delta: 2.2}, quality: 0.55, backend: gpu}")
+    f = tmp_path / "p.yaml"
+    f.write_text(text)
+    p = load_protocol(f, stimuli_dir=tmp_path / "stim", check_renderers=False)
+    fake = FakeRenderer(tmp_path)
+    prepare(p, scale=0.05, render=fake)
+    by_backend = {}
+    for call, backend in zip(fake.calls, fake.backends):
+        by_backend.setdefault(backend, set()).add(call[2])
+    # only the condition that asks for the GPU goes there (the key of its cache entry includes the backend)
+    assert by_backend["gpu"] == {(("delta", 2.2),)}
+    assert (("delta", 2.2),) not in by_backend["cpu"] and (("delta", 1.8),) in by_backend["cpu"]

@@ -185,7 +185,8 @@ def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, ca
                 jobs.append((f"condition {need.condition}, scene {need.scene}, frame {i}",
                              {"scene": protocol.scene_ref(need.scene), "renderer": cond.renderer,
                               "params": dict(cond.params), "width": geometry.width, "height": geometry.height,
-                              "gaze": geometry.gaze, "camera": frame_camera(protocol, need.scene, i)}))
+                              "gaze": geometry.gaze, "camera": frame_camera(protocol, need.scene, i),
+                              "backend": protocol.backend_of(need.condition)}))
                 targets.append(dst)
     spec = cluster or SERIAL
     if jobs and render is None:
