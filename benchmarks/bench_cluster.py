@@ -1,6 +1,6 @@
 """Benchmark of offline rendering on Dask distributed (issue 15 item 6): speed-up, scheduling overhead, budgets.
 
-Run:  .venv/bin/python benchmarks/bench_cluster.py [--part speedup,overhead,budget] [--repeats 3]
+Run:  .venv/bin/python benchmarks/bench_cluster.py [--part speedup,memory,overhead,budget] [--repeats 3]
 
 - ``speedup``: ``studyapp prepare`` of a bench protocol (``interior`` and ``street_night`` at 960x540, GT,
   VaFR and LaFR(1.8), ``--frames`` frames each) as a fresh process: in process (``--workers 1``), on a local
@@ -8,6 +8,8 @@ Run:  .venv/bin/python benchmarks/bench_cluster.py [--part speedup,overhead,budg
   fresh per run) with 1 and with 2 single-threaded workers (the scale-out target: 2 workers >= 1.7x 1 worker);
   alternately, ``--repeats`` times into fresh folders: wall time and CPU seconds (user + sys of the command and
   its workers), medians; every configuration's stimulus set must be byte-identical.
+- ``memory``: peak resident memory of ``prepare --serial`` (one process) and of one ``dask worker`` rendering
+  the same frames (``/usr/bin/time -v``).
 - ``overhead``: a local cluster of 2 workers started and stopped (seconds), and ``--tasks`` trivial tasks through
   ``studyapp.cluster.run_tasks`` on it (submission, scheduling, the result back, the progress callback): the
   scheduling overhead per task.
@@ -25,6 +27,7 @@ import argparse
 import json
 import os
 import resource
+import signal
 import statistics
 import subprocess
 import sys
@@ -84,8 +87,10 @@ class _Workers:
     """A ``dask scheduler`` and ``n`` single-threaded ``dask worker`` processes on loopback, started fresh per run
     (as a lab's machines would be: `docs/distributed.md`), so each run's workers build their scenes anew."""
 
-    def __init__(self, folder: Path, n: int, env: dict):
+    def __init__(self, folder: Path, n: int, env: dict, measure_memory: bool = False):
         dask = Path(sys.executable).with_name("dask")
+        self.logs = [folder / f"worker{i}.time" for i in range(n)]
+        wrap = (lambda i: ["/usr/bin/time", "-v", "-o", str(self.logs[i])]) if measure_memory else (lambda i: [])
         self.file = folder / "scheduler.json"
         self.file.unlink(missing_ok=True)
         wenv = {**env, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
@@ -98,9 +103,10 @@ class _Workers:
                 raise SystemExit("the benchmark's dask scheduler did not start")
             time.sleep(0.1)
         self.address = json.loads(self.file.read_text())["address"]
-        self.procs += [subprocess.Popen([str(dask), "worker", self.address, "--nthreads", "1", "--no-dashboard",
-                                         "--host", "127.0.0.1", "--memory-limit", "0"], env=wenv,
-                                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for _ in range(n)]
+        self.procs += [subprocess.Popen([*wrap(i), str(dask), "worker", self.address, "--nthreads", "1",
+                                         "--no-nanny", "--no-dashboard", "--host", "127.0.0.1", "--memory-limit", "0"],
+                                        env=wenv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                       for i in range(n)]
         from distributed import Client
 
         with Client(self.address, timeout=30, set_as_default=False) as c:
@@ -108,7 +114,7 @@ class _Workers:
 
     def close(self):
         for p in reversed(self.procs):
-            p.terminate()
+            p.send_signal(signal.SIGINT) if p.args[0] == "/usr/bin/time" else p.terminate()
         for p in self.procs:
             try:
                 p.wait(timeout=30)
@@ -152,6 +158,49 @@ def speedup(folder: Path, frames: int, repeats: int) -> dict:
     return {"frames": n, "runs": out, "median": med, "speedup": med["1"]["wall"] / med["2"]["wall"],
             "scaleout": med["w1"]["wall"] / med["w2"]["wall"],
             "identical": all(v == sets["1"] for v in sets.values())}
+
+
+def _peak_mb(time_v: str) -> float:
+    """Maximum resident set size (MB) from ``/usr/bin/time -v``'s report."""
+    line = next(ln for ln in time_v.splitlines() if "Maximum resident set size" in ln)
+    return int(line.split(":")[1]) / 1024
+
+
+def memory(folder: Path, frames: int) -> dict:
+    """Peak memory of rendering the bench protocol in one process (``prepare --serial``: today's per-render
+    path, every scene built in that process) and of a ``dask worker`` rendering the same frames for
+    ``prepare --scheduler`` (``/usr/bin/time -v``, maximum resident set size)."""
+    proto = folder / "bench_mem.yaml"
+    proto.write_text(PROTOCOL.format(frames=float(frames)))
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    report = folder / "serial.time"
+    r = subprocess.run(["/usr/bin/time", "-v", "-o", str(report), sys.executable, "-m", "studyapp", "prepare",
+                        str(proto), "--serial", "--stimuli", str(folder / "ms"), "--cache", str(folder / "mc")],
+                       env=env, capture_output=True, text=True, check=False)
+    if r.returncode != 0:
+        raise SystemExit(r.stderr)
+    serial = _peak_mb(report.read_text())
+    workers = _Workers(folder, 1, env, measure_memory=True)
+    try:
+        r = subprocess.run([sys.executable, "-m", "studyapp", "prepare", str(proto), "--scheduler", workers.address,
+                            "--stimuli", str(folder / "mw"), "--cache", str(folder / "mwc")], env=env,
+                           capture_output=True, text=True, check=False)
+    finally:
+        workers.close()
+    if r.returncode != 0:
+        raise SystemExit(r.stderr)
+    worker = _peak_mb(workers.logs[0].read_text())
+    idle = _Workers(folder, 1, env, measure_memory=True)  # Dask's own runtime: a worker that renders nothing
+    idle.close()
+    idle_mb = _peak_mb(idle.logs[0].read_text())
+    empty = folder / "python.time"
+    subprocess.run(["/usr/bin/time", "-v", "-o", str(empty), sys.executable, "-c", "import studyapp.cli"], env=env,
+                   check=True)
+    base_mb = _peak_mb(empty.read_text())
+    print(f"peak RSS: in process {serial:.0f} MB, one dask worker {worker:.0f} MB (an idle worker {idle_mb:.0f} MB, "
+          f"python with studyapp's CLI {base_mb:.0f} MB)", flush=True)
+    return {"frames": 2 * 3 * frames, "serial_mb": serial, "worker_mb": worker, "idle_worker_mb": idle_mb,
+            "python_mb": base_mb}
 
 
 def overhead(n_tasks: int) -> dict:
@@ -275,6 +324,16 @@ def report(res: dict) -> None:
                   "frame's pixels on both cores, so a local cluster on this machine gains nothing over it: it adds "
                   "the workers' start-up, imports and scene builds). The stimulus sets of every configuration are "
                   f"{'byte-identical' if s['identical'] else 'DIFFERENT'}.", ""]
+    if "memory" in res:
+        mm = res["memory"]
+        lines += [f"Memory (item 3): peak resident set of `prepare --serial` of {mm['frames']} frames (every frame "
+                  f"and scene in one process, today's path) **{mm['serial_mb']:.0f} MB**; peak of one `dask worker` "
+                  f"rendering the same frames for `prepare --scheduler` **{mm['worker_mb']:.0f} MB** "
+                  f"(`/usr/bin/time -v`). Above a bare process, rendering adds {mm['serial_mb'] - mm['python_mb']:.0f} "
+                  f"MB in process and {mm['worker_mb'] - mm['idle_worker_mb']:.0f} MB in the worker (which holds one "
+                  "frame at a time and its scenes, like the process); the rest of the difference is Dask's own "
+                  f"runtime (an idle worker: {mm['idle_worker_mb']:.0f} MB; python with studyapp's CLI: "
+                  f"{mm['python_mb']:.0f} MB).", ""]
     if "overhead" in res:
         o = res["overhead"]
         lines += [f"Scheduling overhead: {o['tasks']} trivial tasks through `studyapp.cluster.run_tasks` on a local "
@@ -308,7 +367,7 @@ def report(res: dict) -> None:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--part", default="speedup,overhead,budget")
+    ap.add_argument("--part", default="speedup,memory,overhead,budget")
     ap.add_argument("--frames", type=int, default=8, help="frames per (condition, scene) of the bench protocol")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--tasks", type=int, default=500)
@@ -318,6 +377,7 @@ def main(argv=None):
     res = json.loads(Path(args.from_json).read_text()) if args.from_json else {}
     with tempfile.TemporaryDirectory(prefix="bench_cluster_") as tmp:
         for part, run in (("speedup", lambda: speedup(Path(tmp), args.frames, args.repeats)),
+                          ("memory", lambda: memory(Path(tmp), min(args.frames, 2))),
                           ("overhead", lambda: overhead(args.tasks)), ("budget", budget)):
             if part in parts:
                 before = os.getloadavg()
