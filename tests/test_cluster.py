@@ -11,6 +11,7 @@ a second, which leaves time to kill a worker mid-task (VaFR's take three seconds
 from __future__ import annotations
 
 import json
+import pickle
 import os
 import re
 import signal
@@ -308,6 +309,26 @@ def test_lightcuts_tables_render_their_ground_truths_on_the_cluster(tmp_path, lo
     monkeypatch.setattr(registry, "render", boom)
     for name in ("study", "yard"):  # what lightcut_tables asks for, with the scene it builds
         render_stimulus(**gt_frame(SCENES[name](), 32, 18, gt_lspp=16, gt_rspp=16), cache_dir=tmp_path / "cache")
+
+
+def test_workers_build_each_scene_once_and_tasks_carry_names(tiny, tmp_path, loopback):
+    from renderers.catalog import builtin  # its cache, in each worker process: built-in scenes built there
+
+    loopback.client.run(builtin.cache_clear)
+    r = _cli(["prepare", str(tiny), "--scheduler", loopback.address, "--stimuli", str(tmp_path / "stim"),
+              "--cache", str(tmp_path / "cache")], tmp_path)
+    assert r.returncode == 0, r.stderr
+    builds = loopback.client.run(builtin.cache_info)
+    # one scene (cornell) and 9 frames over 2 workers: each worker built it at most once, and reused it
+    assert all(info.misses <= 1 for info in builds.values()), builds
+    assert sum(info.hits for info in builds.values()) >= 9 - 2, builds
+    # a task's arguments are the frame's names and numbers, a few hundred bytes, never a mesh
+    p = load_protocol(tiny, stimuli_dir=tmp_path / "s2", check_renderers=False)
+    from renderers.stimuli import frame_request
+
+    g = p.render_geometry()
+    req = frame_request(p.scene_ref("cornell"), "gt", {}, g.width, g.height)
+    assert isinstance(req.scene, str) and len(pickle.dumps(req)) < 2000
 
 
 def test_a_killed_prepare_resumes_where_it_stopped(tiny, tmp_path, loopback, serial_result):
