@@ -92,13 +92,21 @@ def test_broken_shader_one_line_naming_it(tmp_path, monkeypatch, capsys):
     assert "error" in line
 
 
-def test_too_many_lights_and_cpu_only_renderers(tmp_path):
+def test_too_many_lights_and_cpu_only_renderers(monkeypatch):
+    """The built-in GPU renderers refuse many-light scenes (the lightcuts renderers take them); a plug-in without
+    a GPU version is refused on the GPU backend."""
+    from dataclasses import replace
+
+    from renderers import registry
     from renderers.gpu import render
 
-    with pytest.raises(UserError, match="111,858 lights.*use --backend cpu"):
+    with pytest.raises(UserError, match="111,858 lights.*lightcuts renderers.*use --backend cpu"):
         render("cornell_many", "gt", {}, 8, 6)
-    with pytest.raises(UserError, match="renderer .fsl. has no GPU version: use --backend cpu"):
-        render("cornell", "fsl", {}, 8, 6)
+    plugins = registry.available()
+    monkeypatch.setattr(registry, "_PLUGINS", {**plugins, "cpu_only": replace(plugins["gt"], name="cpu_only",
+                                                                               gpu=None)})
+    with pytest.raises(UserError, match="renderer .cpu_only. has no GPU version: use --backend cpu"):
+        render("cornell", "cpu_only", {}, 8, 6)
 
 
 def test_generated_foveation_glsl_matches_the_cpu_kernels():

@@ -16,7 +16,8 @@ from .context import StageTimer
 
 #: GPU counters (index = position). Those named like a Counters field are added to it at the end of a frame.
 COUNTERS = ("samples", "holes", "rays_primary", "missed_rays", "shading_points", "glossy_evaluations",
-            "lights_culled", "shadow_rays_skipped", "rays_shadow", "nonfinite", "offscreen_lp_pixels")
+            "lights_culled", "shadow_rays_skipped", "rays_shadow", "nonfinite", "offscreen_lp_pixels",
+            "light_samples", "reused", "glossy_rays")
 C = {name: i for i, name in enumerate(COUNTERS)}
 _COUNTER_DEFINES = {"COUNTERS": len(COUNTERS), **{f"C_{n.upper()}": i for n, i in C.items()}}
 #: Switches of the shaders, off unless a pass sets them (GLSL's #if may not meet an undefined name).

@@ -21,6 +21,7 @@ def _finish(fr: Frame, ctx, images, closed: bool = False):
 
 def run_gt(ctx):
     """GT on the GPU (see :func:`renderers.builtin_renderers.run_gt`)."""
+    ctx.tracer.check_lights()
     fr = Frame(ctx.tracer)
     spp, filt = gt_spp(ctx.params), ctx.params.get("filter", "box")
     images = []
@@ -35,6 +36,7 @@ def run_foveated(method: str):
 
     def run(ctx):
         p = ctx.params
+        ctx.tracer.check_lights()
         fr = Frame(ctx.tracer)
         tables = P.lp_tables(fr, method, _mapping_params(method, p), ctx.geometry)
         ctx.extra["lp_shape"] = [tables.w, tables.h]

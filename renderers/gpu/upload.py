@@ -18,8 +18,9 @@ from ..tracer import Counters, pack_scene
 from . import bvh as B
 from .context import TEX_WIDTH, WAY_OUT, Device, get_device
 
-#: The GPU shading keeps the per-light contributions of a point in registers: scenes with more lights (the
-#: lightcuts scenes' virtual point lights) stay on the CPU.
+#: The built-in GPU renderers keep the per-light contributions of a point in registers: scenes with more lights
+#: (the many-light scenes) are rendered by the lightcuts renderers, which sample a light tree instead
+#: (:mod:`renderers.gpu.lightcuts`).
 MAX_LIGHTS = 256
 
 _BVH_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
@@ -61,17 +62,13 @@ class _Upload:
     def __init__(self, device: Device, scene, shadows: bool):
         t0 = time.perf_counter()
         k = scene.light_count()
-        if k > MAX_LIGHTS:
-            from data_schema.errors import UserError
-
-            raise UserError(f"scene {scene.name!r} has {k:,} lights; the GPU renderers shade up to {MAX_LIGHTS} "
-                            f"per point (the lightcuts renderers are CPU-only): {WAY_OUT}")
         packed = pack_scene(scene, shadows)
         tree = scene_bvh(scene)
         tris = tree.tris.copy()
         tris.view(np.int32)[:, 7] = scene.material_ids[tree.tris.view(np.int32)[:, 3]]
         mats = _material_table(packed["mat_f"], packed["mat_i"])
-        lights = _light_table(packed)
+        # the light table of the built-in renderers (a placeholder where they refuse the scene: check_lights)
+        lights = _light_table(packed) if k <= MAX_LIGHTS else np.zeros((1, 12), dtype=np.float32)
         tables = {"BVH": tree.nodes, "triangles": tris, "materials": mats, "lights": lights}
         device.check_fits(f"scene {scene.name!r}", {k: v.nbytes for k, v in tables.items()})
         self.device = device
@@ -116,7 +113,16 @@ class DeviceScene:
         self.offset = 1e-5 * scene.scale
         self.far = 4.0 * scene.scale
         self.light_count = max(up.light_count, 1)
-        self.mask_words = (self.light_count + 31) // 32
+        self.mask_words = (min(self.light_count, MAX_LIGHTS) + 31) // 32
+
+    def check_lights(self) -> None:
+        """Refuse (one line) a scene with more lights than the built-in GPU renderers shade per point."""
+        if self.upload.light_count > MAX_LIGHTS:
+            from data_schema.errors import UserError
+
+            raise UserError(f"scene {self.scene.name!r} has {self.upload.light_count:,} lights; the GPU renderers "
+                            f"gt, vafr, lmfr and lafr shade up to {MAX_LIGHTS} per point (the lightcuts renderers "
+                            f"fsl, sl_*, sl_gt sample a light tree): {WAY_OUT}")
 
     def bind_scene(self) -> None:
         for unit, tex in enumerate(self.upload.textures):

@@ -10,6 +10,10 @@ For a glossy or metallic pixel with specular colour ``k_s`` and Blinn-Phong expo
 times the radiance found at its first hit: emission + ambient + direct diffuse light from stochastic
 lightcuts with ``lspp_bounce`` nodes (one bounce: the hit's own gloss is not followed). The pixel value is the
 mean over its rays. Pixels with ``count = 0`` cast no ray; an all-diffuse scene casts none at all.
+
+Random numbers: the lobe of ray ``r`` of pixel ``i`` uses slots ``2^24 + 2r`` and ``2^24 + 2r + 1`` of pixel ``i``;
+its bounce's lightcuts use stream ``seed + 7919`` with the id ``(i << 20) + r``, so every ray's samples depend on
+(seed, pixel, ray) alone, not on how the rays are batched (the GPU backend draws the same ones).
 """
 
 from __future__ import annotations
@@ -65,21 +69,33 @@ def sample_lobe(P, N, V, ks, s_exp, counts, first, pix_id, seed, offset, orig, d
                 weight[j, a] = ks[i, a] * g
 
 
+#: Rays per pixel below this: a bounce's id ``(pixel << RAY_BITS) + r`` in the random stream is unique.
+RAY_BITS = 20
+
+
+def glossy_offset(tree) -> float:
+    """Origin offset of the glossy rays along the normal: 1e-4 of the lights' half diagonal."""
+    return 1e-4 * max(tree.scene_radius, 1e-9)
+
+
 def glossy_pass(hits, counts, seed: int, trace, tree, occluded, lspp_bounce: int = 1,
-                max_rays: int = 1 << 20):
+                max_rays: int = 1 << 20, ray_offset: float | None = None):
     """Glossy radiance ``(n, 3)`` of the pixels of ``hits`` with ``counts`` rays each, and the rays cast.
 
     ``trace(origins, dirs)`` returns the hits of the bounce rays (an object with ``gbuf`` and ``base``).
-    Pixels are processed in chunks of at most ``max_rays`` rays.
+    Pixels are processed in chunks of at most ``max_rays`` rays. ``ray_offset`` is the shadow-ray offset of the
+    bounces' lightcuts (default: ``sampling.ray_offset_for`` of each chunk's hits).
     """
     counts = np.asarray(counts, dtype=np.int64).reshape(-1)
     if np.any(counts < 0):
         raise UserError("rspp must be >= 0")
+    if np.any(counts >= 1 << RAY_BITS):
+        raise UserError(f"rspp must be < {1 << RAY_BITS}")
     g = hits.gbuf
     n = g.n
     out = np.zeros((n, 3))
     total = 0
-    offset = 1e-4 * max(tree.scene_radius, 1e-9)
+    offset = glossy_offset(tree)
     idx = np.nonzero(counts)[0]
     start = 0
     while start < len(idx):
@@ -99,8 +115,10 @@ def glossy_pass(hits, counts, seed: int, trace, tree, occluded, lspp_bounce: int
             bounce = trace(orig[live], dirs[live])
             rad = bounce.base.copy()
             if lspp_bounce > 0:
-                rad += stochastic_lightcuts(tree, bounce.gbuf, lspp_bounce, seed=seed + 7919,
-                                            occluded=occluded).radiance.reshape(-1, 3)
+                ray = np.arange(m, dtype=np.int64) - np.repeat(first, c)
+                ids = ((np.repeat(sel.astype(np.int64), c) << RAY_BITS) + ray)[live]
+                rad += stochastic_lightcuts(tree, bounce.gbuf, lspp_bounce, seed=seed + 7919, occluded=occluded,
+                                            ray_offset=ray_offset, pixel_ids=ids).radiance.reshape(-1, 3)
             owner = np.repeat(np.arange(len(sel)), c)[live]
             contrib = weight[live] * rad
             for a in range(3):

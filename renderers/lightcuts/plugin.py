@@ -40,7 +40,7 @@ from renderers.plugin_types import Param, RendererPlugin
 from .foveated import foveated_lightcuts
 from .fpsm import FPSM_READINGS, acuity_map, eccentricity_map, light_budget, screen_velocity, spatiotemporal_feature
 from .glossy import glossy_pass
-from .sampling import GBuffer, stochastic_lightcuts
+from .sampling import GBuffer, ray_offset_for, stochastic_lightcuts
 from .tree import LightTree, build_light_tree
 from .visibility import EmbreeOccluder
 
@@ -165,6 +165,7 @@ class Hits:
         _hit_materials(P, Ng, sc.material_ids[pi], tracer.mat_f, tracer.mat_i, tracer.ambient, self.albedo,
                        self.base, self.ks, self.s_exp, self.glossy)
         self.glossy &= hit
+        self.albedo[~hit] = 0.0  # a miss has no surface (the FPSM's albedo gradient sees the background as 0)
         self.base[~hit] = tracer.background
         self.hit = hit
         self.view = -d
@@ -188,27 +189,46 @@ def _low_res(width: int, height: int) -> tuple[int, int]:
     return max(1, width // 8), max(1, height // 8)
 
 
+def scene_has_glossy(scene) -> bool:
+    """Whether a glossy or metallic material exists: the glossy pass runs only then (Algorithm 1 line 16)."""
+    return any(m.kind in ("glossy", "metallic") for m in scene.materials)
+
+
+def glossy_budget(fpsm_map, max_rspp: int) -> np.ndarray:
+    """``fsl``'s glossy rays per pixel, ``MAX_rspp · map`` (Algorithm 1 line 17) rounded up; 0 where map is 0."""
+    return np.ceil(np.asarray(fpsm_map) * max_rspp - 1e-9).astype(np.int64)
+
+
+def frame_output(ctx, base, diffuse, glossy, glossy_mask, rays: int) -> np.ndarray:
+    """The frame ``base + diffuse + glossy`` and its extras (both backends; arrays ``(h·w, 3)``, ``glossy`` None
+    when no glossy ray was cast)."""
+    h, w = ctx.height, ctx.width
+    img = base + diffuse.reshape(-1, 3)
+    ctx.extra["diffuse_image"] = img.reshape(h, w, 3).astype(np.float32)
+    if glossy is not None:
+        img = img + glossy
+        ctx.extra["glossy_image"] = glossy.reshape(h, w, 3).astype(np.float32)
+    ctx.extra["glossy_rays"] = int(rays)
+    ctx.extra["glossy_pass"] = scene_has_glossy(ctx.scene)
+    ctx.extra["directional_lights_ignored"] = len(ctx.scene.directional_lights)
+    ctx.extra["glossy_mask"] = np.asarray(glossy_mask).reshape(h, w).copy()
+    return img.reshape(h, w, 3).astype(np.float32)  # linear, unexposed (the renderer output contract)
+
+
 def _finish(ctx, hits: Hits, diffuse: np.ndarray, rspp, seed: int, lspp_bounce: int = 1) -> np.ndarray:
     """Emission + ambient + diffuse + the glossy pass (only if the scene has a glossy or metallic material)."""
     t0 = time.perf_counter()
     h, w = ctx.height, ctx.width
     tree, occ = scene_light_tree(ctx.scene), scene_occluder(ctx.scene)
-    img = hits.base + diffuse.reshape(-1, 3)
     ctx.tracer.counters.shading_points += int(hits.hit.sum())  # every primary hit is shaded (missed rays not)
-    has_glossy = any(m.kind in ("glossy", "metallic") for m in ctx.scene.materials)
-    rays = 0
-    if has_glossy and hits.glossy.any():
+    gl, rays = None, 0
+    if scene_has_glossy(ctx.scene) and hits.glossy.any():
         counts = np.where(hits.glossy, np.broadcast_to(np.asarray(rspp), (h, w)).reshape(-1), 0).astype(np.int64)
-        gl, rays = glossy_pass(hits, counts, seed, lambda o, d: Hits(ctx.tracer, o, d), tree, occ, lspp_bounce)
-        img = img + gl
-        ctx.extra["glossy_image"] = gl.reshape(h, w, 3).astype(np.float32)
-    ctx.extra["glossy_rays"] = int(rays)
-    ctx.extra["glossy_pass"] = bool(has_glossy)
-    ctx.extra["directional_lights_ignored"] = len(ctx.scene.directional_lights)
-    ctx.extra["diffuse_image"] = (hits.base + diffuse.reshape(-1, 3)).reshape(h, w, 3).astype(np.float32)
-    ctx.extra["glossy_mask"] = hits.glossy.reshape(h, w).copy()
+        gl, rays = glossy_pass(hits, counts, seed, lambda o, d: Hits(ctx.tracer, o, d), tree, occ, lspp_bounce,
+                               ray_offset=ray_offset_for(tree, hits.gbuf))
+    img = frame_output(ctx, hits.base, diffuse, gl, hits.glossy, rays)
     _steps(ctx, {"glossy": time.perf_counter() - t0})
-    return img.reshape(h, w, 3).astype(np.float32)  # linear, unexposed (the renderer output contract)
+    return img
 
 
 def _steps(ctx, timings: dict) -> None:
@@ -267,20 +287,32 @@ def view_projection(camera, width: int, height: int) -> np.ndarray:
     return m
 
 
-def _velocity(ctx, hits) -> np.ndarray:
-    """Screen-space motion (pixels, (h, w, 2)) of the visible points from the previous frame's camera to this
-    one (seed 003 §3.1's velocity buffer); zero without a previous camera and for rays that missed."""
+def velocity_buffer(ctx, position, hit) -> np.ndarray:
+    """Screen-space motion (pixels, (h, w, 2)) of the visible points ``position`` (h·w, 3) from the previous
+    frame's camera to this one (seed 003 §3.1's velocity buffer); zero without a previous camera and where
+    ``hit`` is false."""
     h, w = ctx.height, ctx.width
     if ctx.previous_camera is None:
         return np.zeros((h, w, 2))
-    pos = hits.gbuf.position.reshape(h, w, 3)
+    pos = np.asarray(position, dtype=np.float64).reshape(h, w, 3)
     vel = screen_velocity(pos, view_projection(ctx.camera, w, h), view_projection(ctx.previous_camera, w, h),
                           w, h)
-    return np.where(hits.hit.reshape(h, w, 1), vel, 0.0)
+    return np.where(np.asarray(hit).reshape(h, w, 1), vel, 0.0)
 
 
 def _eccentricity(ctx):
     return eccentricity_map(ctx.geometry)
+
+
+def afsm_budgets(ctx, normal, albedo, velocity) -> tuple[np.ndarray, np.ndarray]:
+    """``sl_as``: Stengel's adaptive foveated sampling map (seed 003 Eq 1 with Eq 2's acuity, no luminance term)
+    of the G-buffer ``(h, w, 3)`` maps, as light and glossy budgets ``ceil(AFSM · MAX)`` (also in
+    ``extra["afsm"]``)."""
+    h, w = ctx.height, ctx.width
+    afsm = spatiotemporal_feature(acuity_map(_eccentricity(ctx)), np.reshape(normal, (h, w, 3)),
+                                  np.reshape(albedo, (h, w, 3)), velocity)
+    ctx.extra["afsm"] = afsm.astype(np.float32)
+    return light_budget(afsm, ctx.params["max_lspp"]), light_budget(afsm, ctx.params["max_rspp"])
 
 
 def run_sl_as(ctx):
@@ -288,14 +320,10 @@ def run_sl_as(ctx):
     p = ctx.params
     t0 = time.perf_counter()
     hits = primary_hits(ctx.tracer, ctx.camera, ctx.width, ctx.height)
-    h, w = ctx.height, ctx.width
-    afsm = spatiotemporal_feature(acuity_map(_eccentricity(ctx)), hits.gbuf.normal.reshape(h, w, 3),
-                                  hits.albedo.reshape(h, w, 3), _velocity(ctx, hits))
-    ctx.extra["afsm"] = afsm.astype(np.float32)
-    lspp = light_budget(afsm, p["max_lspp"])
+    lspp, rspp = afsm_budgets(ctx, hits.gbuf.normal, hits.albedo, velocity_buffer(ctx, hits.gbuf.position, hits.hit))
     _steps(ctx, {"gbuffer": time.perf_counter() - t0})
     _, diffuse = _sl(ctx, lspp, p["seed"], hits)
-    return _finish(ctx, hits, diffuse, light_budget(afsm, p["max_rspp"]), p["seed"])
+    return _finish(ctx, hits, diffuse, rspp, p["seed"])
 
 
 def run_fsl(ctx):
@@ -310,7 +338,7 @@ def run_fsl(ctx):
     x, y = np.meshgrid((np.arange(wl) + 0.5) * w / wl, (np.arange(hl) + 0.5) * h / hl)
     low = Hits(ctx.tracer, np.asarray(ctx.camera.position, dtype=np.float64), camera_rays(ctx.camera, w, h, x, y),
                (hl, wl))
-    ecc, vel = _eccentricity(ctx), _velocity(ctx, hits)
+    ecc, vel = _eccentricity(ctx), velocity_buffer(ctx, hits.gbuf.position, hits.hit)
     _steps(ctx, {"gbuffer": time.perf_counter() - t0})
     t0 = time.perf_counter()
     res = foveated_lightcuts(tree, hits.gbuf, low.gbuf, ecc, vel, p["alpha"], p["max_lspp"], seed=p["seed"],
@@ -322,8 +350,7 @@ def run_fsl(ctx):
     _steps(ctx, res.timings)
     n = int(res.samples.sum()) + res.low_res_samples
     _count_samples(ctx, n, n - int(res.reused.sum()))
-    rspp = np.ceil(res.fpsm.map * p["max_rspp"] - 1e-9).astype(np.int64)
-    return _finish(ctx, hits, res.radiance, rspp, p["seed"])
+    return _finish(ctx, hits, res.radiance, glossy_budget(res.fpsm.map, p["max_rspp"]), p["seed"])
 
 
 def run_sl_gt(ctx):
@@ -354,22 +381,23 @@ FSL = RendererPlugin(
                                 "edges first, flat regions incl. the fovea least) or retained (map = (M - alpha) / "
                                 "(1 - alpha), no rho); docs/lightcuts.md"),
      **_SEED},
-    run_fsl, bytes_per_pixel=_BPP)
+    run_fsl, bytes_per_pixel=_BPP, gpu="renderers.gpu.lightcuts:run_fsl")
 #: Uniform counts; the presets differ only in how seed 003's tables choose the counts for a comparison with
 #: fsl: equal time (sl_e), equal foveal MSE (sl_f), equal peripheral MSE (sl_p).
 SL = RendererPlugin(
     "sl", "stochastic lightcuts, uniform light and glossy samples per pixel",
     {"lspp": Param(int, 8, 1, 4096, help="light samples (cut nodes) per pixel"),
      "rspp": Param(int, 8, 0, 4096, help="glossy rays per glossy pixel"), **_SEED},
-    run_sl_uniform, bytes_per_pixel=_BPP,
+    run_sl_uniform, bytes_per_pixel=_BPP, gpu="renderers.gpu.lightcuts:run_sl_uniform",
     presets={"sl_e": ("stochastic lightcuts, uniform counts (equal time to fsl)", {}),
              "sl_f": ("stochastic lightcuts, uniform counts (equal foveal MSE to fsl)", {}),
              "sl_p": ("stochastic lightcuts, uniform counts (equal peripheral MSE to fsl)", {})})
 SL_AS = RendererPlugin("sl_as", "stochastic lightcuts driven by Stengel's adaptive foveated sampling map",
-                       {**_MAXES, **_SEED}, run_sl_as, bytes_per_pixel=_BPP)
+                       {**_MAXES, **_SEED}, run_sl_as, bytes_per_pixel=_BPP,
+                       gpu="renderers.gpu.lightcuts:run_sl_as")
 SL_GT = RendererPlugin(
     "sl_gt", "ground truth: 2048 light samples + 2048 glossy rays per pixel, progressive",
     {"lspp": Param(int, 2048, 1, 1 << 20, help="light samples per pixel"),
-     "rspp": Param(int, 2048, 0, 1 << 20, help="glossy rays per glossy pixel"),
+     "rspp": Param(int, 2048, 0, (1 << 20) - 1, help="glossy rays per glossy pixel"),
      "max_lspp": Param(int, 48, 1, 4096, help="nodes per pass"), **_SEED},
-    run_sl_gt, bytes_per_pixel=_BPP)
+    run_sl_gt, bytes_per_pixel=_BPP, gpu="renderers.gpu.lightcuts:run_sl_gt")

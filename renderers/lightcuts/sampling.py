@@ -144,7 +144,8 @@ def shade_tile(tree: LightTree, pos, nrm, alb, leaf, pdf, occluded: Occluder | N
 
 def stochastic_lightcuts(tree: LightTree, gbuf: GBuffer, budget, *, seed: int = 0,
                          occluded: Occluder | None = None, ray_offset: float | None = None,
-                         tile: int = 1 << 16, timings: dict | None = None) -> ShadingResult:
+                         tile: int = 1 << 16, timings: dict | None = None,
+                         pixel_ids: np.ndarray | None = None) -> ShadingResult:
     """Render direct diffuse lighting with stochastic lightcuts.
 
     Parameters
@@ -164,6 +165,9 @@ def stochastic_lightcuts(tree: LightTree, gbuf: GBuffer, budget, *, seed: int = 
     timings : dict, optional
         Accumulates seconds per step: ``cuts`` (cut refinement), ``select`` (hierarchical sampling), ``shade``
         (shading and shadow rays) — the steps of seed 003 Fig 9.
+    pixel_ids : (P,) int, optional
+        The points' ids in the random stream (default ``0 .. P - 1``): a point's samples depend only on
+        ``(seed, id, slot)``.
     """
     b = np.broadcast_to(np.asarray(budget), gbuf.shape).reshape(-1)
     if not np.issubdtype(b.dtype, np.integer) and (not np.all(np.isfinite(b)) or np.any(b != np.round(b))):
@@ -182,7 +186,7 @@ def stochastic_lightcuts(tree: LightTree, gbuf: GBuffer, budget, *, seed: int = 
     for start in range(0, gbuf.n, tile):
         sl = slice(start, min(start + tile, gbuf.n))
         pos, nrm = gbuf.position[sl], gbuf.normal[sl]
-        ids = np.arange(sl.start, sl.stop, dtype=np.int64)
+        ids = np.arange(sl.start, sl.stop, dtype=np.int64) if pixel_ids is None else pixel_ids[sl]
         _, _, leaf, pdf = cut_and_sample(tree, pos, nrm, b[sl], ids, seed, max_b, timings)
         t0 = time.perf_counter()
         out[sl], r = shade_tile(tree, pos, nrm, gbuf.albedo[sl], leaf, pdf, occluded, offset)

@@ -1,0 +1,88 @@
+#version 430
+// The one-bounce glossy pass (seed 003 Algorithm 1 lines 16-17, FoveatedPT; renderers/lightcuts/glossy.py):
+// for every glossy pixel its rays of slots [u_r0, u_r1) (of u_rspp, or ctl.y per pixel), each a Blinn-Phong
+// half-vector sample weighted k_s (s + 8)(n.w_i)(v.h) / ((s + 1) count), traced to its first hit and shaded there
+// with emission + ambient + stochastic lightcuts of u_bounce_lspp nodes (CUT_MAX) with shadow rays (the hit's own
+// gloss is not followed). Rays below the surface or of zero weight are not traced. Random numbers: slots
+// 2^24 + 2r, 2^24 + 2r + 1 of the pixel for the lobe; the bounce's lightcuts use stream u_bounce_seed and pixel
+// id (pixel << 20) + r, as on the CPU.
+layout(local_size_x = 64) in;
+#include "common.glsl"
+#include "scene.glsl"
+#include "camera.glsl"
+#include "lightcuts.glsl"
+#include "lc_buffers.glsl"
+uniform int u_width;
+uniform vec3 u_origin;
+uniform int u_rspp;
+uniform int u_r0;
+uniform int u_r1;
+uniform uvec2 u_bounce_seed;
+uniform int u_bounce_lspp;
+uniform int u_shadows;
+uniform float u_glossy_offset;
+const uint STREAM = 1u << 24;
+
+void main() {
+    cnt_begin();
+    uint i = gid();
+    if (i < uint(u_n)) {
+        int px = u_first + int(i);
+        bool glossy = g_pos[px].w > 0.0 && g_nrm[px].w > 0.0;
+        int c = glossy ? (u_rspp >= 0 ? u_rspp : ctl[px].y) : 0;
+        vec3 acc = u_r0 == 0 ? vec3(0.0) : gloss[px].xyz;
+        uint live = 0u, missed = 0u;
+        if (c > u_r0) {
+            vec3 P = g_pos[px].xyz, n = g_nrm[px].xyz, ks = g_ks[px].xyz, t, b;
+            float s_exp = g_alb[px].w;
+            vec3 V = -camera_ray_d(dvec2(double(px % u_width), double(px / u_width)) + 0.5LF);
+            lc_frame(n, t, b);
+            float offset = ray_offset(bounds_lo(), bounds_hi());
+            for (int r = u_r0; r < min(u_r1, c); r++) {
+                float u1 = float(lc_uniform(u_seed, uvec2(uint(px), 0u), STREAM + uint(2 * r)));
+                float u2 = float(lc_uniform(u_seed, uvec2(uint(px), 0u), STREAM + uint(2 * r + 1)));
+                float cos_h = pow(u1, 1.0 / (s_exp + 1.0));
+                float sin_h = sqrt(max(0.0, 1.0 - cos_h * cos_h));
+                float phi = 6.283185307179586 * u2;
+                vec3 h = cos_h * n + (cos(phi) * sin_h) * t + (sin(phi) * sin_h) * b;
+                float voh = dot(V, h);
+                vec3 dir = 2.0 * voh * h - V;
+                float cos_i = dot(n, dir);
+                if (voh <= 0.0 || cos_i <= 0.0) continue;
+                vec3 w = ks * ((s_exp + 8.0) * cos_i * voh / ((s_exp + 1.0) * float(c)));
+                if (!any(greaterThan(w, vec3(0.0)))) continue;
+                live++;
+                vec3 o = P + u_glossy_offset * n;
+                float th;
+                int k = trace(o, dir, INF, false, th);
+                vec3 radiance = u_background;
+                if (k < 0) {
+                    missed++;
+                } else {
+                    Surf sf = surface(k, o, dir, th);
+                    radiance = sf.base;
+                    vec3 alb = sf.kd == 0.0 ? vec3(0.0) : sf.a, bt, bb;
+                    lc_frame(sf.n, bt, bb);
+                    int m = build_cut(sf.p, sf.n, bt, bb, u_bounce_lspp);
+                    uvec2 id = uvec2((uint(px) << 20) | uint(r), uint(px) >> 12);
+                    for (int s = 0; s < m; s++) {
+                        if (!node_live(sf.p, sf.n, bt, bb, lc_cut[s])) continue;
+                        float pdf;
+                        int leaf = descend(sf.p, sf.n, bt, bb, lc_cut[s], lc_uniform(u_bounce_seed, id, uint(2 * s)),
+                                           pdf);
+                        vec3 v = light_estimate(sf.p, sf.n, alb, leaf, pdf);
+                        if (v.x + v.y + v.z > 0.0 && (u_shadows == 0 || !occluded(sf.p, sf.n, leaf, offset)))
+                            radiance += v;
+                    }
+                }
+                acc += w * radiance;
+            }
+        }
+        if (any(isnan(acc)) || any(isinf(acc))) cnt_add(C_NONFINITE, 1u);
+        gloss[px] = vec4(acc, 0.0);
+        cnt_add(C_GLOSSY_RAYS, live);
+        cnt_add(C_RAYS_PRIMARY, live);
+        cnt_add(C_MISSED_RAYS, missed);
+    }
+    cnt_end();
+}

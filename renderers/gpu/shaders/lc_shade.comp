@@ -1,0 +1,42 @@
+#version 430
+// Shading of the selected lights (seed 003 Algorithm 1 line 15; sampling.shade_tile): the Lambertian estimate of
+// every sample, a shadow ray through the BVH for those that contribute (all of them counted as shadow rays, as
+// on the CPU), the sum into the pixel's diffuse radiance (added to it with u_accumulate: the passes of sl_gt).
+layout(local_size_x = 64) in;
+#include "common.glsl"
+#include "scene.glsl"
+#include "lightcuts.glsl"
+#include "lc_buffers.glsl"
+uniform int u_shadows;
+uniform int u_accumulate;
+
+void main() {
+    cnt_begin();
+    uint i = gid();
+    if (i < uint(u_n)) {
+        int px = u_first + int(i);
+        int m = pix[px].x;
+        vec3 p = g_pos[px].xyz, n = g_nrm[px].xyz, alb = g_alb[px].xyz;
+        float offset = ray_offset(bounds_lo(), bounds_hi());
+        vec3 c = vec3(0.0);
+        uint rays = 0u;
+        int drawn = 0;
+        for (int s = 0; s < m; s++) {
+            uvec4 e = smp[i * uint(CUT_MAX) + uint(s)];
+            int leaf = int(e.y);
+            if (leaf < 0) continue;
+            drawn++;
+            vec3 v = light_estimate(p, n, alb, leaf, uintBitsToFloat(e.z));
+            if (v.x + v.y + v.z > 0.0) {
+                rays++;
+                if (u_shadows == 0 || !occluded(p, n, leaf, offset)) c += v;
+            }
+        }
+        if (any(isnan(c)) || any(isinf(c))) cnt_add(C_NONFINITE, 1u);
+        rad[px] = u_accumulate != 0 ? rad[px] + vec4(c, 0.0) : vec4(c, 0.0);
+        pix[px].y = drawn;
+        cnt_add(C_RAYS_SHADOW, rays);
+        cnt_add(C_LIGHT_SAMPLES, uint(drawn));
+    }
+    cnt_end();
+}
