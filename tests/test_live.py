@@ -235,3 +235,13 @@ def test_exploration_keys_cannot_answer_or_switch(tmp_path):
         load_protocol(f, check_renderers=False)
     f.write_text(explore + 'keys: {switch: {q: 0, e: 1}, answer: {"1": A, "2": B}}\n')
     assert load_protocol(f, check_renderers=False).motion == "explore"
+
+
+def test_the_ground_truth_of_the_lightcuts_thumbnails_has_fewer_samples():
+    """sl_gt's preview (the simulated observer's 64-pixel frames, its reference included) caps the samples at
+    256 + 256; the order of the conditions it answers from is measured to be kept (plugin.sl_gt_preview)."""
+    from renderers.registry import preview_params
+
+    assert preview_params("sl_gt", {}) == {"lspp": 256, "rspp": 256}
+    assert preview_params("sl_gt", {"lspp": 64, "seed": 3}) == {"lspp": 64, "rspp": 256, "seed": 3}
+    assert preview_params("fsl", {"alpha": 0.1}) == {"alpha": 0.1}

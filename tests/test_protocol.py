@@ -18,7 +18,8 @@ SHIPPED = sorted(PROTOCOLS.glob("seed*.yaml"))
 
 def test_the_replication_protocols_are_shipped():
     assert [p.stem for p in SHIPPED] == ["seed001_2afc", "seed001_2afc_live", "seed001_pilot", "seed001_pilot_live",
-                                         "seed003_task1", "seed003_task2"]
+                                         "seed003_task1", "seed003_task1_live", "seed003_task2",
+                                         "seed003_task2_live"]
 
 
 @pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
@@ -69,6 +70,29 @@ def test_seed003_designs():
     assert (t2.duration_s, t2.black_s) == (16.0, 1.0)
     assert t2.design_conditions == ("EC", "CC2", "CC3", "CC4")
     assert sum(t.kind == "trial" for t in build_schedule(t2, "P1", 0)) == 40
+
+
+@pytest.mark.parametrize("name,motion", [("seed003_task1", "path"), ("seed003_task2", "explore")])
+def test_seed003_live_replications_keep_the_pre_rendered_designs(name, motion):
+    """Seed 003's tasks live: the same family, design conditions, scenes, timing and schedule as the pre-rendered
+    replication; animations (Task 1) or explorations (Task 2) at the display's native resolution on the GPU
+    versions of the lightcuts renderers (checked: check_renderers=True); no condition's frame rate is capped, and
+    CC1 is the ground truth with the seed's 2048 + 2048 samples."""
+    from renderers.registry import resolve_params
+
+    pre = load_protocol(PROTOCOLS / f"{name}.yaml", check_renderers=False)
+    live = load_protocol(PROTOCOLS / f"{name}_live.yaml", check_renderers=True)
+    assert live.live and live.motion == motion and live.data["stimulus"]["gaze"] == "tracker"
+    assert (live.family, live.design_conditions, live.scenes) == (pre.family, pre.design_conditions, pre.scenes)
+    assert (live.duration_s, live.black_s, live.reference) == (pre.duration_s, pre.black_s, pre.reference)
+    g = live.render_geometry()
+    assert (g.width, g.height) == (live.display.width_px, live.display.height_px)
+    assert {live.backend_of(c) for c in live.conditions} == {"gpu"}
+    assert all(c.max_fps is None and c.latency_ms == 0 for c in live.conditions.values())
+    gt = live.conditions["CC1"]
+    assert gt.renderer == "sl_gt" and resolve_params("sl_gt", gt.params)["lspp"] == 2048
+    kinds = lambda p: [t.kind for t in build_schedule(p, "P1", 0)]  # noqa: E731
+    assert kinds(live).count("trial") == kinds(pre).count("trial") == (50 if motion == "path" else 40)
 
 
 def test_ppd_from_display_geometry():

@@ -366,6 +366,18 @@ def run_sl_gt(ctx):
     return _finish(ctx, hits, acc / passes, int(p["rspp"]), p["seed"], lspp_bounce=4)
 
 
+def sl_gt_preview(params: dict) -> dict:
+    """The ground truth's thumbnail (the simulated observer's 64-pixel frames, its reference included): at most
+    256 light + 256 glossy samples per pixel instead of 2048 + 2048, 6-8x faster (64x36 on the CPU: 1.1-3.3 s
+    instead of 7.7-16.7 s). Measured on the five seed 003 scenes at 36.7° (foveated difference, the observer's
+    measure, gaze at (40, 12)): the 256-sample GT differs from the 2048-sample one by 0.001-0.037, 4-80x less than
+    any condition does (EC, SL_e 8+8, SL_as, SL_f 40+40, SL_e 1+0: 0.003-0.46), and every condition's difference
+    moves by at most 0.004 with the reference, so the order of the conditions, which the observer answers from,
+    is kept on every scene (docs/live.md)."""
+    return {**params, "lspp": min(int(params.get("lspp", 2048)), 256),
+            "rspp": min(int(params.get("rspp", 2048)), 256)}
+
+
 _SEED = {"seed": Param(int, 0, 0, 2 ** 31 - 1, help="random stream")}
 _MAXES = {"max_lspp": Param(int, 48, 1, 4096, help="MAX_lspp (seed 003: 48)"),
           "max_rspp": Param(int, 48, 0, 4096, help="MAX_rspp (seed 003: 48)")}
@@ -400,4 +412,4 @@ SL_GT = RendererPlugin(
     {"lspp": Param(int, 2048, 1, 1 << 20, help="light samples per pixel"),
      "rspp": Param(int, 2048, 0, (1 << 20) - 1, help="glossy rays per glossy pixel"),
      "max_lspp": Param(int, 48, 1, 4096, help="nodes per pass"), **_SEED},
-    run_sl_gt, bytes_per_pixel=_BPP, gpu="renderers.gpu.lightcuts:run_sl_gt")
+    run_sl_gt, bytes_per_pixel=_BPP, gpu="renderers.gpu.lightcuts:run_sl_gt", preview=sl_gt_preview)

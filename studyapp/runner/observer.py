@@ -234,8 +234,9 @@ class SimulatedObserver:
             gaze = (gx * w / d.width_px, gy * h / d.height_px)
             cam = pose.camera(live.fov_y_deg)
             ref_key = ("gt-frame", scene, k)
-            if ref_key not in _SHARED:
-                ref, _ = render(live.scene, gt.renderer, gt.params, w, h, gaze=gaze, camera=cam)
+            if ref_key not in _SHARED:  # the ground truth's thumbnail too (sl_gt: fewer samples)
+                ref, _ = render(live.scene, gt.renderer, preview_params(gt.renderer, gt.params), w, h, gaze=gaze,
+                                camera=cam)
                 _SHARED[ref_key] = (to_srgb8(ref, _exposure(live.scene)) / 255.0) @ luma
             t0 = _time.perf_counter()
             img, _ = render(live.scene, live.renderer, params, w, h, gaze=gaze, camera=cam)
