@@ -64,3 +64,44 @@ def test_bad_input_is_one_line_exit_2(tmp_path, capsys, argv, message):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and message in err, err
     assert not (tmp_path / "o").exists()
+
+
+def test_tables_on_the_gpu_backend(tmp_path, capsys, monkeypatch):
+    """--backend gpu renders every method and the GT with the GPU versions (GT cached under its own key); the
+    default size is the seed's 2160x2160 per eye on a GPU and stays small on a software rasteriser (llvmpipe)."""
+    from renderers.gpu.context import get_device
+    from studyapp.commands import lightcuts as cmd
+
+    cache = tmp_path / "cache"
+    assert main(["lightcuts", "tables", *TINY, "--backend", "gpu", "--json", "--cache", str(cache),
+                 "--out", str(tmp_path / "gpu")]) == 0
+    records = json.loads(capsys.readouterr().out)
+    assert {r["table"] for r in records} == {"1", "2", "3", "4", "fig8", "fig9"}
+    assert "Table 3: ms per frame (GPU backend)" in (tmp_path / "gpu" / "lightcuts_tables.md").read_text()
+    assert main(["lightcuts", "tables", *TINY, "--json", "--cache", str(cache), "--out", str(tmp_path / "cpu")]) == 0
+    cpu = json.loads(capsys.readouterr().out)
+    assert len(sorted(cache.rglob("*.npy"))) == 2  # one GT per backend
+    spp = lambda recs: {r["method"]: r["value"] for r in recs if r["table"] == "2" and r["region"] == "all"}  # noqa
+    for method in ("Ours", "SL_as"):  # the same samples per pixel on both backends (SL_e's is timed)
+        assert spp(records)[method] == pytest.approx(spp(cpu)[method], rel=0.02), method
+    dev = get_device()
+    assert dev.software and cmd.frame_size("gpu", None, None) == cmd.SMALL_SIZE
+    monkeypatch.setattr(dev, "software", False)
+    assert cmd.frame_size("gpu", None, None) == cmd.SEED_SIZE == (2160, 2160)
+    assert cmd.frame_size("gpu", 320, None) == (320, 2160) and cmd.frame_size("cpu", None, None) == (192, 108)
+
+
+def test_tables_without_opengl_43_is_one_line_exit_2(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env.update(PYTHONPATH=os.pathsep.join([root, env.get("PYTHONPATH", "")]), MESA_GL_VERSION_OVERRIDE="3.3")
+    p = subprocess.run([sys.executable, "-m", "studyapp", "lightcuts", "tables", *TINY, "--backend", "gpu",
+                        "--out", str(tmp_path / "o")], capture_output=True, text=True, env=env, timeout=120)
+    lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
+    assert p.returncode == 2 and len(lines) == 1, p.stderr
+    assert lines[0].startswith("studyapp: error: OpenGL 4.3 compute shaders are not available")
+    assert not (tmp_path / "o").exists()

@@ -100,9 +100,11 @@ def _seed(seed: int) -> tuple[int, int]:
 
 
 def _check_cut(name: str, budget: int) -> int:
+    """The cut stride ``CUT_MAX`` for cuts of up to ``budget`` nodes: the next power of two (at least 4), so that
+    few shader variants are compiled; refused above :data:`MAX_CUT`."""
     if budget > MAX_CUT:
         raise UserError(f"{name}={budget} is above the largest cut the GPU refines ({MAX_CUT} nodes): {WAY_OUT}")
-    return max(1, int(budget))
+    return max(4, 1 << (max(1, int(budget)) - 1).bit_length())
 
 
 class GBuffer:
@@ -197,7 +199,7 @@ class LightcutsFrame:
             for r0 in range(0, max_rspp, GLOSSY_CHUNK):
                 self.run("lc_glossy.comp", g.n, {**g.buffers, 13: gloss}, {**uni, "u_r0": r0,
                                                                         "u_r1": r0 + GLOSSY_CHUNK},
-                         max(1, lspp_bounce))
+                         _check_cut("lspp_bounce", lspp_bounce))
                 self.fr.drain_counters()
             out = np.empty((g.n, 4), dtype=np.float32)
             gloss.read_into(out, size=out.nbytes)
@@ -242,8 +244,8 @@ def _end(lc: LightcutsFrame, g: GBuffer, rspp: int | None, max_rspp: int, lspp_b
 def run_sl_uniform(ctx):
     """``sl`` (``sl_e``, ``sl_f``, ``sl_p``) on the GPU (see :func:`renderers.lightcuts.plugin.run_sl_uniform`)."""
     p = ctx.params
-    lc, g, lspp = _begin(ctx, "sl.lspp", p["lspp"])
-    lc.lightcuts(g, lspp, lspp, p["seed"])
+    lc, g, cut = _begin(ctx, "sl.lspp", p["lspp"])
+    lc.lightcuts(g, p["lspp"], cut, p["seed"])
     return _end(lc, g, p["rspp"], p["rspp"])
 
 
@@ -252,7 +254,7 @@ def run_sl_as(ctx):
     p = ctx.params
     lc, g, cut = _begin(ctx, "sl_as.max_lspp", p["max_lspp"])
     with lc.step("gbuffer"):
-        fpsm_controls(lc, g, None, "afsm", 0.5, cut, p["max_rspp"])
+        fpsm_controls(lc, g, None, "afsm", 0.5, p["max_lspp"], p["max_rspp"])
     lc.lightcuts(g, None, cut, p["seed"])
     ctx.extra["afsm"] = read_map(lc, g)
     return _end(lc, g, None, p["max_rspp"])
@@ -266,9 +268,10 @@ def run_fsl(ctx):
     wl, hl = LC._low_res(w, h)
     with lc.step("gbuffer"):
         low = lc.gbuffer("low", wl, hl, False)
-    lc.lightcuts(low, cut, cut, p["seed"], id_base=w * h, steps=("low_res",) * 3, low_res=True)
+    lc.lightcuts(low, p["max_lspp"], cut, p["seed"], id_base=w * h, steps=("low_res",) * 3, low_res=True)
     with lc.step("fpsm"):
-        fpsm_controls(lc, g, low, check_reading(p["fpsm_reading"]), check_alpha(p["alpha"]), cut, p["max_rspp"])
+        fpsm_controls(lc, g, low, check_reading(p["fpsm_reading"]), check_alpha(p["alpha"]), p["max_lspp"],
+                      p["max_rspp"])
     lc.lightcuts(g, None, cut, p["seed"], multires=bool(p["multires"]))
     reused = int(g.read(9, np.int32)[:, 2].sum())
     ctx.extra.update(fpsm=read_map(lc, g), reused=reused, fpsm_reading=p["fpsm_reading"])
@@ -282,6 +285,6 @@ def run_sl_gt(ctx):
     lc, g, cut = _begin(ctx, "sl_gt.max_lspp", p["max_lspp"])
     passes = max(1, math.ceil(p["lspp"] / p["max_lspp"]))
     for k in range(passes):
-        lc.lightcuts(g, cut, cut, p["seed"] * 100003 + k, accumulate=k > 0)
+        lc.lightcuts(g, p["max_lspp"], cut, p["seed"] * 100003 + k, accumulate=k > 0)
     ctx.extra["passes"] = passes
     return _end(lc, g, p["rspp"], p["rspp"], lspp_bounce=4, passes=passes)

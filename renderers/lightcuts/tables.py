@@ -29,7 +29,8 @@ peripheral MSE is at most Ours'. SL_e depends on the budget accounting (``budget
   (the work reuse saves; both variants draw the same samples).
 
 Regions: ``analysis.quality.region_masks`` (fovea radius ``fovea_deg`` of eccentricity around the gaze).
-Frame times are the registry's ``seconds.total``, the minimum over ``repeats`` renders for Table 3.
+Frame times are the registry's ``seconds.total``, the minimum over ``repeats`` renders for Table 3, on the
+``backend`` chosen (``"cpu"``, or ``"gpu"``: the GPU versions of the plug-ins, :mod:`renderers.gpu.lightcuts`).
 """
 
 from __future__ import annotations
@@ -65,11 +66,11 @@ def check_budget(budget) -> str:
 
 
 def gt_frame(scene, width: int, height: int, *, gt_lspp: int = 2048, gt_rspp: int = 2048, seed: int = 0,
-             camera: dict | None = None) -> dict:
+             camera: dict | None = None, backend: str = "cpu") -> dict:
     """The GT render of :func:`lightcut_tables` as :func:`renderers.stimuli.render_stimulus` arguments (so that
     a cluster can put it into the stimulus cache first: ``studyapp lightcuts tables``)."""
     return {"scene": scene, "renderer": "sl_gt", "params": {"lspp": gt_lspp, "rspp": gt_rspp, "seed": seed + 1},
-            "width": width, "height": height, "gaze": None, "camera": camera}
+            "width": width, "height": height, "gaze": None, "camera": camera, "backend": backend}
 
 
 def lightcut_tables(scene, width: int, height: int, *, alphas=(0.025, 0.05, 0.1, 0.2, 0.4), alpha: float = 0.1,
@@ -77,7 +78,7 @@ def lightcut_tables(scene, width: int, height: int, *, alphas=(0.025, 0.05, 0.1,
                     fovea_deg: float = 5.0, seed: int = 0, camera: dict | None = None,
                     progress: Callable[[str], None] | None = None, images: dict | None = None,
                     cache_dir=None, fpsm_reading: str = "derived", budget: str = "equal-time",
-                    repeats: int = 1) -> list[dict]:
+                    repeats: int = 1, backend: str = "cpu") -> list[dict]:
     """Render and measure (see the module docstring); ``scene`` is a Scene, a registered name or a YAML path.
 
     ``images``, if given, receives the linear images ``gt``, ``ours``, ``sl_e``, ``sl_as``, the FPSM ``fpsm``
@@ -85,7 +86,8 @@ def lightcut_tables(scene, width: int, height: int, *, alphas=(0.025, 0.05, 0.1,
     and error maps). With
     ``cache_dir`` the GT comes from the stimulus cache (:func:`renderers.stimuli.render_stimulus`): rendered
     once, then a lookup. ``fpsm_reading`` is Ours' reading of Eq 4–8 (``fpsm.FPSM_READINGS``), ``budget`` the
-    accounting of SL_e and of the speed-ups (``BUDGETS``), ``repeats`` the renders per Table 3 time (minimum).
+    accounting of SL_e and of the speed-ups (``BUDGETS``), ``repeats`` the renders per Table 3 time (minimum),
+    ``backend`` the renderers' backend (every render, the GT included).
     """
     from analysis.quality import region_masks
     from renderers import registry
@@ -111,14 +113,17 @@ def lightcut_tables(scene, width: int, height: int, *, alphas=(0.025, 0.05, 0.1,
 
     def render(name, params, times: int = 1):
         say(f"{sc.name}: {name} {params}")
-        img, st = registry.render(sc, name.rstrip("'"), params, width, height, camera=camera)
+        if backend == "gpu":  # compile the shaders of these parameters first: not part of a frame's time
+            registry.render(sc, name.rstrip("'"), params, 16, 16, camera=camera, backend=backend)
+        img, st = registry.render(sc, name.rstrip("'"), params, width, height, camera=camera, backend=backend)
         for _ in range(times - 1):  # the same image again (same seed): keep the fastest time
-            again = registry.render(sc, name.rstrip("'"), params, width, height, camera=camera)[1]
+            again = registry.render(sc, name.rstrip("'"), params, width, height, camera=camera, backend=backend)[1]
             if again["seconds"]["total"] < st["seconds"]["total"]:
                 st = {**st, "seconds": again["seconds"], "steps": again.get("steps", st.get("steps"))}
         return img, st
 
-    gt_request = gt_frame(sc, width, height, gt_lspp=gt_lspp, gt_rspp=gt_rspp, seed=seed, camera=camera)
+    gt_request = gt_frame(sc, width, height, gt_lspp=gt_lspp, gt_rspp=gt_rspp, seed=seed, camera=camera,
+                          backend=backend)
     gt_params = gt_request["params"]
     if cache_dir is not None:
         from renderers.stimuli import render_stimulus

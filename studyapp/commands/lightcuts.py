@@ -16,8 +16,9 @@ time, SL_as, SL_f / SL_p at equal foveal / peripheral MSE, GT = sl_gt with 2048 
 and reproduce seed 003: Table 1 (MSE, MSE_d, MSE_g in fovea and periphery), Table 2 (samples per pixel),
 Table 3 (ms per frame, incl. Ours without multi-resolution selection), Table 4 and Fig 8 (alpha = 0.025 ...
 0.4), the per-step times of Fig 9, the FPSM and error maps (Fig 5-7), and the issue's targets as same-run
-ratios. --json prints records {table, scene, method, metric, region, value}. Frame times are CPU times on this
-machine. --budget chooses the accounting of the comparison: equal-time (SL_e renders in Ours' frame time,
+ratios. --json prints records {table, scene, method, metric, region, value}. --backend chooses the renderers'
+backend: cpu (default), or gpu (their OpenGL versions; on a GPU the default size is the per-eye 2160x2160 of
+issue 16, on llvmpipe, a software GPU, it stays 192x108). Frame times are on that backend. --budget chooses the accounting of the comparison: equal-time (SL_e renders in Ours' frame time,
 speed-ups are time ratios) or equal-samples (SL_e draws Ours' light samples and glossy rays per pixel,
 speed-ups are ratios of rays per frame, the multi-resolution gain a ratio of light-tree traversals).
 --fpsm-reading chooses Ours' reading of seed 003 Eq 4-8 (docs/lightcuts.md). The GT of every scene (the costly
@@ -25,6 +26,9 @@ render) is one Dask task into the stimulus cache first (a local cluster by defau
 one, --serial in this process); the measured renders then run in this process, one at a time."""
 
 SCENE_NAMES = ("cornell_many", "study", "yard", "sponza_vpl")
+#: Default sizes: a quick run, and the per-eye HMD resolution of issue 16 item 3 (the GPU backend on a GPU).
+SMALL_SIZE = (192, 108)
+SEED_SIZE = (2160, 2160)
 
 
 
@@ -39,8 +43,12 @@ def register(sub, parser_class) -> None:
     t.add_argument("--out", metavar="DIR", help="write tables (md, csv), records (json) and figures (png)")
     t.add_argument("--scenes", default=",".join(SCENE_NAMES), metavar="A,B",
                    help=f"scenes to render (default: {','.join(SCENE_NAMES)})")
-    t.add_argument("--width", type=int, default=192, help="width in pixels (default 192)")
-    t.add_argument("--height", type=int, default=108, help="height in pixels (default 108)")
+    t.add_argument("--backend", choices=("cpu", "gpu"), default="cpu",
+                   help="renderers' backend: cpu (default) or gpu (OpenGL 4.3 compute)")
+    t.add_argument("--width", type=int, default=None,
+                   help=f"width in pixels (default {SMALL_SIZE[0]}; {SEED_SIZE[0]} with --backend gpu on a GPU)")
+    t.add_argument("--height", type=int, default=None,
+                   help=f"height in pixels (default {SMALL_SIZE[1]}; {SEED_SIZE[1]} with --backend gpu on a GPU)")
     t.add_argument("--alpha", type=float, default=0.1, help="alpha of Tables 1-3, in (0, 1) (default 0.1)")
     t.add_argument("--gt-samples", type=int, default=2048, metavar="N",
                    help="GT light and glossy samples per pixel (default 2048, as seed 003)")
@@ -76,14 +84,31 @@ def _pivot_md(records: list[dict], table: str, rows: tuple[str, ...], cols: tupl
     return "\n".join(lines) + "\n"
 
 
-def tables_markdown(records: list[dict], ratios: dict[str, dict], budget: str = "equal-time") -> str:
+def frame_size(backend: str, width: int | None, height: int | None) -> tuple[int, int]:
+    """The size to render: as given, else :data:`SEED_SIZE` on a GPU (``backend="gpu"`` on a device that is not a
+    software rasteriser) and :data:`SMALL_SIZE` otherwise. Opening the GPU may fail with a one-line error."""
+    default = SMALL_SIZE
+    if backend == "gpu" and (width is None or height is None):
+        from renderers.gpu.context import get_device
+
+        dev = get_device()
+        if dev.software:
+            _progress(f"{dev.renderer} is a software rasteriser: default size {SMALL_SIZE[0]}x{SMALL_SIZE[1]} "
+                      f"(the seed's {SEED_SIZE[0]}x{SEED_SIZE[1]} per eye on a GPU)")
+        else:
+            default = SEED_SIZE
+    return (default[0] if width is None else width, default[1] if height is None else height)
+
+
+def tables_markdown(records: list[dict], ratios: dict[str, dict], budget: str = "equal-time",
+                    backend: str = "cpu") -> str:
     parts = [
         _pivot_md(records, "1", ("scene", "method"), ("metric", "region"), ".3e",
                   "Table 1: MSE against GT (images clipped to [0, 1]); mse_d / mse_g over diffuse / glossy pixels"),
         _pivot_md([r for r in records if r["metric"] == "spp"], "2", ("scene", "method"), ("region",), ".1f",
                   "Table 2: mean light samples per pixel"),
         _pivot_md([r for r in records if r["metric"] == "ms"], "3", ("scene",), ("method",), ".0f",
-                  "Table 3: ms per frame (CPU)"),
+                  f"Table 3: ms per frame ({backend.upper()} backend)"),
         _pivot_md(records, "4", ("scene",), ("method",), ".0f", "Table 4: ms per frame of Ours for each alpha"),
         _pivot_md(records, "fig8", ("scene", "method"), ("metric", "region"), ".3e",
                   "Fig 8 data: MSE of Ours for each alpha"),
@@ -154,7 +179,7 @@ def _write_figures(out: Path, records: list[dict], images: dict[str, dict], fov_
     return written
 
 
-def _ground_truths(args, scenes) -> None:
+def _ground_truths(args, scenes, width: int, height: int) -> None:
     """Every scene's GT (the costly render: 2048 + 2048 samples per pixel) into the stimulus cache first, one
     Dask task per scene (studyapp.cluster); the measured renders of the tables then run here, one at a time, so
     that their frame times are not disturbed."""
@@ -165,7 +190,8 @@ def _ground_truths(args, scenes) -> None:
     spec = cluster.from_args(args)
     n = args.gt_samples
     frames = [(f"scene {name}, ground truth sl_gt {n} + {n}",
-               gt_frame(name, args.width, args.height, gt_lspp=n, gt_rspp=n, seed=args.seed)) for name in scenes]
+               gt_frame(name, width, height, gt_lspp=n, gt_rspp=n, seed=args.seed, backend=args.backend))
+              for name in scenes]
     bar = Bar("ground truths")
     cluster.render_frames(frames, Path(args.cache), spec, progress=bar)
     bar.close()
@@ -183,23 +209,25 @@ def cmd_tables(args) -> int:
                        f"allowed {', '.join(SCENES)}")
     for name, v, lo in (("--width", args.width, 16), ("--height", args.height, 16), ("--gt-samples",
                                                                                       args.gt_samples, 1)):
-        if not lo <= v <= 8192:
+        if v is not None and not lo <= v <= 8192:
             raise CLIError(f"{name}={v} is out of range: allowed [{lo}, 8192]")
     check_alpha(args.alpha)
-    _ground_truths(args, scenes)
+    width, height = frame_size(args.backend, args.width, args.height)
+    _ground_truths(args, scenes, width, height)
     records, ratios, images, fov_y = [], {}, {}, {}
     for name in scenes:
         scene = SCENES[name]()
         im: dict = {}
-        recs = lightcut_tables(scene, args.width, args.height, alpha=args.alpha, gt_lspp=args.gt_samples,
+        recs = lightcut_tables(scene, width, height, alpha=args.alpha, gt_lspp=args.gt_samples,
                                gt_rspp=args.gt_samples, seed=args.seed, progress=_progress, images=im,
-                               cache_dir=Path(args.cache), fpsm_reading=args.fpsm_reading, budget=args.budget)
+                               cache_dir=Path(args.cache), fpsm_reading=args.fpsm_reading, budget=args.budget,
+                               backend=args.backend)
         records += recs
         ratios[scene.name] = summary_ratios(recs, args.budget)
         images[scene.name] = im
         fov_y[scene.name] = scene.camera.fov_y
     end_status()
-    md = tables_markdown(records, ratios, args.budget)
+    md = tables_markdown(records, ratios, args.budget, args.backend)
     if args.out:
         from data_schema.atomic import write_text
 
