@@ -39,8 +39,8 @@ void main() {
             lc_frame(n, t, b);
             float offset = ray_offset(bounds_lo(), bounds_hi());
             for (int r = u_r0; r < min(u_r1, c); r++) {
-                float u1 = float(lc_uniform(u_seed, uvec2(uint(px), 0u), STREAM + uint(2 * r)));
-                float u2 = float(lc_uniform(u_seed, uvec2(uint(px), 0u), STREAM + uint(2 * r + 1)));
+                float u1 = lc_uniform_f(u_seed, uvec2(uint(px), 0u), STREAM + uint(2 * r));
+                float u2 = lc_uniform_f(u_seed, uvec2(uint(px), 0u), STREAM + uint(2 * r + 1));
                 float cos_h = pow(u1, 1.0 / (s_exp + 1.0));
                 float sin_h = sqrt(max(0.0, 1.0 - cos_h * cos_h));
                 float phi = 6.283185307179586 * u2;
@@ -68,8 +68,8 @@ void main() {
                     for (int s = 0; s < m; s++) {
                         if (!node_live(sf.p, sf.n, bt, bb, lc_cut[s])) continue;
                         float pdf;
-                        int leaf = descend(sf.p, sf.n, bt, bb, lc_cut[s], lc_uniform(u_bounce_seed, id, uint(2 * s)),
-                                           pdf);
+                        int leaf = descend(sf.p, sf.n, bt, bb, lc_cut[s],
+                                           lc_uniform_f(u_bounce_seed, id, uint(2 * s)), pdf);
                         vec3 v = light_estimate(sf.p, sf.n, alb, leaf, pdf);
                         if (v.x + v.y + v.z > 0.0 && (u_shadows == 0 || !occluded(sf.p, sf.n, leaf, offset)))
                             radiance += v;

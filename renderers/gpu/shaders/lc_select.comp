@@ -26,7 +26,7 @@ int lrls(uint base, int count, uint lo, uint hi) {
 }
 
 // multires.reuse_sample: the reused sample for cut node `node` (Eq 9's leaf range [lo, hi]) and its probability.
-int reuse_sample(int node, uint base, int count, int first, uint hi, double u, out float pdf) {
+int reuse_sample(int node, uint base, int count, int first, uint hi, float u, out float pdf) {
     int dn = findMSB(node);
     uvec4 e = lr_ls[base + uint(first)];
     if (int(e.w) < dn) {   // (a) one low-resolution cut node above `node`
@@ -41,15 +41,15 @@ int reuse_sample(int node, uint base, int count, int first, uint hi, double u, o
         float wj = node_inten(int(f.y));
         if (wj > 0.0) {
             total += wj;
-            double r = double(wj / total);
+            float r = wj / total;
             if (u < r) {
                 pick = j;
                 pick_w = wj;
                 u = u / r;
             } else {
-                u = (u - r) / (1.0LF - r);
+                u = (u - r) / (1.0 - r);
             }
-            u = min(u, LC_ONE_MINUS);
+            u = min(u, LC_ONE_MINUS_F);
         }
     }
     if (total <= 0.0) {
@@ -87,21 +87,21 @@ void main() {
             if (node_live(p, n, t, b, node)) {
                 bool done = false;
 #if MULTIRES
-                double rad = lc_uniform(u_seed, uvec2(id, 0u), uint(2 * s + 1));
-                if (rad <= 1.0LF - double(fmap) && count > 0) {
+                float rad = lc_uniform_f(u_seed, uvec2(id, 0u), uint(2 * s + 1));
+                if (rad <= 1.0 - fmap && count > 0) {
                     int span = 1 << (u_levels - (findMSB(node) + 1));   // Eq 9
                     uint lo = uint(node * span), hi = lo + uint(span - 1);
                     int first = lrls(base, count, lo, hi);
                     if (first >= 0) {
                         int j = reuse_sample(node, base, count, first, hi,
-                                             fmap < 1.0 ? rad / (1.0LF - double(fmap)) : 0.0LF, pdf);
+                                             fmap < 1.0 ? min(rad / (1.0 - fmap), LC_ONE_MINUS_F) : 0.0, pdf);
                         leaf = int(lr_ls[base + uint(j)].x);
                         reused++;
                         done = true;
                     }
                 }
 #endif
-                if (!done) leaf = descend(p, n, t, b, node, lc_uniform(u_seed, uvec2(id, 0u), uint(2 * s)), pdf);
+                if (!done) leaf = descend(p, n, t, b, node, lc_uniform_f(u_seed, uvec2(id, 0u), uint(2 * s)), pdf);
             }
             smp[k].y = uint(leaf);
             smp[k].z = floatBitsToUint(pdf);

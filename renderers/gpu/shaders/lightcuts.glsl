@@ -47,7 +47,11 @@ double lc_uniform(uvec2 seed, uvec2 pixel, uint slot) {
     uint hi = x.y >> 11, lo = (x.x >> 11) | (x.y << 21);   // x >> 11: 53 bits
     return (double(hi) * 4294967296.0LF + double(lo)) * (1.0LF / 9007199254740992.0LF);
 }
-const double LC_ONE_MINUS = 1.0LF - 1.0LF / 9007199254740992.0LF;
+const float LC_ONE_MINUS_F = 0.99999994;   // the largest float below 1
+// The same as a float32 in [0, 1).
+float lc_uniform_f(uvec2 seed, uvec2 pixel, uint slot) {
+    return min(float(lc_uniform(seed, pixel, slot)), LC_ONE_MINUS_F);
+}
 
 // -- bounds (_kernels.frame, box_terms, error_bound, prob_left) -----------------------------------------------
 // Orthonormal tangents (T, B) of a unit normal (Duff et al. 2017).
@@ -120,23 +124,24 @@ float prob_left(vec3 p, vec3 n, vec3 t, vec3 b, int k) {
     return 0.5 * (a0 / (a0 + a1) + f0 / (f0 + f1));
 }
 
-// Hierarchical importance sampling from `node` to a leaf with one uniform u rescaled per level (in float64, as
-// the CPU: the rescaling consumes about a bit per level); returns the leaf node, `pdf` the product of the branch
-// probabilities.
-int descend(vec3 p, vec3 n, vec3 t, vec3 b, int node, double u, out float pdf) {
+// Hierarchical importance sampling from `node` to a leaf with one uniform u rescaled per level; returns the leaf
+// node, `pdf` the product of the branch probabilities. float32 where the CPU has float64: the rescaling loses
+// about a bit per level, so deep in the tree a decision may differ from the CPU's; measured on cornell_many the
+// images are those of a float64 u (fast float64 is rare on GPUs).
+int descend(vec3 p, vec3 n, vec3 t, vec3 b, int node, float u, out float pdf) {
     pdf = 1.0;
     while (node < u_n_leaves) {
         float pl = prob_left(p, n, t, b, node);
-        if (u < double(pl)) {
+        if (u < pl) {
             node = 2 * node;
-            u = u / double(pl);
+            u = u / pl;
             pdf *= pl;
         } else {
             node = 2 * node + 1;
-            u = (u - double(pl)) / (1.0LF - double(pl));
+            u = (u - pl) / (1.0 - pl);
             pdf *= 1.0 - pl;
         }
-        u = min(u, LC_ONE_MINUS);
+        u = min(u, LC_ONE_MINUS_F);
     }
     return node;
 }
