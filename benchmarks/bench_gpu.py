@@ -136,24 +136,25 @@ ONCE_SECONDS = 60.0
 TARGETS = {("vafr-dup", "2468x2740"): 1000.0 / 90.0, ("gt", "2468x2740"): 1000.0 / 30.0}
 
 
-def measure_one(backend: str, method: str, size: str, repeats: int) -> dict:
-    """Frame times of one configuration in this process: a small untimed warm-up frame (shader compilation,
-    scene upload or BVH build, numba caches), then frames at ``size``; the first full-size frame also allocates
-    the frame buffers, so the median is over the frames after it (or that frame alone if it took longer than
-    :data:`ONCE_SECONDS`)."""
-    from renderers import render as cpu_render
+def timed_frames(backend: str, scene: str, name: str, params: dict, size: str, repeats: int) -> list[dict]:
+    """The stats of the timed frames of one configuration in this process: a small untimed warm-up frame (shader
+    compilation, scene upload or BVH build, numba caches), then frames at ``size``; the first full-size frame also
+    allocates the frame buffers, so the timed frames are the ``repeats`` after it (or that frame alone if it took
+    longer than :data:`ONCE_SECONDS`)."""
+    from renderers import registry
 
-    render = cpu_render
-    if backend == "gpu":
-        from renderers.gpu import render
     W, H = (int(x) for x in size.split("x"))
+    registry.render(scene, name, params, 64, 48, backend=backend)
+    _, st = registry.render(scene, name, params, W, H, backend=backend)
+    if st["seconds"]["total"] >= ONCE_SECONDS:
+        return [st]
+    return [registry.render(scene, name, params, W, H, backend=backend)[1] for _ in range(repeats)]
+
+
+def measure_one(backend: str, method: str, size: str, repeats: int) -> dict:
+    """Frame times of one configuration in this process (:func:`timed_frames`), medians per stage."""
     name, params = METHODS[method]
-    render(SPEED_SCENE, name, params, 64, 48)
-    frames = []
-    _, st = render(SPEED_SCENE, name, params, W, H)
-    frames.append(st)
-    if st["seconds"]["total"] < ONCE_SECONDS:
-        frames = [render(SPEED_SCENE, name, params, W, H)[1] for _ in range(repeats)]
+    frames = timed_frames(backend, SPEED_SCENE, name, params, size, repeats)
     med = {k: float(np.median([f["seconds"][k] for f in frames])) for k in (*STAGES, "total")}
     out = {"backend": backend, "method": method, "size": size, "frames": len(frames),
            "eyes": frames[0].get("eyes", 1), **{f"{k}_ms": 1e3 * v for k, v in med.items()},
@@ -165,12 +166,19 @@ def measure_one(backend: str, method: str, size: str, repeats: int) -> dict:
 
 def run_config(backend: str, method: str, size: str, repeats: int) -> dict:
     """:func:`measure_one` in a child process under ``/usr/bin/time -v`` (peak resident memory)."""
-    cmd = [sys.executable, os.path.abspath(__file__), "--one", backend, method, size, "--repeats", str(repeats)]
+    return run_child(os.path.abspath(__file__), ["--one", backend, method, size, "--repeats", str(repeats)],
+                     f"{backend} {method} {size}")
+
+
+def run_child(script: str, args: list[str], label: str) -> dict:
+    """Run ``script args`` (which prints one JSON row last) in a child process under ``/usr/bin/time -v``; the
+    row with the load average and the peak resident memory added."""
+    cmd = [sys.executable, script, *args]
     timed = os.path.exists("/usr/bin/time")
     p = subprocess.run((["/usr/bin/time", "-v"] if timed else []) + cmd, capture_output=True, text=True,
                        env={**os.environ, "PYTHONPATH": os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")])})
     if p.returncode != 0:
-        raise RuntimeError(f"{backend} {method} {size} failed:\n{p.stderr[-2000:]}")
+        raise RuntimeError(f"{label} failed:\n{p.stderr[-2000:]}")
     row = json.loads(p.stdout.strip().splitlines()[-1])
     row["load"] = os.getloadavg()[1]  # other jobs on the cores inflate the times: say how busy the machine was
     peak = [ln for ln in p.stderr.splitlines() if "Maximum resident set size" in ln]

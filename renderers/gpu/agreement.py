@@ -31,7 +31,8 @@ def seed_agreement(cpu, gpu, ratio_range: tuple[float, float] = (0.8, 1.25), n_s
     ``sqrt((s_cpu^2 + s_gpu^2) / seeds)`` (sample variances; where both are 0 the pixel is deterministic and its
     means must agree to float32 rounding); the variance ratio ``s_gpu^2 / s_cpu^2`` should lie in
     ``ratio_range``. A pixel passes when all its channels do. Returns the shares of pixels passing
-    (``means_within``, and ``ratio_within`` over the pixels with a non-deterministic channel), the counts
+    (``means_within``, and ``ratio_within`` over the pixels with a non-deterministic channel; per channel
+    ``ratio_within_channels``), the counts
     (``pixels``, ``deterministic``), the median variance ratio and the worst standardised mean difference.
     """
     a = np.asarray(cpu, dtype=np.float64)
@@ -46,7 +47,8 @@ def seed_agreement(cpu, gpu, ratio_range: tuple[float, float] = (0.8, 1.25), n_s
     means_ok = np.where(det, diff <= tol, diff <= n_se * se + tol)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = vb / va
-    ratio_ok = det | ((ratio >= ratio_range[0]) & (ratio <= ratio_range[1]))
+    in_range = (ratio >= ratio_range[0]) & (ratio <= ratio_range[1])
+    ratio_ok = det | in_range
     pixel_det = det.all(axis=-1)
     live = ~pixel_det
     z = np.where(det, 0.0, diff / np.where(se > 0, se, np.inf))
@@ -54,5 +56,6 @@ def seed_agreement(cpu, gpu, ratio_range: tuple[float, float] = (0.8, 1.25), n_s
     return {"seeds": int(n), "pixels": int(live.size), "deterministic": int(pixel_det.sum()),
             "means_within": float(means_ok.all(axis=-1).mean()),
             "ratio_within": float(ratio_ok.all(axis=-1)[live].mean()) if live.any() else 1.0,
+            "ratio_within_channels": float(in_range[~det].mean()) if (~det).any() else 1.0,
             "median_ratio": float(np.median(finite)) if finite.size else 1.0,
             "max_z": float(z.max()) if z.size else 0.0}
