@@ -13,12 +13,15 @@ Speed (default): milliseconds per frame of every method on every scene at 1280x7
 lightcuts renderers are monocular; a binocular frame is two), medians of ``--repeats`` frames after a first
 full-size frame (one frame when it took over a minute), each configuration in its own process under
 ``/usr/bin/time -v`` (:func:`bench_gpu.run_child`); the GPU / CPU time ratio of every method on cornell_many at
-320x180 in the same run. Runs unchanged on a machine with a GPU (EGL, no display). Writes section
-``gpu-lightcuts`` of ``docs/benchmarks.md`` and ``docs/bench_gpu_lightcuts.csv``.
+the ``--ratio-size`` sizes (default 320x180; a speed size too: then the CPU frame follows each GPU one) in the
+same run. ``--repeats`` is one count or one per size. Runs unchanged on a machine with a GPU (EGL, no display).
+Writes section ``gpu-lightcuts`` of ``docs/benchmarks.md`` and ``docs/bench_gpu_lightcuts.csv``, rewritten after
+every configuration (a run stopped early leaves what it measured, and names what it did not).
 
     python benchmarks/bench_gpu_lightcuts.py --agreement      # ~20 min on 2 cores with llvmpipe
     python benchmarks/bench_gpu_lightcuts.py                  # every method, scene and size (GT: --gt-samples)
     python benchmarks/bench_gpu_lightcuts.py --sizes 1280x720 --scenes cornell_many --methods fsl,sl_e
+    python benchmarks/bench_gpu_lightcuts.py --scenes cornell_many --repeats 3,1 --ratio-size 1280x720,2160x2160
 """
 
 from __future__ import annotations
@@ -145,33 +148,62 @@ def measure_one(backend: str, scene: str, method: str, size: str, repeats: int, 
             "timing": frames[0].get("gpu", {}).get("timing", "wall clock")}
 
 
-def speed_rows(scenes, methods, sizes, repeats: int, gt_samples: int, ratio_size: str = RATIO_SIZE,
-               progress=print) -> list[dict]:
+def _sizes(text: str) -> list[str]:
+    return [z for z in text.split(",") if z]
+
+
+def speed_plan(scenes, methods, sizes, repeats, ratio_sizes) -> list[tuple[str, str, str, str, int]]:
+    """(backend, scene, method, size, repeats) in the order they run: per size, every scene and method on the GPU,
+    each followed by the CPU on cornell_many when the size is a ratio size (so the ratios are complete as they
+    come); then the ratio sizes that are not speed sizes, GPU and CPU per method. ``repeats`` is one count or one
+    per size (ratio sizes that are not speed sizes take the first)."""
+    reps = dict(zip(sizes, repeats)) if len(repeats) == len(sizes) else {z: repeats[0] for z in sizes}
+    plan = []
+    for size in sizes:
+        for scene in scenes:
+            for method in methods:
+                plan.append(("gpu", scene, method, size, reps[size]))
+                if scene == "cornell_many" and size in ratio_sizes:
+                    plan.append(("cpu", scene, method, size, reps[size]))
+    for size in ratio_sizes:
+        if size not in sizes:
+            plan += [(b, "cornell_many", m, size, repeats[0]) for m in methods for b in ("gpu", "cpu")]
+    return plan
+
+
+def speed_rows(plan, gt_samples: int, progress=print, done=None) -> list[dict]:
+    """Each configuration of ``plan`` in its own process; ``done(rows)`` after each (the section is rewritten as
+    the run goes, so a run stopped early leaves what it measured). A configuration that fails is one line and
+    no row."""
     rows = []
-    configs = [("gpu", s, m, z) for z in sizes for s in scenes for m in methods]
-    if ratio_size:
-        configs += [(b, "cornell_many", m, ratio_size) for m in methods for b in ("gpu", "cpu")]
-    for backend, scene, method, size in configs:
-        r = run_child(os.path.abspath(__file__), ["--one", backend, scene, method, size, "--repeats", str(repeats),
-                                                  "--gt-samples", str(gt_samples)],
-                      f"{backend} {scene} {method} {size}")
+    for backend, scene, method, size, repeats in plan:
+        label = f"{backend} {scene} {method} {size}"
+        try:
+            r = run_child(os.path.abspath(__file__), ["--one", backend, scene, method, size, "--repeats",
+                                                      str(repeats), "--gt-samples", str(gt_samples)], label)
+        except RuntimeError as exc:
+            progress(f"{label}: failed: {str(exc).splitlines()[-1]}")
+            continue
         rows.append(r)
-        progress(f"{backend} {scene} {method} {size}: {r['total_ms']:,.0f} ms/frame ({r['frames']} frames), "
-                 f"peak {r['peak_mb']:,.0f} MB, load {r['load']:.1f}")
+        progress(f"{label}: {r['total_ms']:,.0f} ms/frame ({r['frames']} frames), peak {r['peak_mb']:,.0f} MB, "
+                 f"load {r['load']:.1f}")
+        if done:
+            done(rows)
     return rows
 
 
-def speed_section(rows, elapsed: float, repeats: int, gt_samples: int, command: str) -> list[str]:
-    ratio = {r["size"] for r in rows if r["backend"] == "cpu"}
-    gpu = [r for r in rows if r["backend"] == "gpu" and r["size"] not in ratio]
+def speed_section(rows, plan, elapsed: float, gt_samples: int, command: str) -> list[str]:
+    gpu = [r for r in rows if r["backend"] == "gpu"]
     timing = gpu[0]["timing"] if gpu else ""
+    reps = sorted({(z, n) for _, _, _, z, n in plan}, key=lambda t: [int(v) for v in t[0].split("x")])
     lines = [
         "## Lightcuts on the GPU backend: speed (issue 16 item 3)", "",
         machine_line(), _gpu_device_line(),
         f"Command: `{command}` ({elapsed / 60:.1f} min). "
         "Scene cameras, gaze at the centre, one eye (the lightcuts renderers are monocular: a binocular frame is "
-        f"two); median of {repeats} frames after a first full-size frame (one frame, `frames` = 1, when it took "
-        "over a minute); each configuration in its own process. Counts: "
+        "two); after an untimed 64x48 frame and a first full-size frame, the median of "
+        f"{', '.join(f'{n} frame(s) at {z}' for z, n in reps)} (one frame, `frames` = 1, when the first full-size "
+        "frame took over a minute); each configuration in its own process. Counts: "
         f"{', '.join(f'{m} `{json.dumps(p)}`' for m, (_, p) in METHODS.items() if p)}; "
         f"sl_gt {gt_samples} + {gt_samples} samples (the seed: 2048 + 2048). Step times: {timing}.", "",
         "Mesa's llvmpipe is a software OpenGL 4.5 implementation on the CPU cores, not a GPU: these figures say "
@@ -186,15 +218,21 @@ def speed_section(rows, elapsed: float, repeats: int, gt_samples: int, command: 
                      + " | ".join(f"{r[s + '_ms']:,.0f}" for s in STEPS)
                      + f" | {r['light_samples']:,} | {r['glossy_rays']:,} | {r['peak_mb']:,.0f} | {r['frames']} | "
                      f"{r['load']:.1f} |")
-    pairs = {(r["method"], r["backend"]): r for r in rows if r["size"] in ratio}
-    if pairs:
-        lines += ["", f"GPU / CPU time ratio on cornell_many at {', '.join(sorted(ratio))}, same run (medians):", "",
-                  "| method | GPU ms | CPU ms | GPU / CPU |", "|---|---:|---:|---:|"]
-        for m in METHODS:
-            g, c = pairs.get((m, "gpu")), pairs.get((m, "cpu"))
+    pairs = {(r["method"], r["size"], r["backend"]): r for r in rows if r["scene"] == "cornell_many"}
+    ratio = [(m, z) for b, sc, m, z, _ in plan if b == "cpu"]
+    if ratio:
+        lines += ["", "GPU / CPU time ratio on cornell_many, same run (medians; CPU: the numba + Embree backend "
+                  "on the same cores):", "",
+                  "| size | method | GPU ms | CPU ms | GPU / CPU | frames GPU / CPU |", "|---|---|---:|---:|---:|---:|"]
+        for m, z in ratio:
+            g, c = pairs.get((m, z, "gpu")), pairs.get((m, z, "cpu"))
             if g and c:
-                lines.append(f"| {m} | {g['total_ms']:,.0f} | {c['total_ms']:,.0f} | "
-                             f"{g['total_ms'] / c['total_ms']:.2f} |")
+                lines.append(f"| {z} | {m} | {g['total_ms']:,.0f} | {c['total_ms']:,.0f} | "
+                             f"{g['total_ms'] / c['total_ms']:.2f} | {g['frames']} / {c['frames']} |")
+    measured = {(r["backend"], r["scene"], r["method"], r["size"]) for r in rows}
+    missing = [f"{b} {sc} {m} {z}" for b, sc, m, z, _ in plan if (b, sc, m, z) not in measured]
+    if missing:
+        lines += ["", f"Not measured in this run (stopped or failed before they ran): {'; '.join(missing)}."]
     return lines
 
 
@@ -205,9 +243,10 @@ OPTIONS = (
     ("--methods", str, ",".join(METHODS), "methods (comma-separated)"),
     ("--scenes", str, ",".join(SCENES), "speed: scenes (comma-separated)"),
     ("--sizes", str, ",".join(SIZES), "speed: sizes WxH (comma-separated)"),
-    ("--repeats", int, 3, "speed: frames per configuration (median)"),
+    ("--repeats", str, "3", "speed: frames per configuration (median): one count, or one per size"),
     ("--gt-samples", int, 2048, "speed: sl_gt's light and glossy samples"),
-    ("--ratio-size", str, RATIO_SIZE, "speed: size of the GPU / CPU ratios ('': none)"),
+    ("--ratio-size", str, RATIO_SIZE, "speed: sizes of the GPU / CPU ratios on cornell_many, comma-separated "
+     "(a speed size too: its GPU frames are reused; '': none)"),
     ("--section", str, "gpu-lightcuts", "speed: the section of docs/benchmarks.md"),
 )
 
@@ -221,7 +260,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     if args.one:
-        print(json.dumps(measure_one(*args.one, args.repeats, args.gt_samples)))
+        print(json.dumps(measure_one(*args.one, int(args.repeats), args.gt_samples)))
         return 0
     docs = os.path.join(ROOT, "docs", "benchmarks.md")
     methods = args.methods.split(",")
@@ -233,11 +272,15 @@ def main(argv=None) -> int:
                         agreement_section(rows, time.perf_counter() - t0, args.agreement_gt_samples,
                                           command.strip()))
         return 0
-    rows = speed_rows(args.scenes.split(","), methods, [s for s in args.sizes.split(",") if s], args.repeats,
-                      args.gt_samples, args.ratio_size)
-    write_csv(rows, f"bench_{args.section.replace('-', '_')}.csv")
-    replace_section(docs, args.section, speed_section(rows, time.perf_counter() - t0, args.repeats,
-                                                      args.gt_samples, command.strip()))
+    repeats = [int(n) for n in args.repeats.split(",")]
+    plan = speed_plan(args.scenes.split(","), methods, _sizes(args.sizes), repeats, _sizes(args.ratio_size))
+
+    def done(rows):
+        write_csv(rows, f"bench_{args.section.replace('-', '_')}.csv")
+        replace_section(docs, args.section, speed_section(rows, plan, time.perf_counter() - t0, args.gt_samples,
+                                                          command.strip()))
+
+    speed_rows(plan, args.gt_samples, done=done)
     return 0
 
 
