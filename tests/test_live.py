@@ -245,3 +245,22 @@ def test_the_ground_truth_of_the_lightcuts_thumbnails_has_fewer_samples():
     assert preview_params("sl_gt", {}) == {"lspp": 256, "rspp": 256}
     assert preview_params("sl_gt", {"lspp": 64, "seed": 3}) == {"lspp": 64, "rspp": 256, "seed": 3}
     assert preview_params("fsl", {"alpha": 0.1}) == {"alpha": 0.1}
+
+
+def test_simulated_live_samples_and_thumbnails_are_per_protocol():
+    """Two protocols with the same condition and scene names (seed003_task1_live: 8-s paths; task2_live: 16-s
+    explorations) do not share the simulated observer's gaze samples within one process (nor, by the same key,
+    its ground-truth thumbnails and impairments)."""
+    from pathlib import Path
+
+    from studyapp.runner.live import live_stimulus
+    from studyapp.runner.observer import SimulatedObserver
+    from studyapp.runner.protocol import load_protocol
+
+    protocols = Path(__file__).resolve().parents[1] / "protocols"
+    times = []
+    for name in ("seed003_task1_live", "seed003_task2_live"):
+        p = load_protocol(protocols / f"{name}.yaml", check_renderers=False)
+        obs = SimulatedObserver(p, "P1", 0, {})
+        times.append([t for t, *_ in obs._live_samples(live_stimulus(p, "EC", "study"), "study")])
+    assert times[0] != times[1] and max(times[0]) < 8.0 < max(times[1])

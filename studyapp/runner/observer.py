@@ -55,7 +55,10 @@ E2_DEG = 2.3
 DECLARED_SCALE_JND = 5.0
 SIM_WIDTH = 64  # live stimuli: the simulated observer renders this many pixels across
 LIVE_SAMPLES = 3  # ... at this many moments of each stimulus
-_SHARED: dict[tuple, float] = {}  # impairment per (frames, GT frames, geometry, jnd) within one process
+#: Within one process: impairment per (frames, GT frames, geometry, jnd); a live stimulus's gaze samples, GT
+#: thumbnails and impairment per protocol (its content hash: two protocols may share condition and scene names
+#: with other motions, durations or ground truths, as seed003_task1_live and seed003_task2_live do).
+_SHARED: dict[tuple, float] = {}
 
 
 def _exposure(scene) -> float:
@@ -195,7 +198,7 @@ class SimulatedObserver:
         gaze from a synthetic path (fixations and saccades) seeded by the scene, shared by all conditions."""
         from .live import synthetic_gaze
 
-        key = ("samples", live.condition, scene)
+        key = ("samples", self.protocol.content_hash, live.condition, scene)
         if key not in _SHARED:
             w, h = SIM_WIDTH, max(8, round(SIM_WIDTH * live.render_size[1] / live.render_size[0]))
             rng = np.random.default_rng(_key("gaze", scene))
@@ -233,7 +236,7 @@ class SimulatedObserver:
         for k, (t, (gx, gy), pose, _) in enumerate(samples):
             gaze = (gx * w / d.width_px, gy * h / d.height_px)
             cam = pose.camera(live.fov_y_deg)
-            ref_key = ("gt-frame", scene, k)
+            ref_key = ("gt-frame", self.protocol.content_hash, scene, k)
             if ref_key not in _SHARED:  # the ground truth's thumbnail too (sl_gt: fewer samples)
                 ref, _ = render(live.scene, gt.renderer, preview_params(gt.renderer, gt.params), w, h, gaze=gaze,
                                 camera=cam)
@@ -261,7 +264,8 @@ class SimulatedObserver:
         if key in self._impairment:
             return self._impairment[key]
         if stim.live is not None:
-            shared = ("live", stim.condition, scene, float(self.protocol.simulation["jnd"]))
+            shared = ("live", self.protocol.content_hash, stim.condition, scene,
+                      float(self.protocol.simulation["jnd"]))
             if shared not in _SHARED:
                 _SHARED[shared] = self._live_impairment(stim, scene)
             else:
