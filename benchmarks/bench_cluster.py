@@ -95,7 +95,9 @@ class _Workers:
         wrap = (lambda i: ["/usr/bin/time", "-v", "-o", str(self.logs[i])]) if measure_memory else (lambda i: [])
         self.file = folder / "scheduler.json"
         self.file.unlink(missing_ok=True)
-        wenv = {**env, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+        # MALLOC_TRIM_THRESHOLD_: what a Dask nanny sets for its worker (distributed.nanny.pre-spawn-environ);
+        # these workers run without a nanny so that /usr/bin/time measures the worker process itself
+        wenv = {**env, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MALLOC_TRIM_THRESHOLD_": "65536"}
         self.procs = [subprocess.Popen([str(dask), "scheduler", "--host", "127.0.0.1", "--port", "0",
                                         "--no-dashboard", "--scheduler-file", str(self.file)], env=env,
                                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
@@ -346,7 +348,8 @@ def report(res: dict) -> None:
         lines += [f"Memory (item 3): peak resident set of `prepare --serial` of {mm['frames']} frames (every frame "
                   f"and scene in one process, today's path) **{mm['serial_mb']:.0f} MB**; peak of one `dask worker` "
                   f"rendering the same frames for `prepare --scheduler` **{mm['worker_mb']:.0f} MB** "
-                  f"(`/usr/bin/time -v`). Above a bare process, rendering adds {mm['serial_mb'] - mm['python_mb']:.0f} "
+                  f"(`/usr/bin/time -v`; the worker with `MALLOC_TRIM_THRESHOLD_=65536`, which Dask's nanny sets for "
+                  "its workers, `dask worker` without `--no-nanny`). Above a bare process, rendering adds {mm['serial_mb'] - mm['python_mb']:.0f} "
                   f"MB in process and {mm['worker_mb'] - mm['idle_worker_mb']:.0f} MB in the worker (which holds one "
                   "frame at a time and its scenes, like the process); the rest of the difference is Dask's own "
                   f"runtime (an idle worker: {mm['idle_worker_mb']:.0f} MB; python with studyapp's CLI: "
