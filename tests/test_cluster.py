@@ -299,8 +299,8 @@ def test_lightcuts_tables_render_their_ground_truths_on_the_cluster(tmp_path, lo
     from studyapp.commands.lightcuts import _ground_truths
 
     args = argparse.Namespace(width=32, height=18, gt_samples=16, seed=0, cache=str(tmp_path / "cache"),
-                              scheduler=loopback.address, workers=None, serial=False)
-    _ground_truths(args, ["study", "yard"])
+                              scheduler=loopback.address, workers=None, serial=False, backend="cpu")
+    _ground_truths(args, ["study", "yard"], 32, 18)
     assert len(list((tmp_path / "cache").rglob("*.png"))) == 2
 
     def boom(*a, **kw):

@@ -213,6 +213,10 @@ def cmd_tables(args) -> int:
             raise CLIError(f"{name}={v} is out of range: allowed [{lo}, 8192]")
     check_alpha(args.alpha)
     width, height = frame_size(args.backend, args.width, args.height)
+    if args.backend == "gpu":  # no OpenGL 4.3 here: one line before any task starts
+        from renderers.gpu.context import get_device
+
+        get_device()
     _ground_truths(args, scenes, width, height)
     records, ratios, images, fov_y = [], {}, {}, {}
     for name in scenes:
