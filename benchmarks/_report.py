@@ -1,4 +1,5 @@
-"""Shared by the benchmark scripts: replace one named section of docs/benchmarks.md atomically.
+"""Shared by the benchmark scripts: replace one named section of docs/benchmarks.md atomically, and read peak
+memory from ``/usr/bin/time -v``.
 
 Each script owns the block between ``<!-- NAME:start -->`` and ``<!-- NAME:end -->``; other sections are kept.
 """
@@ -16,6 +17,12 @@ def machine_line() -> str:
     """One line naming the machine the figures were measured on."""
     return (f"Machine: {os.cpu_count()} cores, {platform.processor() or platform.machine()}, "
             f"Python {platform.python_version()}.")
+
+
+def peak_rss_mb(time_v_report: str) -> float:
+    """The maximum resident set size (MB) in ``/usr/bin/time -v``'s report, NaN when it has none."""
+    line = next((ln for ln in time_v_report.splitlines() if "Maximum resident set size" in ln), None)
+    return int(line.split(":")[1]) / 1024.0 if line else float("nan")
 
 
 def replace_section(path: str, name: str, lines: list[str]) -> None:

@@ -42,6 +42,8 @@ ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(HERE))
 
+from _report import peak_rss_mb  # noqa: E402
+
 PROTOCOL = """
 schema_version: 1
 name: bench_cluster
@@ -118,7 +120,8 @@ class _Workers:
 
     def close(self):
         for p in reversed(self.procs):
-            p.send_signal(signal.SIGINT) if p.args[0] == "/usr/bin/time" else p.terminate()
+            # /usr/bin/time passes SIGINT on to the worker and then writes its report; SIGTERM would kill it first
+            p.send_signal(signal.SIGINT if p.args[0] == "/usr/bin/time" else signal.SIGTERM)
         for p in self.procs:
             try:
                 p.wait(timeout=30)
@@ -169,12 +172,6 @@ def speedup(folder: Path, frames: int, repeats: int, configs=tuple(CONFIGS)) -> 
     return res
 
 
-def _peak_mb(time_v: str) -> float:
-    """Maximum resident set size (MB) from ``/usr/bin/time -v``'s report."""
-    line = next(ln for ln in time_v.splitlines() if "Maximum resident set size" in ln)
-    return int(line.split(":")[1]) / 1024
-
-
 def memory(folder: Path, frames: int) -> dict:
     """Peak memory of rendering the bench protocol in one process (``prepare --serial``: today's per-render
     path, every scene built in that process) and of a ``dask worker`` rendering the same frames for
@@ -188,7 +185,7 @@ def memory(folder: Path, frames: int) -> dict:
                        env=env, capture_output=True, text=True, check=False)
     if r.returncode != 0:
         raise SystemExit(r.stderr)
-    serial = _peak_mb(report.read_text())
+    serial = peak_rss_mb(report.read_text())
     workers = _Workers(folder, 1, env, measure_memory=True)
     try:
         r = subprocess.run([sys.executable, "-m", "studyapp", "prepare", str(proto), "--scheduler", workers.address,
@@ -198,14 +195,14 @@ def memory(folder: Path, frames: int) -> dict:
         workers.close()
     if r.returncode != 0:
         raise SystemExit(r.stderr)
-    worker = _peak_mb(workers.logs[0].read_text())
+    worker = peak_rss_mb(workers.logs[0].read_text())
     idle = _Workers(folder, 1, env, measure_memory=True)  # Dask's own runtime: a worker that renders nothing
     idle.close()
-    idle_mb = _peak_mb(idle.logs[0].read_text())
+    idle_mb = peak_rss_mb(idle.logs[0].read_text())
     empty = folder / "python.time"
     subprocess.run(["/usr/bin/time", "-v", "-o", str(empty), sys.executable, "-c", "import studyapp.cli"], env=env,
                    check=True)
-    base_mb = _peak_mb(empty.read_text())
+    base_mb = peak_rss_mb(empty.read_text())
     print(f"peak RSS: in process {serial:.0f} MB, one dask worker {worker:.0f} MB (an idle worker {idle_mb:.0f} MB, "
           f"python with studyapp's CLI {base_mb:.0f} MB)", flush=True)
     return {"frames": 2 * 3 * frames, "serial_mb": serial, "worker_mb": worker, "idle_worker_mb": idle_mb,

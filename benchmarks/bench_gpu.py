@@ -32,7 +32,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from benchmarks._report import machine_line, replace_section  # noqa: E402
+from benchmarks._report import machine_line, peak_rss_mb, replace_section  # noqa: E402
 
 AGREEMENT_SCENES = ("cornell", "temple", "street_night", "interior")
 AGREEMENT_CASES = {
@@ -181,8 +181,7 @@ def run_child(script: str, args: list[str], label: str) -> dict:
         raise RuntimeError(f"{label} failed:\n{p.stderr[-2000:]}")
     row = json.loads(p.stdout.strip().splitlines()[-1])
     row["load"] = os.getloadavg()[1]  # other jobs on the cores inflate the times: say how busy the machine was
-    peak = [ln for ln in p.stderr.splitlines() if "Maximum resident set size" in ln]
-    row["peak_mb"] = int(peak[0].split(":")[1]) / 1024.0 if peak else float("nan")
+    row["peak_mb"] = peak_rss_mb(p.stderr)
     return row
 
 

@@ -38,13 +38,18 @@ class FakeRenderer:
         return out
 
 
+def _load_text(tmp_path: Path, text: str):
+    """The protocol of YAML ``text`` (written to ``tmp_path/p.yaml``), stimuli under ``tmp_path/stim``."""
+    f = tmp_path / "p.yaml"
+    f.write_text(text)
+    return load_protocol(f, stimuli_dir=tmp_path / "stim", check_renderers=False)
+
+
 def test_prepare_builds_every_missing_frame_once(tmp_path, monkeypatch):
     text = (PROTOCOLS / "seed001_2afc.yaml").read_text()
     text = text.replace("camera_path:\n    - {t: 0.0, yaw_deg: -8.0}\n    - {t: 1.0, yaw_deg: 8.0}",
                         "camera_path:\n    - {t: 0.0, position: [0, 1, 2]}\n    - {t: 1.0, position: [4, 1, 2]}")
-    f = tmp_path / "p.yaml"
-    f.write_text(text)
-    p = load_protocol(f, stimuli_dir=tmp_path / "stim", check_renderers=False)
+    p = _load_text(tmp_path, text)
     fake = FakeRenderer(tmp_path)
     seen = []
     res = prepare(p, scale=0.05, render=fake, progress=lambda d, t, left: seen.append((d, t, left)))
@@ -77,9 +82,7 @@ def test_prepare_refuses_missing_folder_stimuli(tmp_path):
     text, n = re.subn(r"CC3: \{renderer: sl_as[^}]*\}", "CC3: {folder: lab}",
                       (PROTOCOLS / "seed003_task2.yaml").read_text())
     assert n == 1
-    f = tmp_path / "p.yaml"
-    f.write_text(text)
-    p = load_protocol(f, stimuli_dir=tmp_path / "stim", check_renderers=False)
+    p = _load_text(tmp_path, text)
     with pytest.raises(ValueError, match=r"missing stimulus file .*lab/study\.png \(condition CC3, scene study\)"):
         prepare(p, 0.05, render=FakeRenderer(tmp_path))
     with pytest.raises(ValueError, match=r"--scale=1\.5 is out of range"):
@@ -258,9 +261,7 @@ def test_prepare_renders_each_condition_on_its_backend(tmp_path):
     text = (PROTOCOLS / "seed001_2afc.yaml").read_text()
     text = text.replace("LaFR(2.2): {renderer: lafr, params: {delta: 2.2}, quality: 0.55}",
                         "LaFR(2.2): {renderer: lafr, params: {delta: 2.2}, quality: 0.55, backend: gpu}")
-    f = tmp_path / "p.yaml"
-    f.write_text(text)
-    p = load_protocol(f, stimuli_dir=tmp_path / "stim", check_renderers=False)
+    p = _load_text(tmp_path, text)
     fake = FakeRenderer(tmp_path)
     prepare(p, scale=0.05, render=fake)
     by_backend = {}
