@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import platform
+import shlex
 import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -17,6 +18,16 @@ def machine_line() -> str:
     """One line naming the machine the figures were measured on."""
     return (f"Machine: {os.cpu_count()} cores, {platform.processor() or platform.machine()}, "
             f"Python {platform.python_version()}.")
+
+
+def command_line(script: str, argv: list[str]) -> str:
+    """The shell command that reruns ``script`` with ``argv``, for the report: arguments a shell would split or
+    drop (empty, spaces, quotes) are quoted, in double quotes where that is enough (easier to read)."""
+    def quote(arg: str) -> str:
+        if arg and shlex.quote(arg) == arg:
+            return arg
+        return f'"{arg}"' if not any(c in arg for c in '"$`\\!') else shlex.quote(arg)
+    return " ".join(["python", script, *map(quote, argv)])
 
 
 def peak_rss_mb(time_v_report: str) -> float:

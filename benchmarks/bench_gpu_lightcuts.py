@@ -37,7 +37,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from benchmarks._report import machine_line, replace_section  # noqa: E402
+from benchmarks._report import command_line, machine_line, replace_section  # noqa: E402
 from benchmarks.bench_gpu import _gpu_device_line, run_child, timed_frames, write_csv  # noqa: E402
 
 SCENES = ("cornell_many", "study", "yard", "sponza_vpl")
@@ -196,16 +196,22 @@ def speed_section(rows, plan, elapsed: float, gt_samples: int, command: str) -> 
     gpu = [r for r in rows if r["backend"] == "gpu"]
     timing = gpu[0]["timing"] if gpu else ""
     reps = sorted({(z, n) for _, _, _, z, n in plan}, key=lambda t: [int(v) for v in t[0].split("x")])
-    lines = [
-        "## Lightcuts on the GPU backend: speed (issue 16 item 3)", "",
+    scenes = list(dict.fromkeys(sc for _, sc, _, _, _ in plan))
+    methods = list(dict.fromkeys(m for _, _, m, _, _ in plan))
+    counts = [f"{m} `{json.dumps(METHODS[m][1])}`" for m in methods if m in METHODS and METHODS[m][1]]
+    if "sl_gt" in methods:
+        counts.append(f"sl_gt {gt_samples} + {gt_samples} samples (the seed: 2048 + 2048)")
+    counts = "; ".join(counts) or "the methods' defaults"
+    lines = [  # the title names what the section covers: a long run may be split into sections (--section)
+        f"## Lightcuts on the GPU backend: speed of {', '.join(methods)} on {', '.join(scenes)} (issue 16 item 3)",
+        "",
         machine_line(), _gpu_device_line(),
         f"Command: `{command}` ({elapsed / 60:.1f} min). "
         "Scene cameras, gaze at the centre, one eye (the lightcuts renderers are monocular: a binocular frame is "
         "two); after an untimed 64x48 frame and a first full-size frame, the median of "
         f"{', '.join(f'{n} frame(s) at {z}' for z, n in reps)} (one frame, `frames` = 1, when the first full-size "
         "frame took over a minute); each configuration in its own process. Counts: "
-        f"{', '.join(f'{m} `{json.dumps(p)}`' for m, (_, p) in METHODS.items() if p)}; "
-        f"sl_gt {gt_samples} + {gt_samples} samples (the seed: 2048 + 2048). Step times: {timing}.", "",
+        f"{counts}. Step times: {timing}.", "",
         "Mesa's llvmpipe is a software OpenGL 4.5 implementation on the CPU cores, not a GPU: these figures say "
         "that the renderers run and what they cost there, not how fast they are on a graphics card; the same "
         "script runs unchanged on a machine with a GPU (headless, EGL). `load`: the 5-minute load average after "
@@ -264,13 +270,13 @@ def main(argv=None) -> int:
         return 0
     docs = os.path.join(ROOT, "docs", "benchmarks.md")
     methods = args.methods.split(",")
-    command = "python benchmarks/bench_gpu_lightcuts.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    command = command_line("benchmarks/bench_gpu_lightcuts.py", argv if argv is not None else sys.argv[1:])
     if args.agreement:
         rows = agreement_rows(methods, args.agreement_gt_samples, args.seeds)
         write_csv(rows, "bench_gpu_lightcuts_agreement.csv")
         replace_section(docs, "gpu-lightcuts-agreement",
                         agreement_section(rows, time.perf_counter() - t0, args.agreement_gt_samples,
-                                          command.strip()))
+                                          command))
         return 0
     repeats = [int(n) for n in args.repeats.split(",")]
     plan = speed_plan(args.scenes.split(","), methods, _sizes(args.sizes), repeats, _sizes(args.ratio_size))
@@ -278,7 +284,7 @@ def main(argv=None) -> int:
     def done(rows):
         write_csv(rows, f"bench_{args.section.replace('-', '_')}.csv")
         replace_section(docs, args.section, speed_section(rows, plan, time.perf_counter() - t0, args.gt_samples,
-                                                          command.strip()))
+                                                          command))
 
     speed_rows(plan, args.gt_samples, done=done)
     return 0
