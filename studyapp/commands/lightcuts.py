@@ -18,9 +18,10 @@ Table 3 (ms per frame, incl. Ours without multi-resolution selection), Table 4 a
 0.4), the per-step times of Fig 9, the FPSM and error maps (Fig 5-7), and the issue's targets as same-run
 ratios. --json prints records {table, scene, method, metric, region, value}. --backend chooses the renderers'
 backend: cpu (default), or gpu (their OpenGL versions; on a GPU the default size is the per-eye 2160x2160 of
-issue 16, on llvmpipe, a software GPU, it stays 192x108). Frame times are on that backend. --budget chooses the accounting of the comparison: equal-time (SL_e renders in Ours' frame time,
-speed-ups are time ratios) or equal-samples (SL_e draws Ours' light samples and glossy rays per pixel,
-speed-ups are ratios of rays per frame, the multi-resolution gain a ratio of light-tree traversals).
+issue 16, on llvmpipe, a software GPU, it stays 192x108). Frame times are on that backend. --budget chooses
+the accounting of the comparison: equal-time (SL_e renders in Ours' frame time, speed-ups are time ratios)
+or equal-samples (SL_e draws Ours' light samples and glossy rays per pixel, speed-ups are ratios of rays per
+frame, the multi-resolution gain a ratio of light-tree traversals).
 --fpsm-reading chooses Ours' reading of seed 003 Eq 4-8 (docs/lightcuts.md). The GT of every scene (the costly
 render) is one Dask task into the stimulus cache first (a local cluster by default, --scheduler for a running
 one, --serial in this process); the measured renders then run in this process, one at a time."""
@@ -86,17 +87,18 @@ def _pivot_md(records: list[dict], table: str, rows: tuple[str, ...], cols: tupl
 
 def frame_size(backend: str, width: int | None, height: int | None) -> tuple[int, int]:
     """The size to render: as given, else :data:`SEED_SIZE` on a GPU (``backend="gpu"`` on a device that is not a
-    software rasteriser) and :data:`SMALL_SIZE` otherwise. Opening the GPU may fail with a one-line error."""
+    software rasteriser) and :data:`SMALL_SIZE` otherwise. With ``backend="gpu"`` the device is opened here, before
+    any task starts, so that no OpenGL 4.3 is one line (a user error) however the size is chosen."""
     default = SMALL_SIZE
-    if backend == "gpu" and (width is None or height is None):
+    if backend == "gpu":
         from renderers.gpu.context import get_device
 
         dev = get_device()
-        if dev.software:
+        if not dev.software:
+            default = SEED_SIZE
+        elif width is None or height is None:
             _progress(f"{dev.renderer} is a software rasteriser: default size {SMALL_SIZE[0]}x{SMALL_SIZE[1]} "
                       f"(the seed's {SEED_SIZE[0]}x{SEED_SIZE[1]} per eye on a GPU)")
-        else:
-            default = SEED_SIZE
     return (default[0] if width is None else width, default[1] if height is None else height)
 
 
@@ -212,11 +214,7 @@ def cmd_tables(args) -> int:
         if v is not None and not lo <= v <= 8192:
             raise CLIError(f"{name}={v} is out of range: allowed [{lo}, 8192]")
     check_alpha(args.alpha)
-    width, height = frame_size(args.backend, args.width, args.height)
-    if args.backend == "gpu":  # no OpenGL 4.3 here: one line before any task starts
-        from renderers.gpu.context import get_device
-
-        get_device()
+    width, height = frame_size(args.backend, args.width, args.height)  # opens the GPU: errors before any task
     _ground_truths(args, scenes, width, height)
     records, ratios, images, fov_y = [], {}, {}, {}
     for name in scenes:
