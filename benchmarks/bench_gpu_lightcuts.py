@@ -18,15 +18,23 @@ same run. ``--repeats`` is one count or one per size. Runs unchanged on a machin
 Writes section ``gpu-lightcuts`` of ``docs/benchmarks.md`` and ``docs/bench_gpu_lightcuts.csv``, rewritten after
 every configuration (a run stopped early leaves what it measured, and names what it did not).
 
+``--gt-model PASSES,CHUNKS``: sl_gt alone. Its seed-size frames (2048 + 2048 samples: 43 light passes, 32 glossy
+dispatches) take hours on llvmpipe, longer than a working session; each configuration renders a frame of PASSES
+passes and CHUNKS dispatches and predicts the whole frame from its step times (:func:`gt_frame_ms`), checked against
+the whole frames that the speed sections' CSVs hold (:func:`whole_gt_frames`).
+
     python benchmarks/bench_gpu_lightcuts.py --agreement      # ~20 min on 2 cores with llvmpipe
     python benchmarks/bench_gpu_lightcuts.py                  # every method, scene and size (GT: --gt-samples)
     python benchmarks/bench_gpu_lightcuts.py --sizes 1280x720 --scenes cornell_many --methods fsl,sl_e
     python benchmarks/bench_gpu_lightcuts.py --scenes cornell_many --repeats 3,1 --ratio-size 1280x720,2160x2160
+    python benchmarks/bench_gpu_lightcuts.py --gt-model 2,2 --repeats 1 --section gpu-lightcuts-gt-model
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
+import glob
 import json
 import os
 import sys
@@ -135,17 +143,121 @@ def agreement_section(rows, elapsed: float, gt_samples: int, command: str) -> li
 
 
 # -- speed ---------------------------------------------------------------------------------------------------------
-def measure_one(backend: str, scene: str, method: str, size: str, repeats: int, gt_samples: int) -> dict:
-    """Frame times of one configuration in this process (:func:`bench_gpu.timed_frames`), medians."""
+def measure_one(backend: str, scene: str, method: str, size: str, repeats: int, gt_samples: int,
+                gt_model: tuple[int, int] | None = None) -> dict:
+    """Frame times of one configuration in this process (:func:`bench_gpu.timed_frames`), medians. With
+    ``gt_model`` (sl_gt only), a frame of that many light passes and glossy chunks, and the frame of
+    ``gt_samples`` predicted from it (:func:`gt_model_row`)."""
     name, params = _params(method, gt_samples)
+    if gt_model:
+        params = gt_model_params(*gt_model)
     frames = timed_frames(backend, scene, name, params, size, repeats)
     med = lambda get: float(np.median([get(f) for f in frames]))  # noqa: E731
-    return {"backend": backend, "scene": scene, "method": method, "size": size, "frames": len(frames),
+    row = {"backend": backend, "scene": scene, "method": method, "size": size, "frames": len(frames),
             "params": json.dumps(params), "total_ms": 1e3 * med(lambda f: f["seconds"]["total"]),
             **{f"{s}_ms": 1e3 * med(lambda f: f["steps"].get(s, 0.0)) for s in STEPS},
             "light_samples": frames[0]["light_samples"], "glossy_rays": frames[0]["glossy_rays"],
             "rays_shadow": frames[0]["rays_shadow"], "device": frames[0].get("gpu", {}).get("renderer", "cpu"),
             "timing": frames[0].get("gpu", {}).get("timing", "wall clock")}
+    return gt_model_row(row, *gt_model, gt_samples) if gt_model else row
+
+
+# -- sl_gt's frame from a few of its passes ------------------------------------------------------------------------
+def gt_units() -> tuple[int, int]:
+    """sl_gt's nodes per light pass (its default ``max_lspp``) and ray slots per glossy dispatch on the GPU
+    (:func:`renderers.gpu.lightcuts.run_sl_gt`: ``ceil(lspp / max_lspp)`` passes of ``max_lspp`` nodes; the glossy
+    pass in dispatches of ``GLOSSY_CHUNK`` slots)."""
+    from renderers.gpu.lightcuts import GLOSSY_CHUNK
+    from renderers.lightcuts.plugin import SL_GT
+
+    return SL_GT.params["max_lspp"].default, GLOSSY_CHUNK
+
+
+def gt_passes(lspp: int, rspp: int) -> tuple[int, int]:
+    """sl_gt's light passes and glossy dispatches for ``lspp`` light + ``rspp`` glossy samples per pixel."""
+    nodes, slots = gt_units()
+    return -(-int(lspp) // nodes), -(-int(rspp) // slots)
+
+
+def gt_model_params(passes: int, chunks: int) -> dict:
+    """sl_gt's params for a frame of ``passes`` light passes and ``chunks`` glossy dispatches."""
+    nodes, slots = gt_units()
+    return {"lspp": passes * nodes, "rspp": chunks * slots}
+
+
+def gt_frame_ms(row: dict, passes: int, chunks: int, full_passes: int, full_chunks: int) -> float:
+    """The time of sl_gt's frame of ``full_passes`` light passes and ``full_chunks`` glossy dispatches, predicted
+    from ``row``, a frame of the same scene and size with ``passes`` and ``chunks``: its light steps (cuts, select,
+    shade) times ``full_passes / passes``, its glossy step times ``full_chunks / chunks``, the rest (G-buffer,
+    read-back) as measured. Every light pass refines and samples the same cuts of the same pixels with other
+    random numbers, and every glossy dispatch covers every pixel for ``GLOSSY_CHUNK`` ray slots, so the work
+    grows linearly in both; the prediction is checked against whole frames where they were measured
+    (:func:`model_section`)."""
+    light = row["cuts_ms"] + row["select_ms"] + row["shade_ms"]
+    return row["total_ms"] + light * (full_passes / passes - 1) + row["glossy_ms"] * (full_chunks / chunks - 1)
+
+
+def gt_model_row(row: dict, passes: int, chunks: int, gt_samples: int) -> dict:
+    """``row`` with the prediction of sl_gt's frame of ``gt_samples`` + ``gt_samples`` samples."""
+    full_passes, full_chunks = gt_passes(gt_samples, gt_samples)
+    return {**row, "passes": passes, "chunks": chunks, "full_passes": full_passes, "full_chunks": full_chunks,
+            "predicted_ms": gt_frame_ms(row, passes, chunks, full_passes, full_chunks),
+            "predicted_light_samples": row["light_samples"] * full_passes // passes}
+
+
+def whole_gt_frames(gt_samples: int, docs: str) -> dict:
+    """The whole sl_gt frames of ``gt_samples`` + ``gt_samples`` samples measured on the GPU in the speed sections'
+    CSVs (``docs/bench_gpu_lightcuts*.csv``): ``{(scene, size): row}``."""
+    found = {}
+    for path in sorted(glob.glob(os.path.join(docs, "bench_gpu_lightcuts*.csv"))):
+        with open(path, newline="") as fh:
+            for r in csv.DictReader(fh):
+                if (r.get("method") == "sl_gt" and r.get("backend") == "gpu" and "predicted_ms" not in r
+                        and json.loads(r.get("params") or "{}") == {"lspp": gt_samples, "rspp": gt_samples}):
+                    found[(r["scene"], r["size"])] = {**r, "file": os.path.basename(path)}
+    return found
+
+
+def model_section(rows, plan, elapsed: float, gt_samples: int, command: str, model: tuple[int, int],
+                  whole: dict) -> list[str]:
+    """The section of sl_gt's frames predicted from ``model`` (light passes, glossy dispatches), checked against
+    ``whole`` frames (:func:`whole_gt_frames`)."""
+    passes, chunks = model
+    scenes = list(dict.fromkeys(sc for _, sc, _, _, _ in plan))
+    full_passes, full_chunks = gt_passes(gt_samples, gt_samples)
+    nodes, slots = gt_units()
+    lines = [
+        f"## Lightcuts on the GPU backend: sl_gt's frame predicted from {passes} light pass(es) and {chunks} glossy "
+        f"dispatch(es) on {', '.join(scenes)} (issue 16 item 3)", "",
+        machine_line(), _gpu_device_line(),
+        f"Command: `{command}` ({elapsed / 60:.1f} min). sl_gt with {gt_samples} + {gt_samples} samples (the "
+        f"seed's counts) is {full_passes} light passes of {nodes} nodes and {full_chunks} glossy dispatches of "
+        f"{slots} ray slots; on llvmpipe a 2160x2160 frame takes hours. Each row is one frame of "
+        f"{passes} pass(es) and {chunks} dispatch(es) (scene camera, gaze at the centre, one eye, after an untimed "
+        "64x48 frame), and the whole frame predicted from its step times: light steps (cuts + select + shade) "
+        f"x {full_passes} / {passes}, glossy x {full_chunks} / {chunks}, the rest as measured "
+        "(`bench_gpu_lightcuts.gt_frame_ms`: each pass repeats the same work with other random numbers). "
+        "`whole frame`: the same frame measured whole, where a speed section has it; the ratio checks the "
+        "prediction.", "", LLVMPIPE_NOTE, "",
+        "| scene | size | measured ms | light | glossy | predicted frame ms | predicted min | light samples "
+        "(predicted) | whole frame ms | predicted / whole | peak MB | load |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        w = whole.get((r["scene"], r["size"]))
+        check = (f"{float(w['total_ms']):,.0f} | {r['predicted_ms'] / float(w['total_ms']):.3f}" if w
+                 else "not measured | -")
+        light = r["cuts_ms"] + r["select_ms"] + r["shade_ms"]
+        lines.append(f"| {r['scene']} | {r['size']} | {r['total_ms']:,.0f} | {light:,.0f} | {r['glossy_ms']:,.0f} | "
+                     f"{r['predicted_ms']:,.0f} | {r['predicted_ms'] / 60e3:.1f} | "
+                     f"{r['predicted_light_samples']:,} | {check} | {r['peak_mb']:,.0f} | {r['load']:.1f} |")
+    sources = sorted({w["file"] for w in whole.values()})
+    if sources:
+        lines += ["", f"Whole frames from: {', '.join(f'`docs/{f}`' for f in sources)}."]
+    measured = {(r["scene"], r["size"]) for r in rows}
+    missing = [f"{sc} {z}" for _, sc, _, z, _ in plan if (sc, z) not in measured]
+    if missing:
+        lines += ["", f"Not measured in this run (stopped or failed before they ran): {'; '.join(missing)}."]
+    return lines
 
 
 def _sizes(text: str) -> list[str]:
@@ -171,16 +283,17 @@ def speed_plan(scenes, methods, sizes, repeats, ratio_sizes) -> list[tuple[str, 
     return plan
 
 
-def speed_rows(plan, gt_samples: int, progress=print, done=None) -> list[dict]:
-    """Each configuration of ``plan`` in its own process; ``done(rows)`` after each (the section is rewritten as
-    the run goes, so a run stopped early leaves what it measured). A configuration that fails is one line and
-    no row."""
+def speed_rows(plan, gt_samples: int, progress=print, done=None, gt_model: str = "") -> list[dict]:
+    """Each configuration of ``plan`` in its own process (``gt_model``: ``--gt-model`` passed on); ``done(rows)``
+    after each (the section is rewritten as the run goes, so a run stopped early leaves what it measured). A
+    configuration that fails is one line and no row."""
     rows = []
     for backend, scene, method, size, repeats in plan:
         label = f"{backend} {scene} {method} {size}"
         try:
             r = run_child(os.path.abspath(__file__), ["--one", backend, scene, method, size, "--repeats",
-                                                      str(repeats), "--gt-samples", str(gt_samples)], label)
+                                                      str(repeats), "--gt-samples", str(gt_samples)]
+                          + (["--gt-model", gt_model] if gt_model else []), label)
         except RuntimeError as exc:
             progress(f"{label}: failed: {str(exc).splitlines()[-1]}")
             continue
@@ -190,6 +303,14 @@ def speed_rows(plan, gt_samples: int, progress=print, done=None) -> list[dict]:
         if done:
             done(rows)
     return rows
+
+
+#: What the speed figures of llvmpipe say, and the load column.
+LLVMPIPE_NOTE = (
+    "Mesa's llvmpipe is a software OpenGL 4.5 implementation on the CPU cores, not a GPU: these figures say that the "
+    "renderers run and what they cost there, not how fast they are on a graphics card; the same script runs "
+    "unchanged on a machine with a GPU (headless, EGL). `load`: the 5-minute load average after the configuration "
+    "(other jobs share the cores; above the core count, times are inflated).")
 
 
 def speed_section(rows, plan, elapsed: float, gt_samples: int, command: str) -> list[str]:
@@ -212,10 +333,7 @@ def speed_section(rows, plan, elapsed: float, gt_samples: int, command: str) -> 
         f"{', '.join(f'{n} frame(s) at {z}' for z, n in reps)} (one frame, `frames` = 1, when the first full-size "
         "frame took over a minute); each configuration in its own process. Counts: "
         f"{counts}. Step times: {timing}.", "",
-        "Mesa's llvmpipe is a software OpenGL 4.5 implementation on the CPU cores, not a GPU: these figures say "
-        "that the renderers run and what they cost there, not how fast they are on a graphics card; the same "
-        "script runs unchanged on a machine with a GPU (headless, EGL). `load`: the 5-minute load average after "
-        "the configuration (other jobs share the cores; above the core count, times are inflated).", "",
+        LLVMPIPE_NOTE, "",
         "| scene | size | method | frame ms | " + " | ".join(STEPS) + " | light samples | glossy rays | "
         "peak MB | frames | load |",
         "|---|---|---|---:|" + "---:|" * len(STEPS) + "---:|---:|---:|---:|---:|"]
@@ -254,6 +372,8 @@ OPTIONS = (
     ("--ratio-size", str, RATIO_SIZE, "speed: sizes of the GPU / CPU ratios on cornell_many, comma-separated "
      "(a speed size too: its GPU frames are reused; '': none)"),
     ("--section", str, "gpu-lightcuts", "speed: the section of docs/benchmarks.md"),
+    ("--gt-model", str, "", "speed: sl_gt only, its frame of --gt-samples predicted from a frame of PASSES light "
+     "passes and CHUNKS glossy dispatches ('PASSES,CHUNKS', e.g. 2,2; '': whole frames)"),
 )
 
 
@@ -265,8 +385,9 @@ def main(argv=None) -> int:
     ap.add_argument("--one", nargs=4, metavar=("BACKEND", "SCENE", "METHOD", "SIZE"), help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
+    model = _gt_model(args.gt_model)
     if args.one:
-        print(json.dumps(measure_one(*args.one, int(args.repeats), args.gt_samples)))
+        print(json.dumps(measure_one(*args.one, int(args.repeats), args.gt_samples, model)))
         return 0
     docs = os.path.join(ROOT, "docs", "benchmarks.md")
     methods = args.methods.split(",")
@@ -279,15 +400,35 @@ def main(argv=None) -> int:
                                           command))
         return 0
     repeats = [int(n) for n in args.repeats.split(",")]
+    if model:  # sl_gt alone, no CPU ratios: the prediction is of the GPU's frame
+        methods, args.ratio_size = ["sl_gt"], ""
     plan = speed_plan(args.scenes.split(","), methods, _sizes(args.sizes), repeats, _sizes(args.ratio_size))
 
     def done(rows):
         write_csv(rows, f"bench_{args.section.replace('-', '_')}.csv")
-        replace_section(docs, args.section, speed_section(rows, plan, time.perf_counter() - t0, args.gt_samples,
-                                                          command))
+        elapsed = time.perf_counter() - t0
+        replace_section(docs, args.section,
+                        model_section(rows, plan, elapsed, args.gt_samples, command, model,
+                                      whole_gt_frames(args.gt_samples, os.path.dirname(docs))) if model
+                        else speed_section(rows, plan, elapsed, args.gt_samples, command))
 
-    speed_rows(plan, args.gt_samples, done=done)
+    speed_rows(plan, args.gt_samples, done=done, gt_model=args.gt_model)
     return 0
+
+
+def _gt_model(text: str) -> tuple[int, int] | None:
+    """``--gt-model``: ``(passes, chunks)``, both at least 1 (None: whole frames)."""
+    if not text:
+        return None
+    try:
+        passes, chunks = (int(v) for v in text.split(","))
+    except ValueError:
+        passes = chunks = 0
+    if passes < 1 or chunks < 1:
+        print(f"--gt-model={text!r} is invalid: must be PASSES,CHUNKS, two whole numbers of at least 1",
+              file=sys.stderr)
+        raise SystemExit(2)
+    return passes, chunks
 
 
 if __name__ == "__main__":
