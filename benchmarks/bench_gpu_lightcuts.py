@@ -18,7 +18,7 @@ same run. ``--repeats`` is one count or one per size. Runs unchanged on a machin
 Writes section ``gpu-lightcuts`` of ``docs/benchmarks.md`` and ``docs/bench_gpu_lightcuts.csv``, rewritten after
 every configuration (a run stopped early leaves what it measured, and names what it did not).
 
-``--gt-model PASSES,CHUNKS``: sl_gt alone. Its seed-size frames (2048 + 2048 samples: 43 light passes, 32 glossy
+``--gt-model PASSES,CHUNKS``: sl_gt alone. Its seed-size frames (2048 + 2048 samples: 43 light passes, 256 glossy
 dispatches) take hours on llvmpipe, longer than a working session; each configuration renders a frame of PASSES
 passes and CHUNKS dispatches and predicts the whole frame from its step times (:func:`gt_frame_ms`), checked against
 the whole frames that the speed sections' CSVs hold (:func:`whole_gt_frames`).
@@ -27,7 +27,7 @@ the whole frames that the speed sections' CSVs hold (:func:`whole_gt_frames`).
     python benchmarks/bench_gpu_lightcuts.py                  # every method, scene and size (GT: --gt-samples)
     python benchmarks/bench_gpu_lightcuts.py --sizes 1280x720 --scenes cornell_many --methods fsl,sl_e
     python benchmarks/bench_gpu_lightcuts.py --scenes cornell_many --repeats 3,1 --ratio-size 1280x720,2160x2160
-    python benchmarks/bench_gpu_lightcuts.py --gt-model 2,2 --repeats 1 --section gpu-lightcuts-gt-model
+    python benchmarks/bench_gpu_lightcuts.py --gt-model 2,16 --repeats 1 --section gpu-lightcuts-gt-model
 """
 
 from __future__ import annotations
@@ -373,7 +373,7 @@ OPTIONS = (
      "(a speed size too: its GPU frames are reused; '': none)"),
     ("--section", str, "gpu-lightcuts", "speed: the section of docs/benchmarks.md"),
     ("--gt-model", str, "", "speed: sl_gt only, its frame of --gt-samples predicted from a frame of PASSES light "
-     "passes and CHUNKS glossy dispatches ('PASSES,CHUNKS', e.g. 2,2; '': whole frames)"),
+     "passes and CHUNKS glossy dispatches ('PASSES,CHUNKS', e.g. 2,16; '': whole frames)"),
 )
 
 

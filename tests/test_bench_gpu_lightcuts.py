@@ -15,11 +15,11 @@ def _row(total, cuts, select, shade, glossy, **extra):
             "shade_ms": shade, "glossy_ms": glossy, "light_samples": 1000, "peak_mb": 600.0, "load": 1.2, **extra}
 
 
-def test_the_seed_counts_are_43_light_passes_and_32_glossy_dispatches():
-    # sl_gt: ceil(2048 / max_lspp 48) passes of 48 nodes; the glossy pass in dispatches of 64 ray slots
-    assert B.gt_units() == (48, 64)
-    assert B.gt_passes(2048, 2048) == (43, 32)
-    assert B.gt_model_params(2, 3) == {"lspp": 96, "rspp": 192}
+def test_the_seed_counts_are_43_light_passes_and_256_glossy_dispatches():
+    # sl_gt: ceil(2048 / max_lspp 48) passes of 48 nodes; the glossy pass in dispatches of 8 ray slots
+    assert B.gt_units() == (48, 8)
+    assert B.gt_passes(2048, 2048) == (43, 256)
+    assert B.gt_model_params(2, 3) == {"lspp": 96, "rspp": 24}
     assert B.gt_passes(**B.gt_model_params(2, 3)) == (2, 3)
 
 
@@ -27,7 +27,7 @@ def test_the_light_steps_scale_with_passes_and_the_glossy_step_with_dispatches()
     row = _row(1000.0, 10.0, 20.0, 30.0, 100.0)  # light 60, glossy 100, the rest 840
     assert B.gt_frame_ms(row, 2, 1, 43, 32) == 840.0 + 60.0 * 43 / 2 + 100.0 * 32
     full = B.gt_model_row(row, 2, 1, 2048)
-    assert (full["full_passes"], full["full_chunks"]) == (43, 32)
+    assert (full["full_passes"], full["full_chunks"]) == (43, 256)
     assert full["predicted_light_samples"] == 1000 * 43 // 2
 
 
@@ -73,12 +73,12 @@ def test_the_section_checks_each_prediction_against_its_whole_frame(monkeypatch)
     rows = [B.gt_model_row(_row(90_000.0, 2_000.0, 7_000.0, 9_000.0, 70_000.0), 2, 2, 2048),
             {**B.gt_model_row(_row(90_000.0, 2_000.0, 7_000.0, 9_000.0, 70_000.0), 2, 2, 2048), "scene": "yard"}]
     plan = [("gpu", sc, "sl_gt", "1280x720", 1) for sc in ("cornell_many", "yard", "study")]
-    whole = {("cornell_many", "1280x720"): {"total_ms": "1500000", "file": "bench_gpu_lightcuts_gt.csv"}}
+    whole = {("cornell_many", "1280x720"): {"total_ms": "9000000", "file": "bench_gpu_lightcuts_gt.csv"}}
     text = "\n".join(B.model_section(rows, plan, 600.0, 2048, "python b.py", (2, 2), whole))
-    predicted = rows[0]["predicted_ms"]  # 2,000 + 18,000 x 43 / 2 + 70,000 x 32 / 2 = 1,509,000
-    assert predicted == 1_509_000.0
-    assert "| cornell_many | 1280x720 | 90,000 | 18,000 | 70,000 | 1,509,000 | 25.1 |" in text
-    assert f"| 1,500,000 | {predicted / 1.5e6:.3f} |" in text
+    predicted = rows[0]["predicted_ms"]  # 2,000 + 18,000 x 43 / 2 + 70,000 x 256 / 2 = 9,349,000
+    assert predicted == 9_349_000.0
+    assert "| cornell_many | 1280x720 | 90,000 | 18,000 | 70,000 | 9,349,000 | 155.8 |" in text
+    assert "| 9,000,000 | 1.039 |" in text
     assert "| yard | 1280x720 |" in text and "not measured | - |" in text
     assert "Not measured in this run (stopped or failed before they ran): study 1280x720." in text
     assert "`docs/bench_gpu_lightcuts_gt.csv`" in text

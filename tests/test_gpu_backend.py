@@ -229,3 +229,60 @@ def test_window_context_is_used_when_one_is_current(tmp_path):
     out = subprocess.run(["xvfb-run", "-a", PY, str(script)], capture_output=True, text=True, env=env,
                          timeout=120, check=True).stdout.split()
     assert out[:3] == ["window", "window", "0"] and out[3:7] == ["[0,", "255,", "0,", "255]"] and out[7] == "True"
+
+
+_LOOP_SRC = """#version 430
+layout(local_size_x = 64) in;
+#include "common.glsl"
+layout(std430, binding = 1) writeonly buffer Out { int out_[]; };
+uniform int u_iters;
+void main() {
+    cnt_begin();
+    uint i = gid();
+    int k = 0;
+    for (int q = 0; q < u_iters; q++) k++;
+    if (i < uint(u_n)) out_[i] = k;
+    cnt_end();
+}
+"""
+
+
+@pytest.mark.parametrize("iters", [1_000, 70_000])
+def test_loops_that_llvmpipe_cuts_short_are_counted(iters):
+    """llvmpipe ends an invocation's loops early once it has run 65,535 loop iterations in all; common.glsl's probe
+    counts those invocations (C_LOOP_LIMIT). A GPU has no such limit: there the loop runs to the end."""
+    from renderers.gpu.context import get_device
+    from renderers.gpu.frame import _COUNTER_DEFINES, COUNTERS
+
+    dev = get_device()
+    prog = dev.program("loop_limit_test.comp", dict(_COUNTER_DEFINES), source=_LOOP_SRC)
+    n = 128
+    out, counters = dev.buffer(reserve=4 * n), dev.buffer(np.zeros(len(COUNTERS), dtype=np.uint32))
+    out.bind_to_storage_buffer(1)
+    counters.bind_to_storage_buffer(5)
+    prog["u_iters"] = iters
+    dev.dispatch(prog, n)
+    dev.finish()
+    k = np.frombuffer(out.read(), dtype=np.int32)
+    cut = int(np.frombuffer(counters.read(), dtype=np.uint32)[COUNTERS.index("loop_limit")])
+    if iters > 65_535 and "llvmpipe" in dev.renderer:
+        assert (k < iters).all() and cut == n
+    else:
+        assert (k == iters).all() and cut == 0
+    dev.release(out)
+    dev.release(counters)
+
+
+def test_a_frame_with_loops_cut_short_is_refused():
+    """A frame in which any invocation reached llvmpipe's loop limit is refused with one line, not returned."""
+    import types
+
+    from renderers.gpu.context import get_device
+    from renderers.gpu.frame import COUNTERS, Frame
+
+    fr = Frame(types.SimpleNamespace(device=get_device(), counters=types.SimpleNamespace(seconds={}, reshaded_pixels=0)))
+    fr.counter_buf.write(np.eye(len(COUNTERS), dtype=np.uint32)[COUNTERS.index("loop_limit")] * 3)
+    with pytest.raises(RuntimeError) as err:
+        fr.close()
+    assert str(err.value).startswith("3 GPU shader invocations reached llvmpipe's limit of 65,535 loop iterations")
+    assert "\n" not in str(err.value)

@@ -133,3 +133,23 @@ def test_bad_input_is_one_line(capsys, tmp_path):
     assert main(["render", "--scene", "cornell_many", "--renderer", "fsl", "--width", "16", "--height", "9",
                  "--backend", "gpu", "--out", str(tmp_path / "b.png")]) == 0
     assert (tmp_path / "b.png").stat().st_size > 0
+
+
+def test_shading_and_glossy_rays_split_over_dispatches_give_the_same_frame(monkeypatch):
+    """llvmpipe's loop limit bounds the work of one invocation (renderers/gpu/lightcuts.py SHADE_SLICE,
+    GLOSSY_CHUNK): a cut's samples shaded in slices and a pixel's glossy rays cast in chunks add up to the frame of
+    one dispatch each (the same samples; float32 sums in another order)."""
+    import renderers.gpu.lightcuts as GL
+
+    params = {"lspp": 40, "rspp": 24, "seed": 3}
+    frames = []
+    for slice_, chunk in ((64, 64), (8, 8), (16, 5)):
+        monkeypatch.setattr(GL, "SHADE_SLICE", slice_)
+        monkeypatch.setattr(GL, "GLOSSY_CHUNK", chunk)
+        frames.append(registry.render("cornell_many", "sl_e", params, 48, 27, backend="gpu"))
+    (one, st), *split = frames
+    assert st["glossy_rays"] > 0 and float(one.max()) > 0
+    for img, s in split:
+        np.testing.assert_allclose(img, one, rtol=1e-5, atol=1e-7)
+        assert (s["spp"] == st["spp"]).all() and s["light_samples"] == st["light_samples"]
+        assert s["glossy_rays"] == st["glossy_rays"]

@@ -220,6 +220,8 @@ class Device:
             prog["u_groups_x"] = gx
         if "u_n" in prog:
             prog["u_n"] = int(n)
+        if "u_loop_probe" in prog:  # common.glsl's check of llvmpipe's loop limit
+            prog["u_loop_probe"] = 2
         prog.run(gx, gy, 1)
 
     def barrier(self) -> None:

@@ -12,12 +12,12 @@ import time
 
 import numpy as np
 
-from .context import StageTimer
+from .context import WAY_OUT, StageTimer
 
 #: GPU counters (index = position). Those named like a Counters field are added to it at the end of a frame.
 COUNTERS = ("samples", "holes", "rays_primary", "missed_rays", "shading_points", "glossy_evaluations",
             "lights_culled", "shadow_rays_skipped", "rays_shadow", "nonfinite", "offscreen_lp_pixels",
-            "light_samples", "reused", "glossy_rays")
+            "light_samples", "reused", "glossy_rays", "loop_limit")
 C = {name: i for i, name in enumerate(COUNTERS)}
 _COUNTER_DEFINES = {"COUNTERS": len(COUNTERS), **{f"C_{n.upper()}": i for n, i in C.items()}}
 #: Switches of the shaders, off unless a pass sets them (GLSL's #if may not meet an undefined name).
@@ -172,6 +172,11 @@ class Frame:
         c.reshaded_pixels += self.totals["holes"]
         if self.totals["nonfinite"]:
             raise ValueError(f"the GPU renderer produced {self.totals['nonfinite']:,} non-finite samples")
+        if self.totals["loop_limit"]:
+            raise RuntimeError(
+                f"{self.totals['loop_limit']:,} GPU shader invocations reached llvmpipe's limit of 65,535 loop "
+                f"iterations (it cuts their loops short, so the frame would be wrong): this is a bug in studyapp, "
+                f"please report it; {WAY_OUT}")
         for stage, sec in self.timer.seconds().items():
             c.seconds[stage] = c.seconds.get(stage, 0.0) + sec
         self.dev.yield_to_window()

@@ -43,8 +43,13 @@ from .upload import camera_uniforms
 TILE_BYTES = 1 << 26
 #: Largest cut the GPU refines (each shading point keeps its cut in private memory).
 MAX_CUT = 256
-#: Glossy rays per pixel in one dispatch (GT's 2048 are cast in chunks).
-GLOSSY_CHUNK = 64
+#: Work per invocation is bounded because llvmpipe cuts an invocation's loops short past 65,535 iterations in all
+#: (shaders/common.glsl; the frame is then refused): a ray through the BVH of yard takes up to a few hundred.
+#: Glossy rays per pixel in one dispatch, each a BVH hit, 4 bounce samples and their shadow rays (GT's 2048 are
+#: cast in chunks; 64 reached the limit on yard at 1280 x 720).
+GLOSSY_CHUNK = 8
+#: Samples of each cut shaded in one dispatch, a shadow ray each (a 256-node cut reached the limit on yard).
+SHADE_SLICE = 64
 #: Pooled buffers of a G-buffer (binding point -> name suffix) and of the frame.
 _GBUF = {0: "pos", 1: "nrm", 2: "alb", 3: "ks", 4: "base", 9: "pix", 12: "rad"}
 #: ``bounds``: the G-buffer points' box (min xyz, max xyz) and the FPSM's extreme rho, as ordered bits of +inf
@@ -179,7 +184,8 @@ class LightcutsFrame:
             with self.step(steps[1]):
                 self.run("lc_select.comp", m, bufs, u, cut_max, {"MULTIRES": int(multires)})
             with self.step(steps[2]):
-                self.run("lc_shade.comp", m, bufs, u, cut_max)
+                for s0 in range(0, cut_max, SHADE_SLICE):
+                    self.run("lc_shade.comp", m, bufs, {**u, "u_s0": s0, "u_s1": s0 + SHADE_SLICE}, cut_max)
                 if low_res:
                     self.run("lc_low_res.comp", m, {**bufs, 10: self.lr_ls}, u, cut_max)
             self.fr.drain_counters()

@@ -19,7 +19,16 @@ void cnt_begin() {
 void cnt_add(int k, uint v) {
     if (v != 0u) atomicAdd(s_cnt[k], v);
 }
+// llvmpipe (Mesa's software OpenGL) ends every loop of an invocation after its first pass once the invocation has
+// run 65,535 loop iterations in all (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS, shared by all its loops), so work
+// past that point is silently wrong. The host sets u_loop_probe to 2 (renderers/gpu/context.py): this loop then
+// runs twice unless the limit was reached, which C_LOOP_LIMIT counts and the host refuses (frame.py). GPUs have
+// no such limit; there the check costs two iterations.
+uniform int u_loop_probe;
 void cnt_end() {
+    int probe = 0;
+    for (int q = 0; q < u_loop_probe; q++) probe++;
+    if (probe < u_loop_probe) cnt_add(C_LOOP_LIMIT, 1u);
     barrier();
     if (gl_LocalInvocationIndex < uint(COUNTERS)) {
         uint v = s_cnt[gl_LocalInvocationIndex];

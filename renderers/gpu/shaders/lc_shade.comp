@@ -2,6 +2,8 @@
 // Shading of the selected lights (seed 003 Algorithm 1 line 15; sampling.shade_tile): the Lambertian estimate of
 // every sample, a shadow ray through the BVH for those that contribute (all of them counted as shadow rays, as
 // on the CPU), the sum into the pixel's diffuse radiance (added to it with u_accumulate: the passes of sl_gt).
+// One dispatch shades the samples [u_s0, u_s1) of each cut, later ones add theirs: a shadow ray can take hundreds
+// of loop iterations, and llvmpipe cuts an invocation's loops short past 65,535 (common.glsl).
 layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "scene.glsl"
@@ -9,6 +11,8 @@ layout(local_size_x = 64) in;
 #include "lc_buffers.glsl"
 uniform int u_shadows;
 uniform int u_accumulate;
+uniform int u_s0;
+uniform int u_s1;
 
 void main() {
     cnt_begin();
@@ -21,7 +25,7 @@ void main() {
         vec3 c = vec3(0.0);
         uint rays = 0u;
         int drawn = 0;
-        for (int s = 0; s < m; s++) {
+        for (int s = u_s0; s < min(m, u_s1); s++) {
             uvec4 e = smp[i * uint(CUT_MAX) + uint(s)];
             int leaf = int(e.y);
             if (leaf < 0) continue;
@@ -33,8 +37,9 @@ void main() {
             }
         }
         if (any(isnan(c)) || any(isinf(c))) cnt_add(C_NONFINITE, 1u);
-        rad[px] = u_accumulate != 0 ? rad[px] + vec4(c, 0.0) : vec4(c, 0.0);
-        pix[px].y = drawn;
+        bool first = u_s0 == 0;
+        rad[px] = (u_accumulate != 0 || !first) ? rad[px] + vec4(c, 0.0) : vec4(c, 0.0);
+        pix[px].y = (first ? 0 : pix[px].y) + drawn;
         cnt_add(C_RAYS_SHADOW, rays);
         cnt_add(C_LIGHT_SAMPLES, uint(drawn));
     }
