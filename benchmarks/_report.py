@@ -36,6 +36,14 @@ def peak_rss_mb(time_v_report: str) -> float:
     return int(line.split(":")[1]) / 1024.0 if line else float("nan")
 
 
+def without_time_report(stderr: str) -> str:
+    """A child's standard error without the report ``/usr/bin/time -v`` appends to it (which would bury the
+    child's own last line, its error)."""
+    cuts = [i for i in (stderr.find("Command exited with non-zero status"), stderr.find("\tCommand being timed:"))
+            if i >= 0]
+    return stderr[:min(cuts)].rstrip("\n") if cuts else stderr
+
+
 def replace_section(path: str, name: str, lines: list[str]) -> None:
     """Write ``lines`` as the section ``name`` of the Markdown file ``path`` (appended if new)."""
     sys.path.insert(0, ROOT)

@@ -32,7 +32,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from benchmarks._report import machine_line, peak_rss_mb, replace_section  # noqa: E402
+from benchmarks._report import machine_line, peak_rss_mb, replace_section, without_time_report  # noqa: E402
 
 AGREEMENT_SCENES = ("cornell", "temple", "street_night", "interior")
 AGREEMENT_CASES = {
@@ -177,8 +177,8 @@ def run_child(script: str, args: list[str], label: str) -> dict:
     timed = os.path.exists("/usr/bin/time")
     p = subprocess.run((["/usr/bin/time", "-v"] if timed else []) + cmd, capture_output=True, text=True,
                        env={**os.environ, "PYTHONPATH": os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")])})
-    if p.returncode != 0:
-        raise RuntimeError(f"{label} failed:\n{p.stderr[-2000:]}")
+    if p.returncode != 0:  # the child's error last, so that callers can show the last line
+        raise RuntimeError(f"{label} failed:\n{without_time_report(p.stderr)[-2000:]}")
     row = json.loads(p.stdout.strip().splitlines()[-1])
     row["load"] = os.getloadavg()[1]  # other jobs on the cores inflate the times: say how busy the machine was
     row["peak_mb"] = peak_rss_mb(p.stderr)
