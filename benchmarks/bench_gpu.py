@@ -48,6 +48,14 @@ COUNTERS = ("shading_points", "rays_primary", "rays_shadow", "missed_rays", "off
             "reshaded_pixels", "lights_culled")
 
 
+#: What figures measured on llvmpipe say, and the `load` column (the GPU benchmarks' sections).
+LLVMPIPE_NOTE = (
+    "Mesa's llvmpipe is a software OpenGL 4.5 implementation on the CPU cores, not a GPU: these figures say that the "
+    "GPU backend runs and what it costs there, not how fast it is on a graphics card; the same script runs "
+    "unchanged on a machine with a GPU (headless, EGL) and writes the same table. `load`: the machine's 5-minute "
+    "load average after the configuration (other jobs share the cores; above the core count, times are inflated).")
+
+
 def _gpu_device_line() -> str:
     from renderers.gpu.context import get_device
 
@@ -209,11 +217,7 @@ def speed_section(rows, elapsed: float, repeats: int) -> list[str]:
         "each configuration in its own process, peak resident memory from `/usr/bin/time -v`. vafr-dup renders "
         "both eyes (binocular), vafr-rep the left eye and the reprojected right one; the others one eye. Stage "
         f"times: {gpu[0]['timing'] if gpu else ''}.", "",
-        "Mesa's llvmpipe is a software OpenGL 4.5 implementation running on the CPU cores, not a GPU: these "
-        "figures say that the backend runs and what it costs there, not how fast it is on a graphics card. The "
-        "same script runs unchanged on a machine with a GPU (headless, EGL) and writes the same table. `load`: "
-        "the machine's 5-minute load average after the configuration (other jobs share the cores; above the core "
-        "count, times are inflated).", "",
+        LLVMPIPE_NOTE, "",
         "| method | size | backend | frame ms | ms per eye | visibility | shading | antialias | inverse map | "
         "shading points | shadow rays | peak MB | frames | load |",
         "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]

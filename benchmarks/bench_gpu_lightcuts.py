@@ -46,7 +46,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 from benchmarks._report import command_line, machine_line, replace_section  # noqa: E402
-from benchmarks.bench_gpu import _gpu_device_line, run_child, timed_frames, write_csv  # noqa: E402
+from benchmarks.bench_gpu import (  # noqa: E402
+    LLVMPIPE_NOTE, _gpu_device_line, run_child, timed_frames, write_csv)
 
 SCENES = ("cornell_many", "study", "yard", "sponza_vpl")
 SIZES = ("1280x720", "2160x2160")
@@ -303,14 +304,6 @@ def speed_rows(plan, gt_samples: int, progress=print, done=None, gt_model: str =
         if done:
             done(rows)
     return rows
-
-
-#: What the speed figures of llvmpipe say, and the load column.
-LLVMPIPE_NOTE = (
-    "Mesa's llvmpipe is a software OpenGL 4.5 implementation on the CPU cores, not a GPU: these figures say that the "
-    "renderers run and what they cost there, not how fast they are on a graphics card; the same script runs "
-    "unchanged on a machine with a GPU (headless, EGL). `load`: the 5-minute load average after the configuration "
-    "(other jobs share the cores; above the core count, times are inflated).")
 
 
 def speed_section(rows, plan, elapsed: float, gt_samples: int, command: str) -> list[str]:
