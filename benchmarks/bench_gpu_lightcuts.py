@@ -254,11 +254,7 @@ def model_section(rows, plan, elapsed: float, gt_samples: int, command: str, mod
     sources = sorted({w["file"] for w in whole.values()})
     if sources:
         lines += ["", f"Whole frames from: {', '.join(f'`docs/{f}`' for f in sources)}."]
-    measured = {(r["scene"], r["size"]) for r in rows}
-    missing = [f"{sc} {z}" for _, sc, _, z, _ in plan if (sc, z) not in measured]
-    if missing:
-        lines += ["", f"Not measured in this run (stopped or failed before they ran): {'; '.join(missing)}."]
-    return lines
+    return lines + _not_measured(rows, plan, lambda b, sc, m, z: f"{sc} {z}")
 
 
 def _sizes(text: str) -> list[str]:
@@ -346,11 +342,16 @@ def speed_section(rows, plan, elapsed: float, gt_samples: int, command: str) -> 
             if g and c:
                 lines.append(f"| {z} | {m} | {g['total_ms']:,.0f} | {c['total_ms']:,.0f} | "
                              f"{g['total_ms'] / c['total_ms']:.2f} | {g['frames']} / {c['frames']} |")
+    return lines + _not_measured(rows, plan, lambda b, sc, m, z: f"{b} {sc} {m} {z}")
+
+
+def _not_measured(rows, plan, label) -> list[str]:
+    """The line naming the configurations of ``plan`` with no row (a run stopped early or a failed one), each as
+    ``label(backend, scene, method, size)``; none when all ran."""
     measured = {(r["backend"], r["scene"], r["method"], r["size"]) for r in rows}
-    missing = [f"{b} {sc} {m} {z}" for b, sc, m, z, _ in plan if (b, sc, m, z) not in measured]
-    if missing:
-        lines += ["", f"Not measured in this run (stopped or failed before they ran): {'; '.join(missing)}."]
-    return lines
+    missing = [label(*c[:4]) for c in plan if tuple(c[:4]) not in measured]
+    return ["", f"Not measured in this run (stopped or failed before they ran): {'; '.join(missing)}."] if missing \
+        else []
 
 
 #: Options: (flag, type, default, help).

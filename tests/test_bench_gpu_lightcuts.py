@@ -11,8 +11,8 @@ from benchmarks import bench_gpu_lightcuts as B
 
 
 def _row(total, cuts, select, shade, glossy, **extra):
-    return {"scene": "cornell_many", "size": "1280x720", "total_ms": total, "cuts_ms": cuts, "select_ms": select,
-            "shade_ms": shade, "glossy_ms": glossy, "light_samples": 1000, "peak_mb": 600.0, "load": 1.2, **extra}
+    return {"backend": "gpu", "method": "sl_gt", "scene": "cornell_many", "size": "1280x720", "total_ms": total,
+            "cuts_ms": cuts, "select_ms": select, "shade_ms": shade, "glossy_ms": glossy, "light_samples": 1000, "peak_mb": 600.0, "load": 1.2, **extra}
 
 
 def test_the_seed_counts_are_43_light_passes_and_256_glossy_dispatches():
