@@ -186,15 +186,20 @@ def gt_model_params(passes: int, chunks: int) -> dict:
     return {"lspp": passes * nodes, "rspp": chunks * slots}
 
 
+def gt_pass_ms(row: dict) -> float:
+    """The light passes' steps of an sl_gt frame (select + shade; the cuts are refined once for all passes)."""
+    return row["select_ms"] + row["shade_ms"]
+
+
 def gt_frame_ms(row: dict, passes: int, chunks: int, full_passes: int, full_chunks: int) -> float:
     """The time of sl_gt's frame of ``full_passes`` light passes and ``full_chunks`` glossy dispatches, predicted
-    from ``row``, a frame of the same scene and size with ``passes`` and ``chunks``: its light steps (cuts, select,
-    shade) times ``full_passes / passes``, its glossy step times ``full_chunks / chunks``, the rest (G-buffer,
-    read-back) as measured. Every light pass refines and samples the same cuts of the same pixels with other
-    random numbers, and every glossy dispatch covers every pixel for ``GLOSSY_CHUNK`` ray slots, so the work
-    grows linearly in both; the prediction is checked against whole frames where they were measured
+    from ``row``, a frame of the same scene and size with ``passes`` and ``chunks``: its light-pass steps (select,
+    shade) times ``full_passes / passes``, its glossy step times ``full_chunks / chunks``, the rest (G-buffer, the
+    cuts, refined once for all passes, read-back) as measured. Every light pass samples the same cuts of the same
+    pixels with other random numbers, and every glossy dispatch covers every pixel for ``GLOSSY_CHUNK`` ray slots,
+    so the work grows linearly in both; the prediction is checked against whole frames where they were measured
     (:func:`model_section`)."""
-    light = row["cuts_ms"] + row["select_ms"] + row["shade_ms"]
+    light = gt_pass_ms(row)
     return row["total_ms"] + light * (full_passes / passes - 1) + row["glossy_ms"] * (full_chunks / chunks - 1)
 
 
@@ -235,9 +240,9 @@ def model_section(rows, plan, elapsed: float, gt_samples: int, command: str, mod
         f"seed's counts) is {full_passes} light passes of {nodes} nodes and {full_chunks} glossy dispatches of "
         f"{slots} ray slots; on llvmpipe a 2160x2160 frame takes hours. Each row is one frame of "
         f"{passes} pass(es) and {chunks} dispatch(es) (scene camera, gaze at the centre, one eye, after an untimed "
-        "64x48 frame), and the whole frame predicted from its step times: light steps (cuts + select + shade) "
-        f"x {full_passes} / {passes}, glossy x {full_chunks} / {chunks}, the rest as measured "
-        "(`bench_gpu_lightcuts.gt_frame_ms`: each pass repeats the same work with other random numbers). "
+        "64x48 frame), and the whole frame predicted from its step times: light-pass steps (select + shade; the "
+        f"cuts are refined once for all passes) x {full_passes} / {passes}, glossy x {full_chunks} / {chunks}, the rest as measured "
+        "(`bench_gpu_lightcuts.gt_frame_ms`: each pass repeats the same sampling with other random numbers). "
         "`whole frame`: the same frame measured whole, where a speed section has it; the ratio checks the "
         "prediction.", "", LLVMPIPE_NOTE, "",
         "| scene | size | measured ms | light | glossy | predicted frame ms | predicted min | light samples "
@@ -247,8 +252,7 @@ def model_section(rows, plan, elapsed: float, gt_samples: int, command: str, mod
         w = whole.get((r["scene"], r["size"]))
         check = (f"{float(w['total_ms']):,.0f} | {r['predicted_ms'] / float(w['total_ms']):.3f}" if w
                  else "not measured | -")
-        light = r["cuts_ms"] + r["select_ms"] + r["shade_ms"]
-        lines.append(f"| {r['scene']} | {r['size']} | {r['total_ms']:,.0f} | {light:,.0f} | {r['glossy_ms']:,.0f} | "
+        lines.append(f"| {r['scene']} | {r['size']} | {r['total_ms']:,.0f} | {gt_pass_ms(r):,.0f} | {r['glossy_ms']:,.0f} | "
                      f"{r['predicted_ms']:,.0f} | {r['predicted_ms'] / 60e3:.1f} | "
                      f"{r['predicted_light_samples']:,} | {check} | {r['peak_mb']:,.0f} | {r['load']:.1f} |")
     sources = sorted({w["file"] for w in whole.values()})

@@ -24,8 +24,8 @@ def test_the_seed_counts_are_43_light_passes_and_256_glossy_dispatches():
 
 
 def test_the_light_steps_scale_with_passes_and_the_glossy_step_with_dispatches():
-    row = _row(1000.0, 10.0, 20.0, 30.0, 100.0)  # light 60, glossy 100, the rest 840
-    assert B.gt_frame_ms(row, 2, 1, 43, 32) == 840.0 + 60.0 * 43 / 2 + 100.0 * 32
+    row = _row(1000.0, 10.0, 20.0, 30.0, 100.0)  # light passes 50, glossy 100, the rest 850 (cuts: once)
+    assert B.gt_frame_ms(row, 2, 1, 43, 32) == 850.0 + 50.0 * 43 / 2 + 100.0 * 32
     full = B.gt_model_row(row, 2, 1, 2048)
     assert (full["full_passes"], full["full_chunks"]) == (43, 256)
     assert full["predicted_light_samples"] == 1000 * 43 // 2
@@ -36,8 +36,8 @@ def test_the_light_steps_scale_with_passes_and_the_glossy_step_with_dispatches()
 def test_a_cost_linear_in_passes_and_dispatches_is_predicted_exactly(fixed, per_pass, per_chunk, passes, chunks,
                                                                      split):
     light = per_pass * passes
-    row = _row(fixed + light + per_chunk * chunks, split * light / 2, split * light / 2, (1 - split) * light,
-               per_chunk * chunks)
+    row = _row(fixed + light + per_chunk * chunks, fixed / 2, split * light, (1 - split) * light,
+               per_chunk * chunks)  # the cuts (refined once) are part of the fixed cost
     want = fixed + 43 * per_pass + 32 * per_chunk
     assert abs(B.gt_frame_ms(row, passes, chunks, 43, 32) - want) <= 1e-9 * max(1.0, want)
 
@@ -75,10 +75,10 @@ def test_the_section_checks_each_prediction_against_its_whole_frame(monkeypatch)
     plan = [("gpu", sc, "sl_gt", "1280x720", 1) for sc in ("cornell_many", "yard", "study")]
     whole = {("cornell_many", "1280x720"): {"total_ms": "9000000", "file": "bench_gpu_lightcuts_gt.csv"}}
     text = "\n".join(B.model_section(rows, plan, 600.0, 2048, "python b.py", (2, 2), whole))
-    predicted = rows[0]["predicted_ms"]  # 2,000 + 18,000 x 43 / 2 + 70,000 x 256 / 2 = 9,349,000
-    assert predicted == 9_349_000.0
-    assert "| cornell_many | 1280x720 | 90,000 | 18,000 | 70,000 | 9,349,000 | 155.8 |" in text
-    assert "| 9,000,000 | 1.039 |" in text
+    predicted = rows[0]["predicted_ms"]  # 4,000 + 16,000 x 43 / 2 + 70,000 x 256 / 2 = 9,308,000
+    assert predicted == 9_308_000.0
+    assert "| cornell_many | 1280x720 | 90,000 | 16,000 | 70,000 | 9,308,000 | 155.1 |" in text
+    assert "| 9,000,000 | 1.034 |" in text
     assert "| yard | 1280x720 |" in text and "not measured | - |" in text
     assert "Not measured in this run (stopped or failed before they ran): study 1280x720." in text
     assert "`docs/bench_gpu_lightcuts_gt.csv`" in text

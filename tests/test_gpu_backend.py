@@ -231,6 +231,51 @@ def test_window_context_is_used_when_one_is_current(tmp_path):
     assert out[:3] == ["window", "window", "0"] and out[3:7] == ["[0,", "255,", "0,", "255]"] and out[7] == "True"
 
 
+_GID_SRC = """#version 430
+layout(local_size_x = 64) in;
+#include "common.glsl"
+layout(std430, binding = 1) buffer Hits { uint hits[]; };
+layout(std430, binding = 2) buffer Group { uint group_of[]; };
+void main() {
+    uint i = gid();
+    if (i < uint(u_n)) {
+        atomicAdd(hits[i], 1u);
+        group_of[i] = gl_WorkGroupID.x + gl_WorkGroupID.y * uint(u_groups_x);
+    }
+}
+"""
+
+
+@pytest.mark.parametrize("n, max_groups", [(1, None), (64 * 64 + 5, None), (100_000, None), (100_000, 7),
+                                           (64 * 1000, 999)])
+def test_dispatch_covers_every_index_once_with_the_work_interleaved(monkeypatch, n, max_groups):
+    """Every index of a dispatch runs exactly once (1-D and 2-D grids), and the first half of the workgroups in
+    dispatch order (llvmpipe's first thread) covers about half of every quarter of the problem: uneven work
+    (glossy pixels in one part of the image) is shared by the threads. With blocks dealt in order the first half
+    would cover the first two quarters alone."""
+    from renderers.gpu.context import get_device
+
+    dev = get_device()
+    if max_groups:
+        monkeypatch.setattr(dev, "max_groups", max_groups)
+    prog = dev.program("gid_test.comp", {}, source=_GID_SRC)
+    hits, group_of = dev.buffer(reserve=4 * n), dev.buffer(reserve=4 * n)
+    hits.clear()
+    hits.bind_to_storage_buffer(1)
+    group_of.bind_to_storage_buffer(2)
+    dev.dispatch(prog, n)
+    dev.finish()
+    counts = np.frombuffer(hits.read(), dtype=np.uint32)
+    groups = np.frombuffer(group_of.read(), dtype=np.uint32)
+    dev.release(hits)
+    dev.release(group_of)
+    assert (counts == 1).all()
+    if n >= 64 * 64 * 4:
+        first_half = groups < (groups.max() + 1) / 2
+        shares = [q.mean() for q in np.array_split(first_half, 4)]
+        assert all(0.4 < s < 0.6 for s in shares), shares
+
+
 _LOOP_SRC = """#version 430
 layout(local_size_x = 64) in;
 #include "common.glsl"
@@ -239,9 +284,11 @@ uniform int u_iters;
 void main() {
     cnt_begin();
     uint i = gid();
-    int k = 0;
-    for (int q = 0; q < u_iters; q++) k++;
-    if (i < uint(u_n)) out_[i] = k;
+    if (i < uint(u_n)) {  // (the dispatch's idle invocations past u_n do not loop)
+        int k = 0;
+        for (int q = 0; q < u_iters; q++) k++;
+        out_[i] = k;
+    }
     cnt_end();
 }
 """

@@ -153,3 +153,23 @@ def test_shading_and_glossy_rays_split_over_dispatches_give_the_same_frame(monke
         np.testing.assert_allclose(img, one, rtol=1e-5, atol=1e-7)
         assert (s["spp"] == st["spp"]).all() and s["light_samples"] == st["light_samples"]
         assert s["glossy_rays"] == st["glossy_rays"]
+
+
+def test_sl_gt_passes_are_the_mean_of_single_pass_frames_on_the_same_cuts(monkeypatch):
+    """sl_gt refines each tile's cuts once and draws every pass's lights on them (a cut depends on the shading
+    point alone): its diffuse image is the mean of the ``sl`` frames of one pass each, with the passes' random
+    streams (seed * 100003 + k), to float32 rounding, over a frame of several tiles. A pass lost, repeated or
+    not added would move it by a third of a pass's difference."""
+    import renderers.gpu.lightcuts as GL
+
+    monkeypatch.setattr(GL, "TILE_BYTES", 16 * 64 * 300)  # 300 pixels a tile: 6 tiles of a 48 x 36 frame
+    seed, w, h = 5, 48, 36
+    _, gt = registry.render("cornell_many", "sl_gt", {"lspp": 144, "max_lspp": 48, "rspp": 0, "seed": seed}, w, h,
+                            backend="gpu")
+    singles = [registry.render("cornell_many", "sl_e", {"lspp": 48, "rspp": 0, "seed": seed * 100003 + k}, w, h,
+                               backend="gpu")[1]["diffuse_image"] for k in range(3)]
+    assert gt["passes"] == 3
+    mean = np.mean(singles, axis=0)
+    spread = np.abs(singles[0] - singles[1]).max()
+    assert spread > 1e-3  # the passes differ, so a lost or repeated pass would show
+    np.testing.assert_allclose(gt["diffuse_image"], mean, rtol=1e-5, atol=1e-6)

@@ -32,6 +32,9 @@ MEMORY_ENV = "STUDYAPP_GPU_MEMORY_MB"
 REQUIRED_VERSION = 430
 #: Texels per row of the scene-table textures (a power of two; every OpenGL 4.3 device allows 16384).
 TEX_WIDTH = 4096
+#: Interleaved stripes of workgroups per dispatch (``Device.dispatch``, ``common.glsl`` ``gid()``): any thread
+#: count of llvmpipe up to this many gets an even share of every part of the image.
+STRIPES = 64
 
 _DEVICE: "Device | None" = None
 
@@ -211,13 +214,21 @@ class Device:
     def dispatch(self, prog, n: int, local: int = 64) -> None:
         """Run ``prog`` over ``n`` invocations of a 1-D problem (2-D grid when the group count exceeds the limit).
 
-        The shader reads its index with ``gid()`` from ``common.glsl`` (``x + y * GROUPS_X * local``).
+        The shader reads its index with ``gid()`` from ``common.glsl``, which deals the blocks of ``local``
+        invocations to the workgroups in :data:`STRIPES` interleaved stripes: llvmpipe hands each of its threads
+        one contiguous range of workgroups per dispatch (Mesa's ``lp_cs_tpool``), so where the work is uneven over
+        the image (glossy pixels, occluded corners) one core would otherwise idle while the other finishes.
         """
         groups = max(1, -(-int(n) // local))
-        gx = min(groups, self.max_groups)
-        gy = -(-groups // gx)
+        rows = -(-groups // STRIPES)
+        padded = rows * STRIPES  # at most STRIPES - 1 idle workgroups
+        gx = min(padded, self.max_groups)
+        gy = -(-padded // gx)
         if "u_groups_x" in prog:
             prog["u_groups_x"] = gx
+        if "u_group_rows" in prog:
+            prog["u_group_rows"] = rows
+            prog["u_stripes"] = STRIPES
         if "u_n" in prog:
             prog["u_n"] = int(n)
         if "u_loop_probe" in prog:  # common.glsl's check of llvmpipe's loop limit

@@ -158,12 +158,14 @@ class LightcutsFrame:
                                                    "u_step": step, "u_full": int(full)})
         return g
 
-    def lightcuts(self, g: GBuffer, budget: int | None, cut_max: int, seed: int, *, id_base: int = 0,
-                  multires: bool = False, accumulate: bool = False, steps=("cuts", "select", "shade"),
-                  low_res: bool = False) -> None:
+    def lightcuts(self, g: GBuffer, budget: int | None, cut_max: int, seeds, *, id_base: int = 0,
+                  multires: bool = False, steps=("cuts", "select", "shade"), low_res: bool = False) -> None:
         """Stochastic lightcuts over ``g``'s pixels in tiles: cuts of ``budget`` nodes (None: each pixel's
-        ``ctl`` budget), one light per node (Algorithm 2 with ``multires``), shading with shadow rays into ``rad``
-        (added with ``accumulate``). ``low_res`` also sorts each pixel's samples into ``LS'``."""
+        ``ctl`` budget), one light per node (Algorithm 2 with ``multires``), shading with shadow rays into ``rad``.
+        ``seeds``: one random stream (an int), or several (sl_gt's passes), each of which draws and shades its
+        own lights on the same cuts (a cut depends on the shading point alone), their radiance summed in ``rad``.
+        ``low_res`` also sorts each pixel's samples into ``LS'``."""
+        seeds = [seeds] if isinstance(seeds, int) else list(seeds)
         tile = max(1, min(g.n, TILE_BYTES // (16 * cut_max)))
         smp = self.fr.pool.get("lc_smp", 16 * tile * cut_max)
         bufs = {**g.buffers, 8: smp}
@@ -172,23 +174,24 @@ class LightcutsFrame:
             self.lr_pix, self.lr_size = g.buffers[9], (g.width, g.height)
         if multires:
             bufs.update({10: self.lr_ls, 11: self.lr_pix})
-        uni = {"u_seed": _seed(seed), "u_id_base": int(id_base), "u_budget": -1 if budget is None else int(budget),
-               "u_shadows": self.shadows, "u_accumulate": int(accumulate), "u_width": g.width,
+        uni = {"u_id_base": int(id_base), "u_budget": -1 if budget is None else int(budget),
+               "u_shadows": self.shadows, "u_width": g.width,
                "u_lr_scale": (self.lr_size[0] / g.width, self.lr_size[1] / g.height),
                "u_lr_width": self.lr_size[0], "u_lr_height": self.lr_size[1]}
         for first in range(0, g.n, tile):
             m = min(tile, g.n - first)
-            u = {**uni, "u_first": first}
             with self.step(steps[0]):
-                self.run("lc_cut.comp", m, bufs, u, cut_max)
-            with self.step(steps[1]):
-                self.run("lc_select.comp", m, bufs, u, cut_max, {"MULTIRES": int(multires)})
-            with self.step(steps[2]):
-                for s0 in range(0, cut_max, SHADE_SLICE):
-                    self.run("lc_shade.comp", m, bufs, {**u, "u_s0": s0, "u_s1": s0 + SHADE_SLICE}, cut_max)
-                if low_res:
-                    self.run("lc_low_res.comp", m, {**bufs, 10: self.lr_ls}, u, cut_max)
-            self.fr.drain_counters()
+                self.run("lc_cut.comp", m, bufs, {**uni, "u_first": first}, cut_max)
+            for k, seed in enumerate(seeds):
+                u = {**uni, "u_first": first, "u_seed": _seed(seed), "u_accumulate": int(k > 0)}
+                with self.step(steps[1]):
+                    self.run("lc_select.comp", m, bufs, u, cut_max, {"MULTIRES": int(multires)})
+                with self.step(steps[2]):
+                    for s0 in range(0, cut_max, SHADE_SLICE):
+                        self.run("lc_shade.comp", m, bufs, {**u, "u_s0": s0, "u_s1": s0 + SHADE_SLICE}, cut_max)
+                    if low_res:
+                        self.run("lc_low_res.comp", m, {**bufs, 10: self.lr_ls}, u, cut_max)
+                self.fr.drain_counters()  # each pass's counts, well below 32 bits
 
     def glossy(self, g: GBuffer, rspp: int | None, max_rspp: int, seed: int, lspp_bounce: int):
         """The glossy pass over ``g`` (``rspp`` rays per glossy pixel, None: each pixel's ``ctl``, at most
@@ -290,7 +293,6 @@ def run_sl_gt(ctx):
     p = ctx.params
     lc, g, cut = _begin(ctx, "sl_gt.max_lspp", p["max_lspp"])
     passes = max(1, math.ceil(p["lspp"] / p["max_lspp"]))
-    for k in range(passes):
-        lc.lightcuts(g, p["max_lspp"], cut, p["seed"] * 100003 + k, accumulate=k > 0)
+    lc.lightcuts(g, p["max_lspp"], cut, [p["seed"] * 100003 + k for k in range(passes)])
     ctx.extra["passes"] = passes
     return _end(lc, g, p["rspp"], p["rspp"], lspp_bounce=4, passes=passes)

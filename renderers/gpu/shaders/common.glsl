@@ -1,10 +1,20 @@
 // Shared by every compute shader: the 1-D invocation index and the per-workgroup counter reduction.
 // COUNTERS (the number of counters) and the C_* indices are defined by the host (renderers/gpu/frame.py).
 uniform int u_groups_x;
+uniform int u_group_rows;
+uniform int u_stripes;
 uniform int u_n;
 
+// Workgroup g (in dispatch order) takes block (g % rows) * stripes + g / rows of the problem's blocks of
+// gl_WorkGroupSize.x invocations, the host dispatching rows * stripes groups (renderers/gpu/context.py STRIPES):
+// llvmpipe gives each thread a contiguous range of workgroups, which then spans every part of the image, so
+// uneven work (glossy pixels in one corner) is shared. Groups past rows * stripes (the 2-D grid's rounding) get
+// an index past every problem (no block).
 uint gid() {
-    return gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * uint(u_groups_x) * gl_WorkGroupSize.x;
+    uint g = gl_WorkGroupID.x + gl_WorkGroupID.y * uint(u_groups_x);
+    uint rows = uint(u_group_rows), stripes = uint(u_stripes);
+    if (g >= rows * stripes) return 0x7FFFFFFFu;  // above any u_n, as uint and as int
+    return ((g % rows) * stripes + g / rows) * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
 }
 
 #ifdef COUNTERS
