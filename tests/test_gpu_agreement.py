@@ -81,3 +81,30 @@ def test_gaze_follows_without_reupload():
     assert get_device().cache["uploads"] == uploads and st["setup_seconds"] < 1.0
     c, _ = cpu_render("cornell", "lafr", {}, W, H, gaze=(120, 90))
     assert agreement(c, b)[1] >= 0.99 and agreement(a, b)[1] < 0.9
+
+
+@pytest.mark.parametrize("scene,renderer,params", [
+    ("cornell", "gt", {"spp": 4, "filter": "tent"}),
+    ("cornell", "vafr", {"stereo": "rep", "eye": "right"}),
+    ("cornell", "vafr", {"pipeline": "deferred", "preset": "auto"}),
+    ("cornell", "lmfr", {}),
+    ("cornell_many", "fsl", {}),
+    ("cornell_many", "sl_as", {}),
+    ("cornell_many", "sl_gt", {"lspp": 96, "rspp": 16}),
+], ids=lambda v: v if isinstance(v, str) else None)
+def test_dealing_workgroups_in_stripes_changes_no_pixel(monkeypatch, scene, renderer, params):
+    """``Device.dispatch`` deals workgroups in interleaved stripes (so llvmpipe's threads share uneven work): the
+    same invocations run, only in another order, so every pipeline gives the same frame and counts as with the
+    workgroups dealt in order (STRIPES = 1)."""
+    import renderers.gpu.context as C
+
+    frames = []
+    for stripes in (1, C.STRIPES):
+        monkeypatch.setattr(C, "STRIPES", stripes)
+        frames.append(gpu_render(scene, renderer, params, 96, 54))
+    (a, sa), (b, sb) = frames
+    assert float(a.max()) > 0
+    np.testing.assert_array_equal(a, b)
+    for k in ("shading_points", "rays_primary", "rays_shadow", "light_samples", "glossy_rays"):
+        if k in sa:
+            assert sa[k] == sb[k], (k, sa[k], sb[k])

@@ -260,8 +260,10 @@ def reproject(fr: Frame, tables: LPTables, left_lp, left, right, width: int, hei
     ztri.clear(chunk=np.array([np.inf], dtype=np.float32).tobytes())
     covered = fr.pool.get("covered", 4 * w * h)
     covered.clear()
+    winner = fr.pool.get("winner", 4 * w * h)
+    winner.clear()
     rep = {0: fr.pool.get("warp", 16 * w * h), 1: zbuf, 2: covered, 3: ztri, 14: fr.pool.get("flags", 4 * w * h),
-           **tables.buffers}
+           15: winner, **tables.buffers}
     f, r, u = right.basis()
     cam = camera_uniforms(right, width, height)
     uni = {**tables.uniforms(gaze), **cam, "u_left_pos": tuple(left.position), "u_right_pos": tuple(right.position),
@@ -275,9 +277,10 @@ def reproject(fr: Frame, tables: LPTables, left_lp, left, right, width: int, hei
                {**uni, "u_count_at": C["samples"]}, tables.defines(), tables.images)
         if cpu.GRID_WARP:
             quads = max(0, (tables.w_eff - 1) * (h - 1))
-            fr.run("rep_warp.comp", quads, rep, uni, {"PHASE": 1}, images)
-            fr.run("rep_warp.comp", quads, rep, uni, {"PHASE": 2}, images)
-        fr.run("rep_splat.comp", w * h, rep, uni, None, images)
+            for phase in (1, 2, 3):
+                fr.run("rep_warp.comp", quads, rep, uni, {"PHASE": phase}, images)
+        for phase in (1, 2):
+            fr.run("rep_splat.comp", w * h, rep, uni, {"PHASE": phase}, images)
         fr.run("rep_holes.comp", w * h, {**fr.sample_buffers(tables.n_mask), **rep}, uni, {"OUT_IMAGE": 1}, images)
     fr.shade_batch(right.position, tables.n_mask, right_lp, count_at=C["holes"], uniforms={"u_out_w": w},
                    defines={"OUT_IMAGE": 1})
