@@ -241,7 +241,8 @@ def model_section(rows, plan, elapsed: float, gt_samples: int, command: str, mod
         f"{slots} ray slots; on llvmpipe a 2160x2160 frame takes hours. Each row is one frame of "
         f"{passes} pass(es) and {chunks} dispatch(es) (scene camera, gaze at the centre, one eye, after an untimed "
         "64x48 frame), and the whole frame predicted from its step times: light-pass steps (select + shade; the "
-        f"cuts are refined once for all passes) x {full_passes} / {passes}, glossy x {full_chunks} / {chunks}, the rest as measured "
+        f"cuts are refined once for all passes) x {full_passes} / {passes}, glossy x {full_chunks} / {chunks}, "
+        "the rest as measured "
         "(`bench_gpu_lightcuts.gt_frame_ms`: each pass repeats the same sampling with other random numbers). "
         "`whole frame`: the same frame measured whole, where a speed section has it; the ratio checks the "
         "prediction.", "", LLVMPIPE_NOTE, "",
@@ -252,8 +253,8 @@ def model_section(rows, plan, elapsed: float, gt_samples: int, command: str, mod
         w = whole.get((r["scene"], r["size"]))
         check = (f"{float(w['total_ms']):,.0f} | {r['predicted_ms'] / float(w['total_ms']):.3f}" if w
                  else "not measured | -")
-        lines.append(f"| {r['scene']} | {r['size']} | {r['total_ms']:,.0f} | {gt_pass_ms(r):,.0f} | {r['glossy_ms']:,.0f} | "
-                     f"{r['predicted_ms']:,.0f} | {r['predicted_ms'] / 60e3:.1f} | "
+        lines.append(f"| {r['scene']} | {r['size']} | {r['total_ms']:,.0f} | {gt_pass_ms(r):,.0f} | "
+                     f"{r['glossy_ms']:,.0f} | {r['predicted_ms']:,.0f} | {r['predicted_ms'] / 60e3:.1f} | "
                      f"{r['predicted_light_samples']:,} | {check} | {r['peak_mb']:,.0f} | {r['load']:.1f} |")
     sources = sorted({w["file"] for w in whole.values()})
     if sources:
