@@ -119,6 +119,14 @@ class LoopbackCluster:
     def _log(self, name):
         return (self.folder / f"{name}.log").read_text()[-2000:]
 
+    def wait_idle(self, timeout: float = 60) -> None:
+        """Until no worker is running a task: a task whose client died still runs to its end (a thread cannot be
+        stopped) and writes its frame to the cache."""
+        deadline = time.monotonic() + timeout
+        while any(self.client.run(lambda dask_worker: len(dask_worker.state.executing)).values()):
+            assert time.monotonic() < deadline, "a worker is still busy"
+            time.sleep(0.05)
+
     def pid_of(self, address: str) -> int:
         return self.workers[self.client.scheduler_info()["workers"][address]["name"]].pid
 
@@ -345,6 +353,7 @@ def test_a_killed_prepare_resumes_where_it_stopped(tiny, tmp_path, loopback, ser
         proc.kill()
     finally:
         proc.wait()
+    loopback.wait_idle()  # the frame a worker was rendering still reaches the cache, whole
     kept = len(list(cache.rglob("*.png")))
     assert 1 <= kept <= 9 and not list(stim.rglob(".*.tmp")) and not list(cache.rglob(".*.tmp"))
     res = prepare(load_protocol(tiny, stimuli_dir=stim), cache_dir=cache,
