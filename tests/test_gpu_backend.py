@@ -236,8 +236,11 @@ layout(local_size_x = 64) in;
 #include "common.glsl"
 layout(std430, binding = 1) buffer Hits { uint hits[]; };
 layout(std430, binding = 2) buffer Group { uint group_of[]; };
+layout(std430, binding = 3) buffer Grid { uint grid_groups; };
 void main() {
     uint i = gid();
+    if (gl_WorkGroupID.x == 0u && gl_WorkGroupID.y == 0u && gl_LocalInvocationID.x == 0u)
+        grid_groups = gl_NumWorkGroups.x * gl_NumWorkGroups.y;
     if (i < uint(u_n)) {
         atomicAdd(hits[i], 1u);
         group_of[i] = gl_WorkGroupID.x + gl_WorkGroupID.y * uint(u_groups_x);
@@ -247,31 +250,36 @@ void main() {
 
 
 @pytest.mark.parametrize("n, max_groups", [(1, None), (64 * 64 + 5, None), (100_000, None), (100_000, 7),
-                                           (64 * 1000, 999)])
+                                           (64 * 1000, 999), (64 * 1000, 700)])
 def test_dispatch_covers_every_index_once_with_the_work_interleaved(monkeypatch, n, max_groups):
     """Every index of a dispatch runs exactly once (1-D and 2-D grids), and the first half of the workgroups in
     dispatch order (llvmpipe's first thread) covers about half of every quarter of the problem: uneven work
     (glossy pixels in one part of the image) is shared by the threads. With blocks dealt in order the first half
-    would cover the first two quarters alone."""
+    would cover the first two quarters alone; with a 2-D grid of full rows (a second row mostly idle, as at
+    2160 x 2160) the first thread would get nearly all the work."""
     from renderers.gpu.context import get_device
 
     dev = get_device()
     if max_groups:
         monkeypatch.setattr(dev, "max_groups", max_groups)
     prog = dev.program("gid_test.comp", {}, source=_GID_SRC)
-    hits, group_of = dev.buffer(reserve=4 * n), dev.buffer(reserve=4 * n)
+    hits, group_of, grid = dev.buffer(reserve=4 * n), dev.buffer(reserve=4 * n), dev.buffer(reserve=4)
     hits.clear()
-    hits.bind_to_storage_buffer(1)
-    group_of.bind_to_storage_buffer(2)
+    for binding, buf in enumerate((hits, group_of, grid), start=1):
+        buf.bind_to_storage_buffer(binding)
     dev.dispatch(prog, n)
     dev.finish()
     counts = np.frombuffer(hits.read(), dtype=np.uint32)
     groups = np.frombuffer(group_of.read(), dtype=np.uint32)
-    dev.release(hits)
-    dev.release(group_of)
+    dispatched = int(np.frombuffer(grid.read(), dtype=np.uint32)[0])  # the grid's workgroups, idle ones included
+    for buf in (hits, group_of, grid):
+        dev.release(buf)
     assert (counts == 1).all()
+    needed = -(-n // 64)
+    assert needed <= dispatched < needed + 64 + dispatched // dev.max_groups  # padding: stripes and grid rows
     if n >= 64 * 64 * 4:
-        first_half = groups < (groups.max() + 1) / 2
+        # llvmpipe's first thread: the first half of the grid in dispatch order (not of the busy workgroups)
+        first_half = groups < dispatched / 2
         shares = [q.mean() for q in np.array_split(first_half, 4)]
         assert all(0.4 < s < 0.6 for s in shares), shares
 
