@@ -10,6 +10,8 @@ import sys
 
 import numpy as np
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 from data_schema.errors import UserError
 
@@ -282,6 +284,18 @@ def test_dispatch_covers_every_index_once_with_the_work_interleaved(monkeypatch,
         first_half = groups < dispatched / 2
         shares = [q.mean() for q in np.array_split(first_half, 4)]
         assert all(0.4 < s < 0.6 for s in shares), shares
+
+
+@settings(max_examples=300, deadline=None)
+@given(groups=st.integers(1, 10**8), max_groups=st.integers(1, 70_000))
+def test_the_grid_holds_the_work_with_less_than_a_row_of_idle_groups(groups, max_groups):
+    from renderers.gpu.context import grid_shape
+
+    assume(groups <= max_groups**2)
+    gx, gy = grid_shape(groups, max_groups)
+    assert 1 <= gx <= max_groups and 1 <= gy <= max_groups
+    assert 0 <= gx * gy - groups < gy  # llvmpipe's threads each get a contiguous part of gx * gy: little idle
+    assert gy == -(-groups // max_groups)  # the fewest rows
 
 
 _LOOP_SRC = """#version 430

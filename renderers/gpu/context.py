@@ -73,6 +73,16 @@ def _create_context(source: str):
                         f"(Debian: libegl1 libegl-mesa0 libgl1-mesa-dri) or {WAY_OUT}") from None
 
 
+def grid_shape(groups: int, max_groups: int) -> tuple[int, int]:
+    """The 2-D grid ``(gx, gy)`` of a dispatch of ``groups`` workgroups, each side at most ``max_groups``: the
+    fewest rows, then the narrowest width that holds them, so ``gx * gy - groups < gy``.
+
+    Full rows (``gx = max_groups``) would pad a 2160 x 2160 frame's 72,960 workgroups to 131,070, and llvmpipe,
+    which hands each thread one contiguous half of the grid, would give its second thread the idle half."""
+    gy = -(-groups // max_groups)
+    return -(-groups // gy), gy
+
+
 class Device:
     """A moderngl context with the checks and helpers the GPU renderers need.
 
@@ -222,11 +232,7 @@ class Device:
         groups = max(1, -(-int(n) // local))
         rows = -(-groups // STRIPES)
         padded = rows * STRIPES  # at most STRIPES - 1 idle workgroups
-        # The fewest rows of the 2-D grid, then the narrowest width that holds them: gx * gy - padded < gy. (A full
-        # first row, gx = max_groups, padded 4.2 M invocations to 8.4 M at 2160 x 2160: llvmpipe's second thread
-        # got the idle half of the grid and the first one the work.)
-        gy = -(-padded // self.max_groups)
-        gx = -(-padded // gy)
+        gx, gy = grid_shape(padded, self.max_groups)
         if "u_groups_x" in prog:
             prog["u_groups_x"] = gx
         if "u_group_rows" in prog:
