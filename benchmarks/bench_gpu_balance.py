@@ -50,7 +50,7 @@ def _full_rows(groups: int, max_groups: int) -> tuple[int, int]:
     return gx, -(-groups // gx)
 
 
-#: Each A/B: its labels (the old way first, the default second) and how to switch the device to either.
+#: Each A/B and its labels, the old way first, the default second (:func:`_switch` sets either).
 AB = {"stripes": ("in order", "interleaved"), "grid": ("full rows", "fitted")}
 
 
