@@ -3,16 +3,22 @@
 A reader (or a crash) never sees a half-written file: either the old content or the new one. A failed write
 removes its temporary file and reports the *target* (never the temporary name) in one line, e.g.
 ``results/report.md: cannot write: no space left on device``. :func:`atomic_dir` does the same for a folder of
-files, and :func:`check_target` refuses targets whose loss would destroy data (a study database).
+files, and :func:`check_target` refuses targets whose loss would destroy data (a study database). A process
+killed mid-write leaves its temporary file: :func:`remove_stale_temporaries` removes those, and
+:func:`sole_writer` keeps a second writer out of a folder so that the sweep cannot take a live one's file.
 """
 
 from __future__ import annotations
 
 import contextlib
 import errno
+import itertools
 import os
+import re
 import shutil
+import stat
 import tempfile
+import time
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -20,11 +26,83 @@ from .errors import UserError
 
 SQLITE_MAGIC = b"SQLite format 3\x00"
 
+#: The name of an atomic write's temporary file: ``.<target name>.<mkstemp's 8 random characters>.tmp``.
+TEMPORARY_NAME = re.compile(r"\..+\.[a-z0-9_]{8}\.tmp", re.DOTALL)  # a name may hold a line break
+#: A temporary file older than this was left by a process that was killed mid-write (SIGKILL, power cut): every
+#: write of ours renames its temporary file within seconds (a frame, a stats record), so none is this old.
+STALE_TEMPORARY_S = 600.0
+
 
 def current_umask() -> int:
     mask = os.umask(0o022)
     os.umask(mask)
     return mask
+
+
+def _new_temporary(path: Path) -> Path:
+    """A new, empty temporary file next to ``path`` whose name matches :data:`TEMPORARY_NAME`."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    return Path(tmp)
+
+
+def remove_stale_temporaries(folder, older_than_s: float = STALE_TEMPORARY_S) -> int:
+    """Remove the temporary files that killed writers left in ``folder``; return how many.
+
+    Only regular files named like ours (:data:`TEMPORARY_NAME`) and last modified over ``older_than_s`` seconds
+    ago are removed, so a write under way in another process keeps its file (``older_than_s=0`` where
+    :func:`sole_writer` rules out any) and a user's own files are never touched. For folders only our commands
+    write to (a stimulus set, the stimulus cache), before they resume.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        return 0
+    cutoff = time.time() - older_than_s
+    removed = 0
+    for f in folder.glob(".*.tmp"):
+        with contextlib.suppress(OSError):  # gone already, or not ours to remove: leave it
+            st = f.lstat()
+            if TEMPORARY_NAME.fullmatch(f.name) and stat.S_ISREG(st.st_mode) and st.st_mtime < cutoff:
+                f.unlink()
+                removed += 1
+    return removed
+
+
+@contextlib.contextmanager
+def sole_writer(folder, command: str):
+    """Run the block as the only ``command`` writing into ``folder``; yield True when that is locked in.
+
+    A second process that asks for the same folder meanwhile is refused in one line. The lock (``fcntl.flock``
+    on the empty file ``folder/.<command>.lock``, which stays: its content never differs between runs) ends with
+    its process however that ends, SIGKILL included, so a killed writer never blocks the next. A block that
+    wrote nothing into a folder this had to create (a refused or failed command) leaves no folder and no lock.
+    Where there are no such locks (Windows) the block runs unlocked and this yields False.
+    """
+    try:
+        import fcntl
+    except ImportError:
+        yield False
+        return
+    lock = Path(folder) / f".{command}.lock"
+    new = list(itertools.takewhile(lambda d: not d.exists(), (lock.parent, *lock.parent.parents)))
+    try:
+        lock.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(lock, os.O_RDONLY | os.O_CREAT, 0o666)
+    except OSError as exc:
+        raise _write_error(lock, exc) from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise UserError(f"{lock.parent}: another {command} is writing here: wait for it to end") from None
+        yield True
+    finally:
+        with contextlib.suppress(OSError):
+            if new and [f.name for f in lock.parent.iterdir()] == [lock.name]:  # nothing written: leave no trace
+                lock.unlink()
+                for d in new:  # the deepest first; a folder with anything in it stays
+                    d.rmdir()
+        os.close(fd)
 
 
 def _write_error(path: Path, exc: OSError) -> UserError:
@@ -42,12 +120,11 @@ def atomic_path(path):
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        os.close(fd)
+        tmp = _new_temporary(path)
     except OSError as exc:
         raise _write_error(path, exc) from None
     try:
-        yield Path(tmp)
+        yield tmp
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
         os.chmod(tmp, 0o666 & ~current_umask())
@@ -84,9 +161,7 @@ def atomic_files(paths: Iterable):
     try:
         for t in targets:
             t.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=f".{t.name}.", suffix=".tmp", dir=t.parent)
-            os.close(fd)
-            tmps.append(Path(tmp))
+            tmps.append(_new_temporary(t))
         yield list(tmps)
         for tmp in tmps:
             with open(tmp, "rb+") as fh:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -197,6 +198,14 @@ def render_entry(request: FrameRequest) -> CacheEntry:
     save_png(buf, img, sc.exposure)
     stats_json = json.dumps({"key": key, **jsonable_stats(stats)}, indent=1, sort_keys=True) + "\n"
     return CacheEntry(key, np.asarray(img, dtype=np.float32), stats_json, buf.getvalue())
+
+
+def remove_stale_cache_temporaries(cache_dir) -> int:
+    """Remove the temporary files that a killed writer left in the cache's entry folders; return how many."""
+    from data_schema.atomic import remove_stale_temporaries
+
+    folders = (d for d in Path(cache_dir).glob("??") if re.fullmatch("[0-9a-f]{2}", d.name))  # cached_png's
+    return sum(map(remove_stale_temporaries, folders))
 
 
 def write_entry(cache_dir, entry: CacheEntry) -> Path:

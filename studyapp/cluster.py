@@ -307,18 +307,20 @@ def render_frames(frames: list[tuple[str, dict]], cache_dir, spec: ClusterSpec,
     In process each frame goes through ``render`` (default :func:`renderers.stimuli.render_stimulus`, which
     looks the frame up first). On a cluster the client computes every key first, hands frames already cached to
     ``on_frame`` at once and submits one task per missing key (a key shared by several frames renders once).
-    Returns ``{"rendered": tasks run, "cached": frames found in the cache, "seconds": wall time}``.
+    Temporary files that a killed run left in the cache are removed first. Returns ``{"rendered": tasks run,
+    "cached": frames found in the cache, "removed": temporary files removed, "seconds": wall time}``.
     """
     from renderers import stimuli
 
     t0 = time.perf_counter()
+    removed = stimuli.remove_stale_cache_temporaries(cache_dir)
     if spec.in_process:
         render = render or stimuli.render_stimulus
         tasks = [Task(f"frame-{i}", label, functools.partial(render, **kw, cache_dir=cache_dir))
                  for i, (label, kw) in enumerate(frames)]
         index = {t.name: i for i, t in enumerate(tasks)}
         run_tasks(tasks, spec, (lambda t, png: on_frame(index[t.name], png)) if on_frame else None, progress)
-        return {"rendered": len(tasks), "cached": 0, "seconds": time.perf_counter() - t0}
+        return {"rendered": len(tasks), "cached": 0, "removed": removed, "seconds": time.perf_counter() - t0}
     if render is not None:
         raise ValueError("a custom render function runs in process only (spec.serial)")
     todo: dict[str, list[int]] = {}
@@ -356,4 +358,4 @@ def render_frames(frames: list[tuple[str, dict]], cache_dir, spec: ClusterSpec,
     if cached and progress:
         progress(cached, cached + len(tasks), float("nan"))
     run_tasks(tasks, spec, written, counted)
-    return {"rendered": len(tasks), "cached": cached, "seconds": time.perf_counter() - t0}
+    return {"rendered": len(tasks), "cached": cached, "removed": removed, "seconds": time.perf_counter() - t0}

@@ -3,11 +3,18 @@
 import io
 import itertools
 import math
+import os
 import re
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
 
 from studyapp.progress import Bar
 from studyapp.runner.camera import absolute_camera, camera_at
@@ -18,6 +25,7 @@ from studyapp.runner.stimuli import (
     missing_stimuli,
     needed_stimuli,
     prepare,
+    stimulus_root,
 )
 
 PROTOCOLS = Path(__file__).resolve().parents[1] / "protocols"
@@ -270,3 +278,98 @@ def test_prepare_renders_each_condition_on_its_backend(tmp_path):
     # only the condition that asks for the GPU goes there (the key of its cache entry includes the backend)
     assert by_backend["gpu"] == {(("delta", 2.2),)}
     assert (("delta", 2.2),) not in by_backend["cpu"] and (("delta", 1.8),) in by_backend["cpu"]
+
+
+def _seed001(tmp_path):
+    """seed001_2afc at scale 0.05 with a fake renderer: its stimulus set, complete, cached in ``tmp_path/cache``."""
+    p = _load_text(tmp_path, (PROTOCOLS / "seed001_2afc.yaml").read_text())
+    fake = FakeRenderer(tmp_path)
+    assert prepare(p, scale=0.05, render=fake, cache_dir=tmp_path / "cache")["removed"] == 0
+    return p, fake
+
+
+def test_a_resumed_prepare_removes_what_a_killed_one_left_and_nothing_else(tmp_path):
+    """A prepare killed mid-copy leaves the frame missing and its temporary file beside it: the next prepare
+    removes that file (any age: it holds the set's lock) and the cache's stale ones (over 10 minutes old: the
+    cache has no lock), and leaves every file that is not an atomic write's temporary of ours."""
+    p, fake = _seed001(tmp_path)
+    frame = frame_paths(p, "VaFR_Rep", "temple", 0.05)[3]
+    frame.unlink()
+    killed = frame.parent / f".{frame.name}.k9_x2abc.tmp"  # mkstemp's name for it
+    killed.write_bytes(b"half a PNG")
+    theirs = tmp_path / "theirs.txt"
+    theirs.write_text("a user's file")
+    kept = [frame.parent / ".notes.tmp", frame.parent / f"{frame.name}.k9_x2abc.tmp",
+            frame.parent / f".{frame.name}.TOO_LONG_X.tmp", frame_paths(p, "GT", "temple", 0.05)[0].parent / ".x"]
+    for f in kept:
+        f.write_text("not ours")
+    link = frame.parent / f".{frame.name}.linkabcd.tmp"
+    link.symlink_to(theirs)
+    cache = tmp_path / "cache"
+    old, fresh, elsewhere = (cache / "ab" / ".e.png.old12345.tmp", cache / "ab" / ".e.png.new12345.tmp",
+                             cache / "notes" / ".e.png.old12345.tmp")
+    for f in (old, fresh, elsewhere):
+        f.parent.mkdir(parents=True, exist_ok=True)
+        f.write_bytes(b"x")
+    hour_ago = time.time() - 3600
+    for f in (old, elsewhere, *kept):
+        os.utime(f, (hour_ago, hour_ago))
+    res = prepare(p, scale=0.05, render=fake, cache_dir=cache)
+    assert res["removed"] == 2 and res["rendered"] == 1 and frame.is_file()
+    assert not killed.exists() and not old.exists()
+    assert all(f.exists() for f in (*kept, fresh, elsewhere)) and link.is_symlink()
+    assert theirs.read_text() == "a user's file"
+    assert missing_stimuli(p, 0.05) == []
+
+
+def test_a_second_prepare_of_the_same_set_is_refused_in_one_line(tmp_path, capsys):
+    from data_schema.atomic import sole_writer
+    from studyapp.cli import main
+
+    p, _ = _seed001(tmp_path)
+    frame = frame_paths(p, "VaFR_Rep", "temple", 0.05)[0]
+    frame.unlink()
+    before = sorted(x.relative_to(tmp_path) for x in tmp_path.rglob("*"))
+    with sole_writer(stimulus_root(p, 0.05), "prepare") as alone:
+        assert alone
+        code = main(["prepare", str(p.path), "--scale", "0.05", "--stimuli", str(tmp_path / "stim"), "--serial",
+                     "--cache", str(tmp_path / "cache")])
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+        assert err.endswith("scale0.05: another prepare is writing here: wait for it to end\n"), err
+    assert sorted(x.relative_to(tmp_path) for x in tmp_path.rglob("*")) == before  # nothing written
+    # the lock ends with its holder: the same prepare now runs
+    assert prepare(p, scale=0.05, render=FakeRenderer(tmp_path), cache_dir=tmp_path / "cache")["rendered"] == 1
+
+
+def test_a_killed_prepares_lock_does_not_block_the_next(tmp_path):
+    p, _ = _seed001(tmp_path)
+    root = stimulus_root(p, 0.05)
+    code = ("import os, sys; from data_schema.atomic import sole_writer\n"
+            "with sole_writer(sys.argv[1], 'prepare') as alone:\n    print(alone, flush=True); os.kill(os.getpid(), 9)")
+    r = subprocess.run([sys.executable, "-c", code, str(root)], capture_output=True, text=True, timeout=60,
+                       env={**os.environ, "PYTHONPATH": str(PROTOCOLS.parent)})
+    assert r.returncode == -signal.SIGKILL and r.stdout == "True\n", r.stderr  # killed while it held the lock
+    assert (root / ".prepare.lock").read_bytes() == b""
+    frame_paths(p, "GT", "temple", 0.05)[0].unlink()
+    assert prepare(p, scale=0.05, render=FakeRenderer(tmp_path), cache_dir=tmp_path / "cache")["rendered"] == 1
+
+
+@given(st.text(st.characters(blacklist_characters="/\x00", blacklist_categories=("Cs",)), min_size=1, max_size=60)
+       .filter(lambda n: n not in (".", "..") and len(n.encode()) < 200))
+@example("frame\n.png")
+@example(".hidden")
+@example("é " * 30)
+@settings(max_examples=40, deadline=None)
+def test_every_temporary_an_atomic_write_makes_is_one_the_sweep_knows(name):
+    """Whatever the target's name, its temporary file matches TEMPORARY_NAME (else a killed write's file would
+    stay forever), and the sweep removes it once stale."""
+    import tempfile
+
+    from data_schema.atomic import TEMPORARY_NAME, _new_temporary, remove_stale_temporaries
+
+    with tempfile.TemporaryDirectory() as d:
+        tmp = _new_temporary(Path(d) / name)
+        assert tmp.parent == Path(d) and TEMPORARY_NAME.fullmatch(tmp.name), tmp.name
+        assert remove_stale_temporaries(d) == 0 and tmp.exists()  # a write under way is left alone
+        assert remove_stale_temporaries(d, older_than_s=-1.0) == 1 and not any(Path(d).iterdir())

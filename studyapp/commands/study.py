@@ -76,6 +76,8 @@ def cmd_prepare(args) -> int:
     res = prepare(p, scale=args.scale, progress=bar, cache_dir=Path(args.cache) if args.cache else None,
                   cluster=spec)
     bar.close()
+    if res["removed"]:
+        print(f"removed {res['removed']} temporary file(s) that a stopped prepare had left")
     print(f"{p.name}: {res['frames']} frame(s) built ({res['rendered']} rendered, {res['cached']} from the cache) "
           f"on {spec.describe()} in {_fmt_seconds(res['seconds'])} -> {stimulus_root(p, args.scale)}")
     return 0

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from data_schema.atomic import atomic_path
+from data_schema.atomic import STALE_TEMPORARY_S, atomic_path, remove_stale_temporaries, sole_writer
 from data_schema.errors import UserError
 from data_schema.ranges import SCALE
 
@@ -154,11 +154,13 @@ def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, ca
     Every missing frame of a renderer condition is one task (:func:`studyapp.cluster.render_frames`) on
     ``cluster`` (a :class:`~studyapp.cluster.ClusterSpec`; default: in this process), rendered into the
     content-addressed cache and copied into the stimulus folder atomically as it arrives, so a killed
-    ``prepare`` resumes where it stopped. ``render`` replaces :func:`renderers.stimuli.render_stimulus` in
-    process (tests). ``progress(done_frames, total_frames, seconds_left)`` is called after every frame; the time
-    left is the frames left times the wall time per frame so far. Returns counts and the elapsed time.
+    ``prepare`` resumes where it stopped (first removing the temporary files that a kill left mid-copy in the
+    folders it writes: :func:`~data_schema.atomic.remove_stale_temporaries`). ``render`` replaces
+    :func:`renderers.stimuli.render_stimulus` in process (tests). ``progress(done_frames, total_frames,
+    seconds_left)`` is called after every frame; the time left is the frames left times the wall time per frame
+    so far. Returns counts (``removed``: stale temporary files) and the elapsed time.
     """
-    from studyapp.cluster import SERIAL, render_frames
+    from studyapp.cluster import SERIAL
 
     SCALE.check("--scale", scale)
     geometry = protocol.render_geometry(scale)
@@ -175,6 +177,20 @@ def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, ca
             raise UserError(f"missing stimulus file {missing} (condition {need.condition}, scene {need.scene}): "
                              "folder conditions are rendered elsewhere")
         todo.append((need, cond, frames))
+    if not todo:
+        return {"frames": 0, "rendered": 0, "cached": 0, "removed": 0, "seconds": 0.0}
+    with sole_writer(root_dir, "prepare") as alone:  # a second prepare of this set is refused in one line
+        # Temporary files in these folders were left by a killed prepare (with the lock, any age is stale).
+        folders = {f.parent for _, _, frames in todo for f in frames}
+        removed = sum(remove_stale_temporaries(d, 0.0 if alone else STALE_TEMPORARY_S) for d in folders)
+        res = _build(protocol, todo, geometry, scale, root, cache, cluster or SERIAL, render, progress)
+    return {**res, "removed": removed + res["removed"]}
+
+
+def _build(protocol: Protocol, todo, geometry, scale: float, root, cache: Path, spec, render, progress) -> dict:
+    """Render and derive the frames of ``todo`` (:func:`prepare`'s list of incomplete stimuli)."""
+    from studyapp.cluster import render_frames
+
     total = sum(len(fr) for _, _, fr in todo)
     jobs, targets = [], []
     for need, cond, frames in todo:
@@ -188,7 +204,6 @@ def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, ca
                               "gaze": geometry.gaze, "camera": frame_camera(protocol, need.scene, i),
                               "backend": protocol.backend_of(need.condition)}))
                 targets.append(dst)
-    spec = cluster or SERIAL
     if jobs and render is None:
         render = render_function()  # one line if the renderers are not usable here
     t0 = time.perf_counter()
@@ -212,7 +227,7 @@ def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, ca
             count["done"] += len(frames)
             if progress:
                 progress(count["done"], total, 0.0)
-    return {"frames": total, "rendered": res["rendered"], "cached": res["cached"],
+    return {"frames": total, "rendered": res["rendered"], "cached": res["cached"], "removed": res["removed"],
             "seconds": time.perf_counter() - t0}
 
 
