@@ -230,9 +230,25 @@ def quality_table(paths: list[Path], gt_image, *, fov_y: float, gaze, fovea_deg:
     return pd.concat(frames, ignore_index=True), written
 
 
-def cmd_quality(args) -> int:
+def _report(table, md: str, written: list[Path], out: Path | None, as_json: bool) -> int:
+    """Write ``quality.csv`` and ``quality.md`` into ``out`` (with the heat maps already ``written`` there), then
+    print the JSON records, the files written, or the Markdown table."""
     from data_schema.atomic import write_text
 
+    if out is not None:
+        written = [write_text(out / "quality.csv", table.to_csv(index=False, lineterminator="\n")),
+                   write_text(out / "quality.md", md)] + written
+    if as_json:
+        print(json.dumps(quality_records(table), indent=2))
+    elif out is not None:
+        for p in written:
+            print(p)
+    else:
+        print(md, end="")
+    return 0
+
+
+def cmd_quality(args) -> int:
     gaze = parse_gaze(args.gaze)
     gt_path = Path(args.gt)
     if not gt_path.exists():
@@ -254,17 +270,7 @@ def cmd_quality(args) -> int:
                                    data_range=args.data_range, out=out)
     md = quality_markdown(table, gt=str(gt_path), fov_y=args.fov_y, gaze=gaze, fovea_deg=args.fovea_deg,
                           shape=gt_image.shape)
-    if out is not None:
-        written = [write_text(out / "quality.csv", table.to_csv(index=False, lineterminator="\n")),
-                   write_text(out / "quality.md", md)] + written
-    if args.json:
-        print(json.dumps(quality_records(table), indent=2))
-    elif out is not None:
-        for p in written:
-            print(p)
-    else:
-        print(md, end="")
-    return 0
+    return _report(table, md, written, out, args.json)
 
 
 def read_gaze_csv(path: Path, folder: Path) -> dict[Path, tuple[float, float]]:
@@ -288,7 +294,6 @@ def read_gaze_csv(path: Path, folder: Path) -> dict[Path, tuple[float, float]]:
 def _quality_along_gaze(args, gt_dir: Path) -> int:
     """Each input frame against the same-named frame of ``--gt DIR`` at its own gaze (``--gaze-csv``): the
     foveal and peripheral error along a participant's actual gaze (``studyapp replay`` writes both)."""
-    from data_schema.atomic import write_text
     from data_schema.geometry import check_gaze
 
     if not gt_dir.is_dir():
@@ -317,14 +322,4 @@ def _quality_along_gaze(args, gt_dir: Path) -> int:
     md = quality_markdown(table, gt=f"{gt_dir}/<frame>", fov_y=args.fov_y, gaze=None, fovea_deg=args.fovea_deg,
                           shape=next(iter(gt_cache.values())).shape).replace(
         "gaze centre", "gaze of each frame (--gaze-csv), centre")
-    if out is not None:
-        written = [write_text(out / "quality.csv", table.to_csv(index=False, lineterminator="\n")),
-                   write_text(out / "quality.md", md)] + written
-    if args.json:
-        print(json.dumps(quality_records(table), indent=2))
-    elif out is not None:
-        for p in written:
-            print(p)
-    else:
-        print(md, end="")
-    return 0
+    return _report(table, md, written, out, args.json)
