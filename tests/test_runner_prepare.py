@@ -322,6 +322,30 @@ def test_a_resumed_prepare_removes_what_a_killed_one_left_and_nothing_else(tmp_p
     assert missing_stimuli(p, 0.05) == []
 
 
+def test_prepare_says_how_many_temporary_files_it_removed(tmp_path, capsys, monkeypatch):
+    """The command line says what the sweep removed, in one line before its summary, and only when it removed
+    something."""
+    from studyapp.cli import main
+    from studyapp.runner import stimuli
+
+    p, fake = _seed001(tmp_path)
+    monkeypatch.setattr(stimuli, "render_function", lambda: fake)
+    frame = frame_paths(p, "VaFR_Rep", "temple", 0.05)[2]
+    args = ["prepare", str(p.path), "--scale", "0.05", "--stimuli", str(tmp_path / "stim"), "--serial",
+            "--cache", str(tmp_path / "cache")]
+    for left in (2, 0):
+        frame.unlink()
+        for k in range(left):
+            (frame.parent / f".{frame.name}.kill{k}xyz.tmp").write_bytes(b"half a PNG")
+        capsys.readouterr()
+        assert main(args) == 0
+        lines = capsys.readouterr().out.splitlines()
+        said = [ln for ln in lines if ln.startswith("removed ")]
+        assert said == ([f"removed {left} temporary file(s) that a stopped prepare had left"] if left else []), lines
+        assert lines[-1].startswith("seed001_2afc: 8 frame(s) built (1 rendered, 0 from the cache)"), lines
+        assert frame.is_file() and not list(frame.parent.glob(".*.tmp"))
+
+
 def test_a_second_prepare_of_the_same_set_is_refused_in_one_line(tmp_path, capsys):
     from data_schema.atomic import sole_writer
     from studyapp.cli import main
