@@ -6,6 +6,17 @@ removes its temporary file and reports the *target* (never the temporary name) i
 files, and :func:`check_target` refuses targets whose loss would destroy data (a study database). A process
 killed mid-write leaves its temporary file: :func:`remove_stale_temporaries` removes those, and
 :func:`sole_writer` keeps a second writer out of a folder so that the sweep cannot take a live one's file.
+
+What may be written to
+----------------------
+A file target is a new name, or an existing regular file; a folder target a new name or an existing folder
+(:func:`real_file`, :func:`real_folder`, asked by every function here). Anything else is refused in one line
+*without being opened* (``lstat``/``stat`` only): a device node (``/dev/null``), a FIFO (opening one blocks until
+a writer comes), a socket, a symlink to any of them (``/dev/stdout``, ``/proc/self/fd/1``), a symlink to a missing
+file, and a path under something that is not a folder. A symlink to a regular file (or a folder) is written
+*through*: the real file is replaced and the link is kept, as a plain ``open(path, "w")`` would; the link is
+never replaced by a file. A replaced file keeps its permission bits (``st_mode & 0o7777``) and, where the
+process may (as root), its owner and group; a new file gets 0666 less the umask, a new folder 0777 less it.
 """
 
 from __future__ import annotations
@@ -83,7 +94,7 @@ def sole_writer(folder, command: str):
     except ImportError:
         yield False
         return
-    lock = Path(folder) / f".{command}.lock"
+    lock = real_file(Path(folder) / f".{command}.lock")  # a FIFO planted there would block the open below
     new = list(itertools.takewhile(lambda d: not d.exists(), (lock.parent, *lock.parent.parents)))
     try:
         lock.parent.mkdir(parents=True, exist_ok=True)
@@ -110,25 +121,135 @@ def _write_error(path: Path, exc: OSError) -> UserError:
     return UserError(f"{path}: cannot write: {reason}")
 
 
+#: What a file that is neither a regular file nor a folder is, by its ``stat`` type.
+_SPECIAL_KINDS = ((stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                  (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISSOCK, "a socket"))
+
+
+def _kind(mode: int) -> str:
+    if stat.S_ISREG(mode):
+        return "a regular file"
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    return next((name for test, name in _SPECIAL_KINDS if test(mode)), "a special file")
+
+
+def _choose(what: str, option: str | None) -> str:
+    return f"choose {what}" + (f" for {option}" if option else "")
+
+
+def _shown(path) -> str:
+    text = str(path)
+    return text if text.isprintable() else repr(text)[1:-1]
+
+
+def _lstat(path: Path) -> os.stat_result | None:
+    """``lstat`` of ``path``, None when nothing is there; never opens it."""
+    try:
+        return os.lstat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+    except ValueError:  # a NUL in the name
+        raise UserError(f"{_shown(path)}: holds a NUL character: choose another name") from None
+    except OSError as exc:
+        raise _write_error(path, exc) from None
+
+
+def _followed(path: Path, st: os.stat_result, option: str | None) -> tuple[os.stat_result, str]:
+    """``(stat, "a symlink to ")`` of what the symlink ``path`` leads to, ``(st, "")`` for anything else."""
+    if not stat.S_ISLNK(st.st_mode):
+        return st, ""
+    try:
+        return os.stat(path), "a symlink to "
+    except FileNotFoundError:
+        raise UserError(f"{_shown(path)}: is a symlink to a missing file ({_shown(os.readlink(path))}): "
+                        f"{_choose('the file name itself', option)}") from None
+    except OSError as exc:  # a symlink loop
+        raise _write_error(path, exc) from None
+
+
+def _check_parents(path: Path, option: str | None) -> None:
+    """Refuse a new ``path`` whose nearest existing ancestor is not a folder (``/dev/null/x.csv``)."""
+    for parent in path.parents:
+        st = _lstat(parent)
+        if st is None:
+            continue
+        st, link = _followed(parent, st, option)
+        if not stat.S_ISDIR(st.st_mode):
+            raise UserError(f"{_shown(path)}: cannot write: {_shown(parent)} is {link}{_kind(st.st_mode)}, not a "
+                            f"folder: {_choose('another path', option)}")
+        return
+
+
+def real_file(path, option: str | None = None) -> Path:
+    """The file a write to ``path`` replaces: ``path`` (new or a regular file), or the regular file a symlink
+    leads to; anything else is refused in one line without being opened (see the module docstring).
+
+    ``option`` (``--out``) is named in the message: ``/dev/null: is a character device, not a regular file:
+    choose a file name for --out``.
+    """
+    path = Path(path)
+    st = _lstat(path)
+    if st is None:
+        _check_parents(path, option)
+        return path
+    st, link = _followed(path, st, option)
+    if not stat.S_ISREG(st.st_mode):
+        raise UserError(f"{_shown(path)}: is {link}{_kind(st.st_mode)}, not a regular file: "
+                        f"{_choose('a file name', option)}")
+    return Path(os.path.realpath(path)) if link else path
+
+
+def real_folder(path, option: str | None = None) -> Path:
+    """The folder written into for ``path``: ``path`` (new or a folder), or the folder a symlink leads to;
+    anything else is refused in one line without being opened, as in :func:`real_file`."""
+    path = Path(path)
+    st = _lstat(path)
+    if st is None:
+        _check_parents(path, option)
+        return path
+    st, link = _followed(path, st, option)
+    if not stat.S_ISDIR(st.st_mode):
+        raise UserError(f"{_shown(path)}: is {link}{_kind(st.st_mode)}, not a folder: {_choose('a folder', option)}")
+    return Path(os.path.realpath(path)) if link else path
+
+
+def _take_mode_and_owner(tmp: Path, target: Path, new_mode: int) -> None:
+    """Give ``tmp`` the permission bits and, where allowed (as root), the owner of the ``target`` it replaces;
+    ``new_mode`` less the umask when there is no target."""
+    try:
+        st = os.stat(target)
+    except FileNotFoundError:
+        os.chmod(tmp, new_mode & ~current_umask())
+        return
+    mine = os.stat(tmp)
+    if hasattr(os, "chown") and (mine.st_uid, mine.st_gid) != (st.st_uid, st.st_gid):
+        with contextlib.suppress(PermissionError):  # only root may give a file away: else it becomes ours
+            os.chown(tmp, st.st_uid, st.st_gid)
+    os.chmod(tmp, stat.S_IMODE(st.st_mode))  # after chown, which clears set-id bits
+
+
 @contextlib.contextmanager
 def atomic_path(path):
     """Yield a temporary path next to ``path``; on success it is fsynced and renamed to ``path``.
 
-    The file gets the usual permissions of a new file (0666 less the process umask), not ``mkstemp``'s 0600.
-    An ``OSError`` while writing becomes a one-line :class:`UserError` naming ``path``.
+    ``path`` must be new or a regular file (a symlink to one is written through: :func:`real_file`). A new file
+    gets the usual permissions (0666 less the process umask), not ``mkstemp``'s 0600; a replaced one keeps its
+    mode and owner. An ``OSError`` while writing becomes a one-line :class:`UserError` naming ``path``.
     """
     path = Path(path)
+    real = real_file(path)
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = _new_temporary(path)
+        real.parent.mkdir(parents=True, exist_ok=True)
+        tmp = _new_temporary(real)
     except OSError as exc:
         raise _write_error(path, exc) from None
     try:
         yield tmp
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
-        os.chmod(tmp, 0o666 & ~current_umask())
-        os.replace(tmp, path)
+        _take_mode_and_owner(tmp, real, 0o666)
+        os.replace(tmp, real)
     except BaseException as exc:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
@@ -157,17 +278,18 @@ def atomic_files(paths: Iterable):
     into place, in the given order, only after every one was written and fsynced; a failure or Ctrl-C before
     that removes them all. Put the file whose presence marks completeness last."""
     targets = [Path(p) for p in paths]
+    reals = [real_file(t) for t in targets]
     tmps: list[Path] = []
     try:
-        for t in targets:
+        for t in reals:
             t.parent.mkdir(parents=True, exist_ok=True)
             tmps.append(_new_temporary(t))
         yield list(tmps)
-        for tmp in tmps:
+        for tmp, t in zip(tmps, reals):
             with open(tmp, "rb+") as fh:
                 os.fsync(fh.fileno())
-            os.chmod(tmp, 0o666 & ~current_umask())
-        for tmp, t in zip(tmps, targets):
+            _take_mode_and_owner(tmp, t, 0o666)
+        for tmp, t in zip(tmps, reals):
             os.replace(tmp, t)
     except BaseException as exc:
         for tmp in tmps:
@@ -187,20 +309,21 @@ def atomic_dir(path, marker: str):
     that is not ours is replaced. On failure (full disk, Ctrl-C) the temporary folder is removed and ``path``
     is as it was.
     """
-    path = check_dir_target(path, marker)
+    path = Path(path)
+    real = real_folder(check_dir_target(path, marker))
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
-        os.chmod(tmp, 0o777 & ~current_umask())
+        real.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{real.name}.", suffix=".tmp", dir=real.parent))
+        _take_mode_and_owner(tmp, real, 0o777)
     except OSError as exc:
         raise _write_error(path, exc) from None
     try:
         yield tmp
         old = None
-        if path.exists():
-            old = path.with_name(f".{path.name}.old-{os.getpid()}")
-            os.replace(path, old)
-        os.replace(tmp, path)
+        if real.exists():
+            old = real.with_name(f".{real.name}.old-{os.getpid()}")
+            os.replace(real, old)
+        os.replace(tmp, real)
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
     except BaseException as exc:
@@ -212,11 +335,11 @@ def atomic_dir(path, marker: str):
         raise
 
 
-def check_dir_target(path, marker: str) -> Path:
-    """Refuse an output folder that :func:`atomic_dir` would not replace (see there); return it as a Path."""
+def check_dir_target(path, marker: str, option: str | None = "--out") -> Path:
+    """Refuse an output folder that :func:`atomic_dir` would not replace (see there, and :func:`real_folder`);
+    return it as a Path."""
     path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise UserError(f"{path}: exists and is not a folder: choose a new --out folder")
+    real_folder(path, option)
     if path.is_dir() and any(path.iterdir()) and not (path / marker).exists():
         raise UserError(f"{path}: is a folder with other files in it (no {marker}): choose an empty or new "
                         "--out folder")
@@ -224,21 +347,29 @@ def check_dir_target(path, marker: str) -> Path:
 
 
 def is_sqlite_file(path) -> bool:
+    """Whether ``path`` is a regular file (or a symlink to one) that starts like an SQLite database; anything
+    else is never opened (a FIFO would block)."""
     try:
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            return False
         with open(path, "rb") as fh:
             return fh.read(16) == SQLITE_MAGIC
     except OSError:
         return False
 
 
-def check_target(path, inputs: Iterable = ()) -> Path:
+def check_target(path, inputs: Iterable = (), option: str | None = "--out") -> Path:
     """Refuse an output path whose writing would destroy data; return it as a Path.
 
-    Refused: one of the command's ``inputs`` (the same path, or the same file by inode, e.g. through a link),
+    Refused: anything but a new name or a regular file (:func:`real_file`, named with ``option``), one of the
+    command's ``inputs`` (the same path, or the same file by inode, e.g. through a link),
     their SQLite side files (``-wal``, ``-shm``), and any existing SQLite database (a study database is never
     overwritten by an export or a report).
     """
     path = Path(path)
+    if (st := _lstat(path)) is not None and stat.S_ISDIR(_followed(path, st, option)[0].st_mode):
+        raise UserError(f"{_shown(path)}: is a folder: give a file name" + (f" for {option}" if option else ""))
+    real_file(path, option)
     for src in inputs:
         src = Path(src)
         for candidate in (src, Path(str(src) + "-wal"), Path(str(src) + "-shm")):
@@ -247,8 +378,6 @@ def check_target(path, inputs: Iterable = ()) -> Path:
                 same = same or (path.exists() and candidate.exists() and path.samefile(candidate))
             if same:
                 raise UserError(f"{path}: is the input {src}: refusing to overwrite it (choose another --out)")
-    if path.is_dir():
-        raise UserError(f"{path}: is a folder: give a file name")
-    if path.exists() and is_sqlite_file(path):
+    if is_sqlite_file(path):
         raise UserError(f"{path}: is an SQLite database: refusing to overwrite it (choose another --out)")
     return path
