@@ -80,10 +80,12 @@ def write_report(res: StudyAnalysis, out_dir, title: str = "Study analysis", fig
                  progress=None) -> list[Path]:
     """Write every table and figure of ``res`` into ``out_dir``; return the paths written."""
     from data_schema.atomic import write_text
+    from data_schema.names import inside
 
     say = progress or (lambda msg: None)
     out = Path(out_dir)
     tdir, fdir = out / "tables", out / "figures"
+    suffixes = group_suffixes(res)
     written: list[Path] = []
     labels = res.plan.labels
     md = [f"# {title}", ""]
@@ -96,10 +98,10 @@ def write_report(res: StudyAnalysis, out_dir, title: str = "Study analysis", fig
 
     def emit(name: str, table: Table | None, tidy: pd.DataFrame | None) -> None:
         if tidy is not None:
-            written.append(write_text(tdir / f"{name}.csv", to_csv(tidy)))
+            written.append(write_text(inside(tdir, f"{name}.csv"), to_csv(tidy)))
         if table is not None:
-            written.append(write_text(tdir / f"{name}.md", to_markdown(table)))
-            written.append(write_text(tdir / f"{name}.tex", to_latex(table)))
+            written.append(write_text(inside(tdir, f"{name}.md"), to_markdown(table)))
+            written.append(write_text(inside(tdir, f"{name}.tex"), to_latex(table)))
             md.extend([to_markdown(table), ""])
 
     for fam in res.families:
@@ -127,14 +129,14 @@ def write_report(res: StudyAnalysis, out_dir, title: str = "Study analysis", fig
             written.append(write_text(tdir / f"{fam}_{name}.csv", to_csv(pw)))
             for (block, scene), grp in pw.groupby(["block", "scene"], sort=False):
                 present = [c for c in order if c in set(grp["A"]) | set(grp["B"])]
-                suffix = "" if (block, scene) == (ALL, ALL) else "_" + _slug(block if scene == ALL else scene)
+                suffix = suffixes[str(block), str(scene)]
                 cap = f"{what}, Holm-adjusted p ({fam}, {_group_title(block, scene)})"
                 emit(f"{fam}_{name}_matrix{suffix}", pairwise_p_table(grp, present, cap, labels), None)
         if f"{fam}_summary" in t:
             sm = t[f"{fam}_summary"]
             written.append(write_text(tdir / f"{fam}_summary.csv", to_csv(sm)))
             for (block, scene), grp in sm.groupby(["block", "scene"], sort=False):
-                suffix = "" if (block, scene) == (ALL, ALL) else "_" + _slug(block if scene == ALL else scene)
+                suffix = suffixes[str(block), str(scene)]
                 cap = f"Scores against {labels.get(reference, reference)} ({fam}, {_group_title(block, scene)})"
                 emit(f"{fam}_summary_table{suffix}", summary_vs_reference_table(grp, reference, cap, labels), None)
         if f"{fam}_units" in t:
@@ -182,3 +184,41 @@ def write_report(res: StudyAnalysis, out_dir, title: str = "Study analysis", fig
 
 def _slug(s: str) -> str:
     return "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in str(s)).strip("_") or "x"
+
+
+def group_suffixes(res: StudyAnalysis) -> dict[tuple[str, str], str]:
+    """The file-name suffix of every (block, scene) group of ``res``'s tables: ``""`` for all trials, else
+    ``_<slug>`` of the scene (or of the block, for a block's group).
+
+    The mapping is injective, ignoring case as macOS and Windows do: labels whose slugs coincide (scenes
+    ``hall.v2`` and ``hall_v2``, a block and a scene both named ``hall``, ``Hall`` and ``hall``) each get the
+    first 8 hex digits of the SHA-256 of their kind and label appended (``_hall_v2-1f0c3a9e``), the same for the
+    same log. A suffix that still collides is refused, naming both labels.
+    """
+    import hashlib
+
+    from data_schema.errors import UserError
+    from data_schema.names import name_key
+
+    groups = {}
+    for df in res.tables.values():
+        if "block" in df.columns and "scene" in df.columns:
+            groups.update(dict.fromkeys(zip(df["block"].astype(str), df["scene"].astype(str))))
+    groups.pop((ALL, ALL), None)
+    label = {g: ("block", g[0]) if g[1] == ALL else ("scene", g[1]) for g in groups}
+    items = sorted(set(label.values()))
+    by_slug: dict[str, list] = {}
+    for item in items:
+        by_slug.setdefault(name_key(_slug(item[1])), []).append(item)
+    suffix, owner = {}, {}
+    for item in items:
+        name = _slug(item[1])
+        if len(by_slug[name_key(name)]) > 1:
+            name += "-" + hashlib.sha256(f"{item[0]}:{item[1]}".encode()).hexdigest()[:8]
+        if name_key(name) in owner:
+            other = owner[name_key(name)]
+            raise UserError(f"{other[0]} {other[1]!r} and {item[0]} {item[1]!r} would both be written as tables "
+                            f"named ..._{name}: rename one in the log")
+        owner[name_key(name)] = item
+        suffix[item] = "_" + name
+    return {(ALL, ALL): "", **{g: suffix[label[g]] for g in groups}}

@@ -55,9 +55,20 @@ def _foveation_table(fov_y: float, out: Path | None):
     return rows, md, paths
 
 
+def _out_folder(path) -> Path | None:
+    """``--out DIR`` checked before any work: a device node, FIFO, socket or file is refused in one line."""
+    from data_schema.atomic import real_folder
+
+    if path is None:
+        return None
+    real_folder(path, "--out")
+    return Path(path)
+
+
 def cmd_foveation_table(args) -> int:
     from renderers.foveation import table as T
 
+    _out_folder(args.out)
     rows, md, paths = _foveation_table(args.fov_y, Path(args.out) if args.out else None)
     if args.out:
         if not args.json:
@@ -73,6 +84,7 @@ def cmd_foveation_table(args) -> int:
 def cmd_foveation_plots(args) -> int:
     from renderers.foveation.plots import write_plots
 
+    _out_folder(args.out)
     for p in write_plots(args.out, args.fov_y):
         print(p)
     return 0
@@ -95,7 +107,7 @@ def cmd_demo(args) -> int:
 
     from renderers.foveation.plots import write_plots
 
-    out = Path(args.out)
+    out = _out_folder(args.out)
     fov_dir = out / "foveation"
     n = 2 + len(DEMO_STEPS)
     print(f"[1/{n}] foveation table (seed 001 Table 1) -> {fov_dir}", flush=True)

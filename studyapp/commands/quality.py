@@ -134,15 +134,18 @@ def collect_inputs(inputs, gt: Path) -> list[Path]:
 
 
 def heatmap_names(paths: list[Path]) -> list[str]:
-    """``heatmap_<stem>.png`` per input, with ``_2``, ``_3`` ... appended to repeated stems."""
+    """``heatmap_<stem>.png`` per input, with ``_2``, ``_3`` ... appended to repeated stems (ignoring case, as
+    macOS and Windows do: ``A.png`` and ``a.png`` get two files)."""
+    from data_schema.names import name_key
+
     names, used = [], set()
     for p in paths:
         base = f"heatmap_{p.stem}"
         name, k = f"{base}.png", 1
-        while name in used:
+        while name_key(name) in used:
             k += 1
             name = f"{base}_{k}.png"
-        used.add(name)
+        used.add(name_key(name))
         names.append(name)
     return names
 
@@ -205,6 +208,7 @@ def quality_table(paths: list[Path], gt_image, *, fov_y: float, gaze, fovea_deg:
     import pandas as pd
 
     from analysis.quality import error_heatmap, image_quality
+    from data_schema.names import inside
 
     frames, written = [], []
     names = heatmap_names(paths)
@@ -218,7 +222,7 @@ def quality_table(paths: list[Path], gt_image, *, fov_y: float, gaze, fovea_deg:
             q = image_quality(img, gt_image, fov_y_deg=fov_y, gaze=gaze, fovea_deg=fovea_deg,
                               data_range=data_range)
             if out is not None:
-                written.append(error_heatmap(img, gt_image, out / hm_name, fov_y_deg=fov_y, gaze=gaze,
+                written.append(error_heatmap(img, gt_image, inside(out, hm_name), fov_y_deg=fov_y, gaze=gaze,
                                              fovea_deg=fovea_deg, title=f"squared error: {path.name}"))
         except ValueError as exc:
             raise CLIError(f"{path}: {exc}") from None
@@ -249,6 +253,10 @@ def _report(table, md: str, written: list[Path], out: Path | None, as_json: bool
 
 
 def cmd_quality(args) -> int:
+    if args.out:
+        from data_schema.atomic import real_folder
+
+        real_folder(args.out, "--out")  # /dev/null, a FIFO, a file: refused before any image is read
     gaze = parse_gaze(args.gaze)
     gt_path = Path(args.gt)
     if not gt_path.exists():

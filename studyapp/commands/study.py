@@ -114,9 +114,16 @@ def cmd_run(args) -> int:
     from studyapp.runner.session import run_session
     from studyapp.runner.stimuli import missing_stimuli, prepare
 
+    from data_schema.atomic import check_target, real_file, real_folder
+
     notes: list[str] = []  # printed once the session has started (errors stay one line)
     p = _protocol(args.protocol, args.stimuli, check_renderers=not args.simulate, full=args.full)
     db = Path(args.db) if args.db else Path(f"{p.name}.db")
+    real_file(db, "--db")  # a FIFO would block SQLite's open, a device node is no database: refuse before
+    if args.gaze_log:
+        check_target(args.gaze_log, inputs=[db], option="--gaze-log")
+    if args.screenshot_dir:
+        real_folder(args.screenshot_dir, "--screenshot-dir")
     missing = missing_stimuli(p, args.scale)
     if missing and args.simulate:
         notes.append(f"note: {len(missing)} stimulus set(s) missing: the simulated observer uses the declared "

@@ -27,7 +27,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from data_schema import families
+from data_schema.errors import UserError
 from data_schema.geometry import Display, ViewingGeometry
+from data_schema.names import check_name, check_unique
 from data_schema.protocol_schema import LoadedYAML, load_yaml, validate_document
 
 #: Keys of free exploration (``motion: explore``; psychtoolbox key names): move forward/back/left/right, turn.
@@ -327,6 +329,35 @@ def _inside(doc: LoadedYAML, base: Path, field: tuple, relative: str) -> Path:
     return target
 
 
+def _check_names(doc: LoadedYAML, data: dict) -> None:
+    """Condition and scene names become folder and file names (``<stimuli>/<condition>/<scene>.png``, a replay's
+    folders): each must pass :func:`data_schema.names.check_name`, and no two may differ only in case."""
+    scenes = [(("scenes", i), s) for i, s in enumerate(data["scenes"])]
+    if data.get("practice"):
+        scenes.append((("practice", "scene"), data["practice"]["scene"]))
+    for kind, named in (("condition", [(("conditions", n), n) for n in data["conditions"]]), ("scene", scenes)):
+        for where, name in named:
+            try:
+                check_name(kind, name)
+            except UserError as exc:
+                raise doc.error(where, str(exc)) from None
+        try:
+            check_unique(kind, [n for _, n in named])
+        except UserError as exc:
+            raise doc.error(named[0][0][:1], str(exc)) from None
+
+
+def _stimuli_dir(doc: LoadedYAML, base: Path, relative: str) -> Path:
+    """The protocol's ``stimuli_dir``: a folder strictly inside ``base`` (the protocol's folder, or the current
+    one for a shipped protocol), never ``base`` itself (``.``): the stimulus cache goes next to the stimulus
+    folder, so ``.`` would put it in ``base``'s parent."""
+    target = _inside(doc, base, ("stimuli_dir",), relative)
+    if target == base:
+        raise doc.error(("stimuli_dir",), f"{relative!r} is the protocol's folder {base} itself: give a subfolder "
+                        "(e.g. stimuli/NAME; its cache goes next to it)")
+    return target
+
+
 def _check_scenes(doc: LoadedYAML, data: dict, base: Path) -> None:
     """Every scene a renderer condition renders must be a built-in scene or a scene file next to the protocol."""
     try:
@@ -393,6 +424,7 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
         data = _full_size(doc, data, check_renderers)
     base = path.resolve().parent
     family = data["family"]
+    _check_names(doc, data)
     conditions = _conditions(doc, data, base, check_renderers)
 
     design = data["design"]
@@ -505,8 +537,8 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
 
     fix = data.get("fixation", {"x": 0.5, "y": 0.5})
     timing = data.get("timing", {})
-    sdir = Path(stimuli_dir) if stimuli_dir is not None else _inside(
-        doc, Path(output_base).resolve() if output_base is not None else base, ("stimuli_dir",),
+    sdir = Path(stimuli_dir) if stimuli_dir is not None else _stimuli_dir(
+        doc, Path(output_base).resolve() if output_base is not None else base,
         data.get("stimuli_dir", f"stimuli/{data['name']}"))
     if full:
         sdir = sdir / "full"

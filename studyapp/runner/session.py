@@ -27,6 +27,7 @@ from pathlib import Path
 
 from data_schema import families
 from data_schema.errors import UserError
+from data_schema.names import check_name
 from data_schema.store import PlannedRow, Store, StoreError, open_store, remove_database
 from studyapp.presentation.base import Stimulus, TrialDisplay, TrialResult
 
@@ -143,6 +144,7 @@ def run_session(protocol: Protocol, participant: str, db_path, presenter_factory
     if not re.fullmatch(r"[A-Za-z0-9_.-]{1,64}", participant or ""):
         raise UserError(f"--participant={participant!r} is invalid: a pseudonymous id of 1-64 letters, digits, "
                          "'_', '.' or '-' (no names or e-mail addresses)")
+    check_name("participant", participant)  # '..', '.x', 'CON': not a file name (replay, exports)
     db_path = Path(db_path)
     created = not db_path.exists()
     if created and resume:

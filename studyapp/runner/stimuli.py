@@ -23,7 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from data_schema.atomic import STALE_TEMPORARY_S, atomic_path, remove_stale_temporaries, sole_writer
+from data_schema.atomic import STALE_TEMPORARY_S, atomic_path, real_folder, remove_stale_temporaries, sole_writer
+from data_schema.names import inside
 from data_schema.errors import UserError
 from data_schema.ranges import SCALE
 
@@ -81,16 +82,17 @@ def frame_paths(protocol: Protocol, condition: str, scene: str, scale: float = 1
     """The frame files of one stimulus (they may not exist yet)."""
     cond = protocol.conditions[condition]
     if cond.folder is not None:
-        single = cond.folder / f"{scene}.png"
-        seq_dir = cond.folder / scene
+        single = inside(cond.folder, f"{scene}.png")
+        seq_dir = inside(cond.folder, scene)
         if seq_dir.is_dir():
             frames = tuple(sorted(seq_dir.glob("*.png")))
             return frames if frames else (seq_dir / "frame_00000.png",)
         return (single,)
-    base = stimulus_root(protocol, scale, root) / condition
+    base = inside(stimulus_root(protocol, scale, root), condition)  # names are checked at validation; proved here
     if protocol.n_frames == 1:
-        return (base / f"{scene}.png",)
-    return tuple(base / scene / f"frame_{i:05d}.png" for i in range(protocol.n_frames))
+        return (inside(base, f"{scene}.png"),)
+    seq_dir = inside(base, scene)
+    return tuple(seq_dir / f"frame_{i:05d}.png" for i in range(protocol.n_frames))
 
 
 def missing_stimuli(protocol: Protocol, scale: float = 1.0, root: Path | None = None) -> list[tuple[Needed, Path]]:
@@ -128,8 +130,8 @@ def make_derived(protocol: Protocol, need: Needed, scale: float = 1.0, root: Pat
     sigma = cond.blur_sigma_px * scale
     for i, (s, d) in enumerate(zip(src, dst)):
         if max_frames is not None and i >= max_frames:
-            d.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(out[-1], d)
+            with atomic_path(d) as tmp:
+                shutil.copyfile(out[-1], tmp)
             out.append(d)
             continue
         out.append(save_png(d, degrade(load_rgb(s), sigma, cond.noise, _seed_of(need.condition, need.scene, i))))
@@ -166,6 +168,8 @@ def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, ca
     geometry = protocol.render_geometry(scale)
     root_dir = stimulus_root(protocol, scale, root)
     cache = Path(cache_dir) if cache_dir is not None else root_dir.parent / ".cache"
+    real_folder(root_dir, "--stimuli")  # /dev/null, a FIFO, a file: refused before anything is rendered
+    real_folder(cache, "--cache")
     todo = []
     for need in needed_stimuli(protocol):
         cond = protocol.conditions[need.condition]
@@ -302,8 +306,8 @@ def write_synthetic_stimuli(protocol: Protocol, scale: float = 1.0, root: Path |
         for i, f in enumerate(frames):
             j = i if max_frames is None else min(i, max_frames - 1)
             if j < i:
-                f.parent.mkdir(parents=True, exist_ok=True)
-                shutil.copyfile(frames[j], f)
+                with atomic_path(f) as tmp:
+                    shutil.copyfile(frames[j], tmp)
                 continue
             gt = synthetic_scene(geometry.width, geometry.height, need.scene, j)
             save_png(f, calibrated(gt, foveated_degrade(gt, ecc, q, _seed_of(need.condition, need.scene, j)), q))
