@@ -34,6 +34,7 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from .errors import UserError
+from .names import printable
 
 SQLITE_MAGIC = b"SQLite format 3\x00"
 
@@ -138,11 +139,6 @@ def _choose(what: str, option: str | None) -> str:
     return f"choose {what}" + (f" for {option}" if option else "")
 
 
-def _shown(path) -> str:
-    text = str(path)
-    return text if text.isprintable() else repr(text)[1:-1]
-
-
 def _lstat(path: Path) -> os.stat_result | None:
     """``lstat`` of ``path``, None when nothing is there; never opens it."""
     try:
@@ -150,7 +146,7 @@ def _lstat(path: Path) -> os.stat_result | None:
     except (FileNotFoundError, NotADirectoryError):
         return None
     except ValueError:  # a NUL in the name
-        raise UserError(f"{_shown(path)}: holds a NUL character: choose another name") from None
+        raise UserError(f"{printable(path)}: holds a NUL character: choose another name") from None
     except OSError as exc:
         raise _write_error(path, exc) from None
 
@@ -162,7 +158,7 @@ def _followed(path: Path, st: os.stat_result, option: str | None) -> tuple[os.st
     try:
         return os.stat(path), "a symlink to "
     except FileNotFoundError:
-        raise UserError(f"{_shown(path)}: is a symlink to a missing file ({_shown(os.readlink(path))}): "
+        raise UserError(f"{printable(path)}: is a symlink to a missing file ({printable(os.readlink(path))}): "
                         f"{_choose('the file name itself', option)}") from None
     except OSError as exc:  # a symlink loop
         raise _write_error(path, exc) from None
@@ -176,9 +172,22 @@ def _check_parents(path: Path, option: str | None) -> None:
             continue
         st, link = _followed(parent, st, option)
         if not stat.S_ISDIR(st.st_mode):
-            raise UserError(f"{_shown(path)}: cannot write: {_shown(parent)} is {link}{_kind(st.st_mode)}, not a "
+            raise UserError(f"{printable(path)}: cannot write: {printable(parent)} is {link}{_kind(st.st_mode)}, not a "
                             f"folder: {_choose('another path', option)}")
         return
+
+
+def _real(path, option: str | None, folder: bool) -> Path:
+    path = Path(path)
+    st = _lstat(path)
+    if st is None:
+        _check_parents(path, option)
+        return path
+    st, link = _followed(path, st, option)
+    if not (stat.S_ISDIR if folder else stat.S_ISREG)(st.st_mode):
+        want = ("a folder", "a folder") if folder else ("a regular file", "a file name")
+        raise UserError(f"{printable(path)}: is {link}{_kind(st.st_mode)}, not {want[0]}: {_choose(want[1], option)}")
+    return Path(os.path.realpath(path)) if link else path
 
 
 def real_file(path, option: str | None = None) -> Path:
@@ -188,30 +197,13 @@ def real_file(path, option: str | None = None) -> Path:
     ``option`` (``--out``) is named in the message: ``/dev/null: is a character device, not a regular file:
     choose a file name for --out``.
     """
-    path = Path(path)
-    st = _lstat(path)
-    if st is None:
-        _check_parents(path, option)
-        return path
-    st, link = _followed(path, st, option)
-    if not stat.S_ISREG(st.st_mode):
-        raise UserError(f"{_shown(path)}: is {link}{_kind(st.st_mode)}, not a regular file: "
-                        f"{_choose('a file name', option)}")
-    return Path(os.path.realpath(path)) if link else path
+    return _real(path, option, folder=False)
 
 
 def real_folder(path, option: str | None = None) -> Path:
     """The folder written into for ``path``: ``path`` (new or a folder), or the folder a symlink leads to;
     anything else is refused in one line without being opened, as in :func:`real_file`."""
-    path = Path(path)
-    st = _lstat(path)
-    if st is None:
-        _check_parents(path, option)
-        return path
-    st, link = _followed(path, st, option)
-    if not stat.S_ISDIR(st.st_mode):
-        raise UserError(f"{_shown(path)}: is {link}{_kind(st.st_mode)}, not a folder: {_choose('a folder', option)}")
-    return Path(os.path.realpath(path)) if link else path
+    return _real(path, option, folder=True)
 
 
 def _take_mode_and_owner(tmp: Path, target: Path, new_mode: int) -> None:
@@ -368,7 +360,7 @@ def check_target(path, inputs: Iterable = (), option: str | None = "--out") -> P
     """
     path = Path(path)
     if (st := _lstat(path)) is not None and stat.S_ISDIR(_followed(path, st, option)[0].st_mode):
-        raise UserError(f"{_shown(path)}: is a folder: give a file name" + (f" for {option}" if option else ""))
+        raise UserError(f"{printable(path)}: is a folder: give a file name" + (f" for {option}" if option else ""))
     real_file(path, option)
     for src in inputs:
         src = Path(src)

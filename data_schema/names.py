@@ -107,8 +107,8 @@ def check_unique(kind: str, names: Iterable[str]) -> None:
         seen.setdefault(key, name)
 
 
-def _shown(path) -> str:
-    """``path`` for a one-line message: control characters escaped."""
+def printable(path) -> str:
+    """``path`` for a one-line message: control characters (a line break, NUL) escaped."""
     text = str(path)
     return text if text.isprintable() else repr(text)[1:-1]
 
@@ -127,7 +127,7 @@ def inside(folder, *parts) -> Path:
     for text in texts:
         pure = (PurePosixPath(text), PureWindowsPath(text))
         if "\0" in text or any(p.anchor or ".." in p.parts for p in pure):
-            raise UserError(f"{_shown(base / text.replace(chr(0), '?'))}: would be written outside {_shown(base)}: "
+            raise UserError(f"{printable(base / text.replace(chr(0), '?'))}: would be written outside {printable(base)}: "
                             f"refusing (name {text!r})")
     path = base.joinpath(*texts)
     try:
@@ -135,6 +135,6 @@ def inside(folder, *parts) -> Path:
     except (OSError, RuntimeError, ValueError):  # a symlink loop, a NUL in folder: not provably inside
         escaped = True
     if escaped:
-        raise UserError(f"{_shown(path)}: would be written outside {_shown(base)}: refusing (name "
+        raise UserError(f"{printable(path)}: would be written outside {printable(base)}: refusing (name "
                         f"{texts[-1] if texts else ''!r})")
     return path

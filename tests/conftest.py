@@ -30,3 +30,26 @@ def mesh_file(tmp_path_factory):
     pv.Plane(i_size=4, j_size=4, i_resolution=2, j_resolution=2, direction=(0, 1, 0)).save(str(d / "floor.ply"))
     pv.Cube(center=(0, 0.5, 1), x_length=1, y_length=1, z_length=1).save(str(d / "cube.stl"))
     return d
+
+
+@pytest.fixture
+def hang_guard():
+    """Fail, instead of hanging, a test whose code blocks: ``with hang_guard(60): ...`` raises TimeoutError after
+    60 s (an open() of a FIFO blocks until a writer comes; the alarm interrupts it)."""
+    import contextlib
+    import signal
+
+    @contextlib.contextmanager
+    def guard(seconds: int = 60):
+        def hung(signum, frame):
+            raise TimeoutError(f"still running after {seconds} s: something blocked (a FIFO opened?)")
+
+        old = signal.signal(signal.SIGALRM, hung)
+        signal.alarm(seconds)
+        try:
+            yield
+        finally:
+            signal.alarm(0)
+            signal.signal(signal.SIGALRM, old)
+
+    return guard

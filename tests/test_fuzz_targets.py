@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import signal
 import socket
 import stat
 from pathlib import Path
@@ -58,18 +57,6 @@ KINDS = ("new", "regular", "link_regular", "folder", "link_folder", "devnull", "
 WRITERS = ("write_text", "write_bytes", "atomic_files", "atomic_dir", "check_target", "check_dir_target")
 
 
-@contextlib.contextmanager
-def _alarm(seconds: int = 20):
-    def hung(signum, frame):
-        raise TimeoutError("a writer opened a FIFO")
-
-    old = signal.signal(signal.SIGALRM, hung)
-    signal.alarm(seconds)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
 
 
 def _make(kind: str, folder: Path, keep: list) -> Path:
@@ -141,7 +128,7 @@ def _state(path: Path):
 @settings(max_examples=150, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(kind=st.sampled_from(KINDS), writer=st.sampled_from(WRITERS))
-def test_writers_write_or_refuse_unopened(tmp_path_factory, kind, writer):
+def test_writers_write_or_refuse_unopened(tmp_path_factory, hang_guard, kind, writer):
     folder = tmp_path_factory.mktemp("t")
     keep: list = []
     target = _make(kind, folder, keep)
@@ -149,7 +136,7 @@ def test_writers_write_or_refuse_unopened(tmp_path_factory, kind, writer):
     folder_writer = writer in ("atomic_dir", "check_dir_target")
     fits = kind == "new" or kind in (("folder", "link_folder") if folder_writer else ("regular", "link_regular"))
     try:
-        with _alarm():
+        with hang_guard(20):
             _write(writer, target)
         refused = None
     except UserError as exc:

@@ -2,15 +2,13 @@
 symlink to any of them without opening it (one line, exit 2, the target unchanged, nothing created); a
 symlink to a regular file is written through; a replaced file keeps its mode and owner.
 
-The CLI runs in this process under an alarm: a command that opened the FIFO would block, and the alarm turns
-that into a failure instead of a hang.
+The CLI runs in this process under an alarm (the ``hang_guard`` fixture): a command that opened the FIFO would
+block, and the alarm turns that into a failure instead of a hang.
 """
 
 from __future__ import annotations
 
-import contextlib
 import os
-import signal
 import socket
 import stat
 import subprocess
@@ -38,18 +36,6 @@ PROTOCOL = ROOT / "studyapp" / "protocols" / "seed001_2afc.yaml"
 KINDS = ("devnull", "fifo", "socket", "link_devnull", "link_fifo")
 
 
-@contextlib.contextmanager
-def _alarm(seconds: int = 60):
-    def hung(signum, frame):
-        raise TimeoutError(f"still running after {seconds} s: the target was opened")
-
-    old = signal.signal(signal.SIGALRM, hung)
-    signal.alarm(seconds)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
 
 
 def _make(kind: str, folder: Path, name: str, keep: list) -> Path:
@@ -135,7 +121,7 @@ COMMANDS = {
 
 @pytest.mark.parametrize("kind", KINDS)
 @pytest.mark.parametrize("command", sorted(COMMANDS))
-def test_every_writer_refuses_special_targets_unopened(command, kind, tmp_path, monkeypatch, capsys):
+def test_every_writer_refuses_special_targets_unopened(command, kind, tmp_path, monkeypatch, capsys, hang_guard):
     what, name, argv = COMMANDS[command]
     monkeypatch.chdir(tmp_path)
     inputs = _inputs(tmp_path)
@@ -144,7 +130,7 @@ def test_every_writer_refuses_special_targets_unopened(command, kind, tmp_path, 
     before, tree = _state(target), _tree(tmp_path)
     capsys.readouterr()
     try:
-        with _alarm(60):
+        with hang_guard(60):
             code = main([str(a) for a in argv(target, inputs)])
     finally:
         for sock in keep:
@@ -175,10 +161,10 @@ def test_export_to_stdout_pipe_is_refused_not_hung(target, tmp_path):
     assert proc.stdout == "" and sorted(p.name for p in tmp_path.iterdir()) == ["study.db"]
 
 
-def test_check_target_never_opens_a_fifo(tmp_path):
+def test_check_target_never_opens_a_fifo(tmp_path, hang_guard):
     fifo = tmp_path / "f"
     os.mkfifo(fifo)
-    with _alarm(20):
+    with hang_guard(20):
         assert is_sqlite_file(fifo) is False
         with pytest.raises(UserError, match=r"f: is a FIFO \(named pipe\), not a regular file: choose a file name "
                                             r"for --db$"):
