@@ -129,6 +129,7 @@ def demo_step(out_dir: Path, progress=None) -> list[Path]:
     from analysis.synthetic import SEED001_MODES, SEED003_TABLES, seed001_2afc_log, seed003_yes_no_log
     from analysis.tables import to_csv
     from data_schema.atomic import write_text
+    from data_schema.names import inside
 
     written = []
     # 1. The studies the simulated participants just ran (studyapp.commands.study.demo_step), if any.
@@ -136,7 +137,7 @@ def demo_step(out_dir: Path, progress=None) -> list[Path]:
         if progress:
             progress(f"analyze: {db.name}")
         plan = load_plan(db, None).with_overrides(n_boot=200)
-        written += write_report(analyze_log(read_log(db), plan), out_dir / f"simulated_{db.stem}",
+        written += write_report(analyze_log(read_log(db), plan), inside(out_dir, f"simulated_{db.stem}"),
                                 title=f"Simulated study {db.stem} (studyapp run --simulate)")
     # 2. Synthetic logs of the seeds' sizes: seed 001 Table 3 layout, seed 003 Tables 5-6.
     log = seed001_2afc_log(seed=0)
