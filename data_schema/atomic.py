@@ -306,11 +306,12 @@ def atomic_dir(path, marker: str):
     try:
         real.parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{real.name}.", suffix=".tmp", dir=real.parent))
-        _take_mode_and_owner(tmp, real, 0o777)
+        os.chmod(tmp, 0o777 & ~current_umask())
     except OSError as exc:
         raise _write_error(path, exc) from None
     try:
         yield tmp
+        _take_mode_and_owner(tmp, real, 0o777)  # after the writes: the old folder may have been read-only
         old = None
         if real.exists():
             old = real.with_name(f".{real.name}.old-{os.getpid()}")

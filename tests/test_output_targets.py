@@ -223,8 +223,8 @@ def test_replaced_report_folder_keeps_mode(tmp_path):
     out = tmp_path / "report"
     out.mkdir()
     (out / "analysis.json").write_text("{}\n")
-    os.chmod(out, 0o750)
+    os.chmod(out, 0o550)  # read-only: the new content is still written, then the mode applied
     with atomic_dir(out, "analysis.json") as tmp:
         write_text(tmp / "analysis.json", "[]\n")
-    assert stat.S_IMODE(os.stat(out).st_mode) == 0o750
+    assert stat.S_IMODE(os.stat(out).st_mode) == 0o550
     assert (out / "analysis.json").read_text() == "[]\n"
