@@ -13,9 +13,10 @@ A file target is a new name, or an existing regular file; a folder target a new 
 (:func:`real_file`, :func:`real_folder`, asked by every function here). Anything else is refused in one line
 *without being opened* (``lstat``/``stat`` only): a device node (``/dev/null``), a FIFO (opening one blocks until
 a writer comes), a socket, a symlink to any of them (``/dev/stdout``, ``/proc/self/fd/1``), a symlink to a missing
-file, and a path under something that is not a folder. A symlink to a regular file (or a folder) is written
-*through*: the real file is replaced and the link is kept, as a plain ``open(path, "w")`` would; the link is
-never replaced by a file. A replaced file keeps its permission bits (``st_mode & 0o7777``) and, where the
+file, a symlink through an open file descriptor (``/dev/stdout``, ``/proc/self/fd/1``: whatever the shell
+redirected there is not a name to replace), and a path under something that is not a folder. A symlink to a
+regular file (or a folder) is written *through*: the real file is replaced and the link is kept, as a plain
+``open(path, "w")`` would; the link is never replaced by a file. A replaced file keeps its permission bits (``st_mode & 0o7777``) and, where the
 process may (as root), its owner and group; a new file gets 0666 less the umask, a new folder 0777 less it.
 """
 
@@ -184,10 +185,31 @@ def _real(path, option: str | None, folder: bool) -> Path:
         _check_parents(path, option)
         return path
     st, link = _followed(path, st, option)
+    want = ("a folder", "a folder") if folder else ("a regular file", "a file name")
     if not (stat.S_ISDIR if folder else stat.S_ISREG)(st.st_mode):
-        want = ("a folder", "a folder") if folder else ("a regular file", "a file name")
         raise UserError(f"{printable(path)}: is {link}{_kind(st.st_mode)}, not {want[0]}: {_choose(want[1], option)}")
-    return Path(os.path.realpath(path)) if link else path
+    if not link:
+        return path
+    real = Path(os.path.realpath(path))
+    hop = _descriptor_hop(path)
+    if hop is not None or not real.exists() or not os.path.samefile(real, path):
+        raise UserError(f"{printable(path)}: is a file descriptor's link ({printable(hop or real)}), not a "
+                        f"{'folder' if folder else 'file'} name: {_choose(want[1], option)}")
+    return real
+
+
+def _descriptor_hop(path: Path) -> Path | None:
+    """The first hop of the symlink chain from ``path`` that is a file descriptor's magic link (``/proc/self/fd/1``
+    behind ``/dev/stdout``), or None: its "target" is whatever the descriptor has open (a shell's redirect, a
+    deleted file), not a name to write through."""
+    for _ in range(40):  # the kernel follows at most 40 links
+        if path.parts[:2] == ("/", "proc") or path.parts[:3] == ("/", "dev", "fd"):
+            return path
+        if not path.is_symlink():
+            return None
+        target = Path(os.readlink(path))
+        path = target if target.is_absolute() else path.parent / target
+    return None
 
 
 def real_file(path, option: str | None = None) -> Path:

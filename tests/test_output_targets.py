@@ -161,6 +161,21 @@ def test_export_to_stdout_pipe_is_refused_not_hung(target, tmp_path):
     assert proc.stdout == "" and sorted(p.name for p in tmp_path.iterdir()) == ["study.db"]
 
 
+@pytest.mark.parametrize("target", ["/dev/stdout", "/proc/self/fd/1"])
+def test_export_to_stdout_redirected_to_a_file_is_refused(target, tmp_path):
+    """Through a descriptor's link the "file" is whatever the shell opened: never replaced by name."""
+    db = _db(tmp_path / "study.db")
+    redirect = tmp_path / "redirect.csv"
+    with open(redirect, "w") as fh:
+        proc = subprocess.run([sys.executable, "-m", "studyapp", "export", "--db", str(db), "--out", target],
+                              stdout=fh, stderr=subprocess.PIPE, text=True, timeout=60, cwd=tmp_path,
+                              env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert proc.returncode == 2
+    assert proc.stderr == (f"studyapp: error: {target}: is a file descriptor's link (/proc/self/fd/1), not a file "
+                           "name: choose a file name for --out\n")
+    assert redirect.read_text() == ""
+
+
 def test_check_target_never_opens_a_fifo(tmp_path, hang_guard):
     fifo = tmp_path / "f"
     os.mkfifo(fifo)
