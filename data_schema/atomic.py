@@ -12,12 +12,13 @@ What may be written to
 A file target is a new name, or an existing regular file; a folder target a new name or an existing folder
 (:func:`real_file`, :func:`real_folder`, asked by every function here). Anything else is refused in one line
 *without being opened* (``lstat``/``stat`` only): a device node (``/dev/null``), a FIFO (opening one blocks until
-a writer comes), a socket, a symlink to any of them (``/dev/stdout``, ``/proc/self/fd/1``), a symlink to a missing
-file, a symlink through an open file descriptor (``/dev/stdout``, ``/proc/self/fd/1``: whatever the shell
-redirected there is not a name to replace), and a path under something that is not a folder. A symlink to a
-regular file (or a folder) is written *through*: the real file is replaced and the link is kept, as a plain
-``open(path, "w")`` would; the link is never replaced by a file. A replaced file keeps its permission bits (``st_mode & 0o7777``) and, where the
-process may (as root), its owner and group; a new file gets 0666 less the umask, a new folder 0777 less it.
+a writer comes), a socket, a symlink to any of them (``/dev/stdout`` while stdout is a pipe), a symlink to a
+missing file, a symlink through an open file descriptor (``/dev/stdout``, ``/proc/self/fd/1`` even when stdout is
+a file: whatever the shell redirected there is not a name to replace), and a path under something that is not a
+folder. A symlink to a regular file (or a folder) is written *through*: the real file is replaced and the link is
+kept, as a plain ``open(path, "w")`` would; the link is never replaced by a file. A replaced file keeps its
+permission bits (``st_mode & 0o7777``) and, where the process may (as root), its owner and group; a new file
+gets 0666 less the umask, a new folder 0777 less it.
 """
 
 from __future__ import annotations

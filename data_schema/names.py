@@ -127,8 +127,8 @@ def inside(folder, *parts) -> Path:
     for text in texts:
         pure = (PurePosixPath(text), PureWindowsPath(text))
         if "\0" in text or any(p.anchor or ".." in p.parts for p in pure):
-            raise UserError(f"{printable(base / text.replace(chr(0), '?'))}: would be written outside {printable(base)}: "
-                            f"refusing (name {text!r})")
+            shown = printable(base / text.replace(chr(0), "?"))
+            raise UserError(f"{shown}: would be written outside {printable(base)}: refusing (name {text!r})")
     path = base.joinpath(*texts)
     try:
         escaped = not path.resolve().is_relative_to(base.resolve())
