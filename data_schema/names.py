@@ -1,7 +1,7 @@
 """Names that become path components: the one rule for condition, scene and participant names.
 
-A condition name becomes a stimulus folder and a replay folder, a scene name a file or folder inside it, a
-participant id a file name of an export. :func:`check_name` refuses, at validation, every name that would not
+A condition name becomes a stimulus folder and a replay folder, a scene name a file or folder inside it; a
+participant id is held to the same rule, so that any output named after it stays one plain file name. :func:`check_name` refuses, at validation, every name that would not
 be one plain path component on Linux, macOS and Windows alike (``.``/``..``, separators, NUL and other control
 characters, Windows' reserved characters and device names, a leading dot: hidden files and our temporary files
 start with one); :func:`check_unique` two names that one case-insensitive file system (macOS, Windows) would
