@@ -90,7 +90,8 @@ def name_key(name: str) -> str:
 
 
 def check_unique(kind: str, names: Iterable[str]) -> None:
-    """Refuse two ``names`` that are equal ignoring case and Unicode normalisation, naming both.
+    """Refuse two ``names`` that are equal ignoring case and Unicode normalisation, naming both (the same name
+    given twice is one name: a list's duplicates are the schema's to refuse).
 
     Raises
     ------
