@@ -72,6 +72,8 @@ def replay_frames(db: Path, participant: str, trial: int) -> tuple[object, objec
         raise CLIError(f"{db}: no participant {participant!r}")
     if trial not in planned:
         raise CLIError(f"{db}: participant {participant!r} has no trial {trial} (0..{max(planned)})")
+    if record is None:  # before the protocol is read: its scene files would be looked for in this folder
+        _unrecorded(db, planned[trial].scene, session)
     protocol = protocol_from_data(data, f"{db}#protocol", check_renderers=True,
                                   folder=record["folder"] if record else None)
     if protocol.content_hash != meta.get("protocol_hash"):
@@ -93,23 +95,28 @@ def replay_frames(db: Path, participant: str, trial: int) -> tuple[object, objec
     return protocol, t, rendered
 
 
-def check_scene(db: Path, protocol, scene: str, session: str | None, record: dict | None) -> None:
-    """Refuse to replay ``scene`` unless it is the scene the session rendered: its content hash must equal the
-    one recorded at the session's start. A session that recorded none (an older studyapp) cannot be checked:
-    a built-in scene is replayed with a warning on stderr, a scene file (its folder unknown) is refused."""
+def _unrecorded(db: Path, scene: str, session: str | None) -> None:
+    """A session that recorded no scene hashes (an older studyapp) cannot be checked: a built-in scene is
+    replayed with a warning on stderr, a scene file (its folder unknown too) is refused."""
     import sys
 
     from renderers.catalog import BUILTIN_SCENES
+
+    if scene not in BUILTIN_SCENES:
+        raise CLIError(f"{db}: session {session} recorded no scene hashes (an older studyapp): scene file "
+                       f"{scene!r} cannot be checked against the one it rendered, so it is not replayed")
+    print(f"studyapp: warning: {db}: session {session} recorded no scene hashes (an older studyapp): built-in "
+          f"scene {scene!r} is replayed unchecked", file=sys.stderr)
+
+
+def check_scene(db: Path, protocol, scene: str, session: str | None, record: dict | None) -> None:
+    """Refuse to replay ``scene`` unless it is the scene the session rendered: its content hash (a scene file
+    read from the protocol folder the session recorded) must equal the one recorded at the session's start."""
     from studyapp.runner.live import scene_hash
 
-    ref = protocol.scene_ref(scene)
     if record is None:
-        if scene not in BUILTIN_SCENES:
-            raise CLIError(f"{db}: session {session} recorded no scene hashes (an older studyapp): scene file "
-                           f"{scene!r} cannot be checked against the one it rendered, so it is not replayed")
-        print(f"studyapp: warning: {db}: session {session} recorded no scene hashes (an older studyapp): built-in "
-              f"scene {scene!r} is replayed unchecked", file=sys.stderr)
-        return
+        return  # said by _unrecorded
+    ref = protocol.scene_ref(scene)
     recorded = record["scenes"].get(scene)
     if recorded is None:
         raise CLIError(f"{db}: session {session} recorded no hash of scene {scene!r}: it cannot be checked, so it "
