@@ -4,7 +4,7 @@
 scene record, one answer per trial with its frame log along the condition's camera path), without rendering
 anything: a database in a fraction of a second. :func:`craft` then changes rows of any table and recomputes
 their checksums (:func:`data_schema.store.row_crc`), so the file passes every integrity check and only the
-values themselves can be refused.
+values themselves can be refused (a BLOB, which has no checksum, leaves a row that is refused as damaged).
 """
 
 from __future__ import annotations
@@ -111,7 +111,11 @@ def craft(db: Path, table: str, where: dict, changes: dict) -> int:
             con.execute(f"UPDATE {table} SET {', '.join(f'{c} = ?' for c in cols)} WHERE {at}",
                         (*(new[c] for c in cols), *(old[k] for k in pk)))
             back = con.execute(f"SELECT {', '.join(cols)} FROM {table} WHERE {at}", key).fetchone()
-            con.execute(f"UPDATE {table} SET crc = ? WHERE {at}", (row_crc(table, back), *key))
+            try:
+                crc = row_crc(table, back)
+            except TypeError:  # a BLOB has no checksum: the file is refused as damaged
+                crc = "no checksum"
+            con.execute(f"UPDATE {table} SET crc = ? WHERE {at}", (crc, *key))
         return len(rows)
     finally:
         con.close()

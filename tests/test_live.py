@@ -103,7 +103,7 @@ def test_a_simulated_live_session_logs_frames_and_timing(tmp_path, capsys):
     capsys.readouterr()
     assert main(["sessions", "--db", str(db)]) == 0
     out = capsys.readouterr().out
-    assert "timing (live trials; trials below min_fps 45 flagged)" in out and "FLAGGED" in out
+    assert "trials below min_fps 45 flagged" in out and "FLAGGED trials 0, 1 (below min_fps)" in out
     assert main(["export", "--db", str(db), "--format", "frames", "--out", str(tmp_path / "frames.parquet")]) == 0
     import pandas as pd
 
@@ -130,22 +130,23 @@ def test_replay_re_renders_the_logged_frames_and_scores_them_along_the_gaze(tmp_
                  "--quality", "--serial", "--cache", str(tmp_path / "cache")]) == 0
     rows = (out / "frames.csv").read_text().splitlines()
     assert len(rows) == 1 + len(logged)
-    assert sorted(p.name for p in out.iterdir()) == ["GT", "LaFR", "frames.csv", "gaze.csv", "gt", "quality.csv",
-                                                      "quality.md"]
+    assert sorted(p.name for p in out.iterdir()) == ["conditions", "frames.csv", "gaze.csv", "ground_truth",
+                                                      "quality.csv", "quality.md"]
+    assert sorted(p.name for p in (out / "conditions").iterdir()) == ["GT", "LaFR"]
     q = (out / "quality.csv").read_text().splitlines()
     assert len(q) == 1 + 3 * len(logged)  # fovea, periphery, all per frame
     # the GT condition replayed is the ground truth: zero error; LaFR has some, more in the periphery
     import pandas as pd
 
     t = pd.read_csv(out / "quality.csv")
-    assert (t[t.image.str.startswith("GT/")]["mse"] == 0).all()
-    lafr = t[t.image.str.startswith("LaFR/")]
+    assert (t[t.image.str.startswith("conditions/GT/")]["mse"] == 0).all()
+    lafr = t[t.image.str.startswith("conditions/LaFR/")]
     assert lafr[lafr.region == "periphery"]["mse"].mean() > lafr[lafr.region == "fovea"]["mse"].mean()
     # studyapp quality gives the same numbers from the files replay wrote
     capsys.readouterr()
     fov = load_protocol_fov(f)
-    assert main(["quality", "--gt", str(out / "gt"), "--gaze-csv", str(out / "gaze.csv"), "--fov-y", str(fov),
-                 "--json", str(out / "LaFR")]) == 0
+    assert main(["quality", "--gt", str(out / "ground_truth"), "--gaze-csv", str(out / "gaze.csv"), "--fov-y",
+                 str(fov), "--json", str(out / "conditions" / "LaFR")]) == 0
     recs = json.loads(capsys.readouterr().out)
     assert len(recs) == len(lafr)
     np.testing.assert_allclose([r["mse"] for r in recs], lafr["mse"].to_numpy(), rtol=1e-12)
