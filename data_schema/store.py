@@ -21,7 +21,8 @@ Tables
                    display order (JSON), expected answer of catch trials, break flag
 ``responses``      one row per answered trial: raw answers (JSON), the derived chosen/chosen_2/response, RT
                    from stimulus onset, onset time, dropped frames, switches, gaze flag, catch correctness
-``events``         pause, resume, end, break and error events per session
+``events``         pause, resume, end, break and error events per session; ``scenes`` (live sessions, written
+                   with the session): the protocol folder and each scene's content hash, for ``replay``
 
 Exports
 -------
