@@ -600,6 +600,13 @@ def _json(text: str):
         return None
 
 
+#: Real fields of a frame row: (column, bound, may be empty, lowest value).
+_FRAME_REALS = (("flip_s", FRAME_TIME_S, False, None), ("render_s", FRAME_TIME_S, True, 0.0),
+                ("gaze_t", FRAME_TIME_S, True, None), ("gaze_x", FRAME_PIXELS, True, None),
+                ("gaze_y", FRAME_PIXELS, True, None),
+                *((c, FRAME_SCENE, False, None) for c in ("pos_x", "pos_y", "pos_z", "look_x", "look_y", "look_z")))
+
+
 def check_frame(path, row: dict, n_stimuli: int) -> dict:
     """One row of the frames table as studyapp logs it, or a :class:`StoreError` naming the database, the
     participant, trial and frame, and the field.
@@ -608,50 +615,44 @@ def check_frame(path, row: dict, n_stimuli: int) -> dict:
     ``n_stimuli`` (the stimuli of the planned trial); ``flip_s`` and (or None) ``render_s`` >= 0, ``gaze_t``
     finite seconds within +-1e9; ``gaze_x``/``gaze_y`` both None or both finite pixels within +-1e6; the six
     camera coordinates finite scene units within +-1e9, the look-at point away from the position; ``dropped``
-    0 or 1. Integers in real columns are returned as floats.
+    0 or 1. Integers in real columns are returned as floats. (Export streams millions of rows through here: the
+    accepted path only compares; the message is built on refusal.)
     """
-    where = (f"{path}: participant {_short(row.get('participant'))}, trial {_short(row.get('idx'))}, frame "
-             f"{_short(row.get('frame'))}")
-
-    def bad(field: str, why: str) -> StoreError:
-        return StoreError(f"{where}: {field}={_short(row[field])} is invalid: {why}{_NOT_OURS}")
-
-    def whole(field: str, high: int | None = None) -> int:
+    out = dict(row)
+    if type(row["participant"]) is not str:
+        raise _frame_refusal(path, row, "participant", "must be text")
+    for field in ("idx", "frame"):
         v = row[field]
-        if not isinstance(v, int) or isinstance(v, bool) or v < 0 or (high is not None and v >= high):
-            raise bad(field, "must be a whole number >= 0" if high is None else
-                      f"must be a stimulus index 0..{high - 1} of the trial" if high else
-                      "the trial has no stimuli")
-        return v
-
-    def real(field: str, bound: float, optional: bool = False, low: float | None = None) -> float | None:
+        if type(v) is not int or v < 0:
+            raise _frame_refusal(path, row, field, "must be a whole number >= 0")
+    v = row["stimulus"]
+    if type(v) is not int or not 0 <= v < n_stimuli:
+        raise _frame_refusal(path, row, "stimulus", f"must be a stimulus index 0..{n_stimuli - 1} of the trial"
+                             if n_stimuli else "the trial has no stimuli")
+    for field, bound, optional, low in _FRAME_REALS:
         v = row[field]
         if v is None and optional:
-            return None
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or abs(v) > bound \
-                or (low is not None and v < low):
+            continue
+        t = type(v)
+        if not ((t is float or t is int) and -bound <= v <= bound and (low is None or v >= low)):
             lo = f"{low:g}" if low is not None else f"-{bound:g}"
-            raise bad(field, f"must be {'empty or ' if optional else ''}a number in [{lo}, {bound:g}]")
-        return float(v)
-
-    if not isinstance(row["participant"], str):
-        raise bad("participant", "must be text")
-    out = {"participant": row["participant"], "idx": whole("idx"), "frame": whole("frame"),
-           "stimulus": whole("stimulus", n_stimuli), "flip_s": real("flip_s", FRAME_TIME_S),
-           "render_s": real("render_s", FRAME_TIME_S, optional=True, low=0.0),
-           "gaze_t": real("gaze_t", FRAME_TIME_S, optional=True),
-           "gaze_x": real("gaze_x", FRAME_PIXELS, optional=True), "gaze_y": real("gaze_y", FRAME_PIXELS, optional=True)}
-    if (out["gaze_x"] is None) != (out["gaze_y"] is None):
-        raise bad("gaze_y" if out["gaze_y"] is None else "gaze_x", "gaze_x and gaze_y must both be given or both "
-                  "be empty")
-    for c in ("pos_x", "pos_y", "pos_z", "look_x", "look_y", "look_z"):
-        out[c] = real(c, FRAME_SCENE)
+            raise _frame_refusal(path, row, field, f"must be {'empty or ' if optional else ''}a number in "
+                                 f"[{lo}, {bound:g}]")
+        if t is int:
+            out[field] = float(v)
+    if (row["gaze_x"] is None) != (row["gaze_y"] is None):
+        raise _frame_refusal(path, row, "gaze_y" if row["gaze_y"] is None else "gaze_x",
+                             "gaze_x and gaze_y must both be given or both be empty")
     if (out["pos_x"], out["pos_y"], out["pos_z"]) == (out["look_x"], out["look_y"], out["look_z"]):
-        raise bad("look_x", "the look-at point equals the camera position (no view direction)")
-    if row["dropped"] not in (0, 1) or isinstance(row["dropped"], (bool, float)):
-        raise bad("dropped", "must be 0 or 1")
-    out["dropped"] = int(row["dropped"])
+        raise _frame_refusal(path, row, "look_x", "the look-at point equals the camera position (no view direction)")
+    if type(row["dropped"]) is not int or row["dropped"] not in (0, 1):
+        raise _frame_refusal(path, row, "dropped", "must be 0 or 1")
     return out
+
+
+def _frame_refusal(path, row: dict, field: str, why: str) -> StoreError:
+    return StoreError(f"{path}: participant {_short(row.get('participant'))}, trial {_short(row.get('idx'))}, "
+                      f"frame {_short(row.get('frame'))}: {field}={_short(row[field])} is invalid: {why}{_NOT_OURS}")
 
 
 def tidy_row(participant: str, session: str, block: str, scene: str, trial: int, family: str,
