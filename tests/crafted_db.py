@@ -21,18 +21,18 @@ question: "Which one?"
 display: {width_px: 320, height_px: 180, width_cm: 30.0, distance_cm: 40.0, refresh_hz: 60}
 scenes: [SCENE]
 conditions:
-  Ref: {renderer: gt, backend: cpu}
+  REF: {renderer: gt, backend: cpu}
   COND: {renderer: lafr, params: PARAMS, backend: cpu, latency_ms: 50, max_fps: 30}
 stimulus:
   kind: live
-  render_px: [32, 18]
+  render_px: RENDER
   duration_s: 2.0
   motion: path
   gaze: fixation
   min_fps: 45
   camera_path: [{t: 0, yaw_deg: -3}, {t: 1, yaw_deg: 3}]
 design: {repetitions: REPS}
-simulation: {ground_truth: Ref}
+simulation: {ground_truth: REF}
 analysis: {dv: chosen, unit: participant, test: thurstone}
 """
 
@@ -47,13 +47,18 @@ camera: {{position: [0, 1.5, -3], look_at: [0, 0.5, 1], up: [0, 1, 0], fov_y: 50
 """
 
 
-def live_protocol(folder: Path, scene: str = "cornell", condition: str = "LaFR", params: str = "{delta: 4.0}",
-                  repetitions: int = 2) -> Path:
-    """A tiny live 2AFC protocol (ground truth ``Ref`` against a LaFR ``condition``) in ``folder``."""
+def live_text(scene: str = "cornell", condition: str = "LaFR", params: str = "{delta: 4.0}", repetitions: int = 2,
+              reference: str = "Ref", render_px: tuple[int, int] = (32, 18)) -> str:
+    """A tiny live 2AFC protocol: the ground truth ``reference`` against a LaFR ``condition``."""
+    return (LIVE.replace("SCENE", scene).replace("COND", condition).replace("PARAMS", params)
+            .replace("REPS", str(repetitions)).replace("REF", reference).replace("RENDER", str(list(render_px))))
+
+
+def live_protocol(folder: Path, **kw) -> Path:
+    """:func:`live_text` written to ``folder/live.yaml``."""
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / "live.yaml"
-    path.write_text(LIVE.replace("SCENE", scene).replace("COND", condition).replace("PARAMS", params)
-                    .replace("REPS", str(repetitions)))
+    path.write_text(live_text(**kw))
     return path
 
 

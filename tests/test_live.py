@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from crafted_db import live_text
 from studyapp.runner.live import ExploreMotion, FramePacer, FrameRecord, GazeDelay, Pose, timing_summary
 
 
@@ -54,29 +55,7 @@ def test_timing_summary_from_frames():
     assert math.isnan(timing_summary([])["fps_median"])
 
 
-LIVE = """
-schema_version: 1
-name: tiny_live
-version: "1"
-family: 2afc
-question: "Which one?"
-display: {width_px: 320, height_px: 180, width_cm: 30.0, distance_cm: 40.0, refresh_hz: 60}
-scenes: [cornell]
-conditions:
-  GT: {renderer: gt, backend: cpu}
-  LaFR: {renderer: lafr, params: {delta: 4.0}, backend: cpu, latency_ms: 50, max_fps: 30}
-stimulus:
-  kind: live
-  render_px: [64, 36]
-  duration_s: 2.0
-  motion: path
-  gaze: fixation
-  min_fps: 45
-  camera_path: [{t: 0, yaw_deg: -3}, {t: 1, yaw_deg: 3}]
-design: {repetitions: 2}
-simulation: {ground_truth: GT}
-analysis: {dv: chosen, unit: participant, test: thurstone}
-"""
+LIVE = live_text(reference="GT", render_px=(64, 36))
 
 
 def test_a_simulated_live_session_logs_frames_and_timing(tmp_path, capsys):
