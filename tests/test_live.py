@@ -72,6 +72,11 @@ def test_a_simulated_live_session_logs_frames_and_timing(tmp_path, capsys):
     with open_store(db) as st:
         frames = st.frames("P1")
         rows = st.tidy_rows()
+        scenes = st.session_scenes("P1-s1")
+    from renderers.catalog import resolve
+
+    # what replay checks: the protocol's folder and the content hash of each scene, recorded with the session
+    assert scenes == {"folder": str(tmp_path.resolve()), "scenes": {"cornell": resolve("cornell").content_hash()}}
     assert len(rows) == 2 and {r["chosen"] for r in rows} <= {"GT", "LaFR"}
     assert len(frames) == 2 * 2 * 3  # 2 trials x 2 stimuli x 3 simulated frames
     assert all(r["render_s"] is not None and r["render_s"] > 0 for r in frames)

@@ -72,7 +72,8 @@ def replay_frames(db: Path, participant: str, trial: int) -> tuple[object, objec
         raise CLIError(f"{db}: no participant {participant!r}")
     if trial not in planned:
         raise CLIError(f"{db}: participant {participant!r} has no trial {trial} (0..{max(planned)})")
-    if record is None:  # before the protocol is read: its scene files would be looked for in this folder
+    rendered = [f for f in frames if f["render_s"] is not None]
+    if record is None and rendered:  # before the protocol is read: its scene files would be looked for here
         _unrecorded(db, planned[trial].scene, session)
     protocol = protocol_from_data(data, f"{db}#protocol", check_renderers=True,
                                   folder=record["folder"] if record else None)
@@ -87,7 +88,6 @@ def replay_frames(db: Path, participant: str, trial: int) -> tuple[object, objec
         what = f"condition {unknown[0]!r}" if unknown else f"scene {t.scene!r}"
         raise CLIError(f"{db}: participant {participant!r}, trial {trial}: {what} is not in the recorded protocol: "
                        "the database was not written by studyapp (restore its last good copy)")
-    rendered = [f for f in frames if f["render_s"] is not None]
     if not rendered:
         raise CLIError(f"{db}: trial {trial} of participant {participant!r} has no logged frames (not answered "
                        "yet, or not a live trial)")
@@ -96,26 +96,27 @@ def replay_frames(db: Path, participant: str, trial: int) -> tuple[object, objec
 
 
 def _unrecorded(db: Path, scene: str, session: str | None) -> None:
-    """A session that recorded no scene hashes (an older studyapp) cannot be checked: a built-in scene is
-    replayed with a warning on stderr, a scene file (its folder unknown too) is refused."""
-    import sys
-
+    """A session that recorded no scene hashes (an older studyapp) cannot be checked: a scene file (its folder
+    unknown too) is refused; a built-in scene is replayed with a warning (:func:`check_scene`)."""
     from renderers.catalog import BUILTIN_SCENES
 
     if scene not in BUILTIN_SCENES:
         raise CLIError(f"{db}: session {session} recorded no scene hashes (an older studyapp): scene file "
                        f"{scene!r} cannot be checked against the one it rendered, so it is not replayed")
-    print(f"studyapp: warning: {db}: session {session} recorded no scene hashes (an older studyapp): built-in "
-          f"scene {scene!r} is replayed unchecked", file=sys.stderr)
 
 
 def check_scene(db: Path, protocol, scene: str, session: str | None, record: dict | None) -> None:
     """Refuse to replay ``scene`` unless it is the scene the session rendered: its content hash (a scene file
-    read from the protocol folder the session recorded) must equal the one recorded at the session's start."""
+    read from the protocol folder the session recorded) must equal the one recorded at the session's start.
+    Without a record (an older studyapp) a built-in scene is replayed with a warning on stderr."""
+    import sys
+
     from studyapp.runner.live import scene_hash
 
     if record is None:
-        return  # said by _unrecorded
+        print(f"studyapp: warning: {db}: session {session} recorded no scene hashes (an older studyapp): built-in "
+              f"scene {scene!r} is replayed unchecked", file=sys.stderr)
+        return
     ref = protocol.scene_ref(scene)
     recorded = record["scenes"].get(scene)
     if recorded is None:
