@@ -122,6 +122,35 @@ def test_eye_at_picks_the_viewport_that_holds_the_point():
     assert eye_at(eye_views((320, 180), (32, 18), 1), 240, 90).eye == "mono"
 
 
+def test_the_live_window_foveates_both_eyes_at_the_gaze_in_the_eye_it_falls_on(monkeypatch):
+    """LiveTrial._render without a window: a gaze in the right half is not clamped to the centre line."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from data_schema.geometry import eye_views
+    from studyapp.presentation import live_window as lw
+    from studyapp.runner.live import Pose
+
+    seen = {}
+
+    def fake_render(scene, renderer, params, w, h, gaze=None, camera=None, backend=None):
+        seen.update(size=(w, h), gaze=gaze)
+        return np.zeros((h, w, 3), np.float32), {"seconds": {"total": 0.0}}
+
+    monkeypatch.setattr("renderers.registry.render", fake_render)
+    monkeypatch.setattr(lw.LiveTrial, "_surfaces", lambda self, i: [])
+    trial = object.__new__(lw.LiveTrial)
+    trial.live = [SimpleNamespace(scene="cornell", renderer="lafr", params={"stereo": "dup"}, backend="cpu",
+                                  fov_y_deg=30.0, condition="LaFR")]
+    trial.views = [eye_views((320, 180), (32, 18), 2)]
+    trial.motions = [SimpleNamespace(pose=lambda *a: Pose((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)))]
+    trial.p = SimpleNamespace(_exposure=lambda scene: 1.0)
+    for window_gaze, gaze in (((240.0, 45.0), (8.0, 4.5)), ((40.0, 90.0), (4.0, 9.0))):
+        trial._render(0, 0.0, window_gaze, set(), (0.0, 0.0))
+        assert seen == {"size": (16, 18), "gaze": gaze}
+
+
 def test_a_binocular_trial_replays_the_eye_the_gaze_falls_on(tmp_path, capsys):
     proto = live_protocol(tmp_path / "proto", params="{delta: 4.0, stereo: dup}")
     db = live_db(proto, tmp_path / "s.db", frames_per_stimulus=1, gaze=(240.0, 45.0))
