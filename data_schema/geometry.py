@@ -235,3 +235,16 @@ def eye_views(window: tuple[int, int], render: tuple[int, int], eyes: int) -> li
     half = ww // 2
     rw2 = max(16, rw // 2)
     return [EyeView("left", 0, 0, half, wh, rw2, rh), EyeView("right", half, 0, ww - half, wh, rw2, rh)]
+
+
+def eye_at(views: list[EyeView], x: float, y: float) -> EyeView:
+    """The view whose viewport holds the window point ``(x, y)`` (the eye the participant looks into); a point
+    outside every viewport belongs to the nearest one. A binocular gaze is mapped through this eye's view, not
+    always the left one (which clamps a gaze in the right half to the centre line)."""
+    def distance(v: EyeView) -> float:
+        dx = max(v.x0 - x, 0.0, x - (v.x0 + v.width))
+        dy = max(v.y0 - y, 0.0, y - (v.y0 + v.height))
+        return math.hypot(dx, dy)
+
+    inside = [v for v in views if v.x0 <= x < v.x0 + v.width and v.y0 <= y < v.y0 + v.height]
+    return inside[0] if inside else min(views, key=distance)

@@ -21,7 +21,8 @@ Tables
                    display order (JSON), expected answer of catch trials, break flag
 ``responses``      one row per answered trial: raw answers (JSON), the derived chosen/chosen_2/response, RT
                    from stimulus onset, onset time, dropped frames, switches, gaze flag, catch correctness
-``events``         pause, resume, end, break and error events per session
+``events``         pause, resume, end, break and error events per session; ``scenes`` (live sessions, written
+                   with the session): the protocol folder and each scene's content hash, for ``replay``
 
 Exports
 -------
@@ -45,7 +46,7 @@ import socket
 import sqlite3
 import tempfile
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -301,8 +302,15 @@ class Store:
                 f"{name!r} version {version!r} (sha256 {content_hash[:12]}): use another --db for a changed protocol")
 
     def protocol_json(self) -> dict | None:
+        """The recorded protocol (None in an empty study); a record that is not a JSON object is refused."""
         text = self.meta().get("protocol_json")
-        return json.loads(text) if text else None
+        if not text:
+            return None
+        data = _json(text)
+        if not isinstance(data, dict):
+            raise StoreError(f"{self.path}: the recorded protocol is not a JSON object: the database was not "
+                             "written by studyapp (restore its last good copy)")
+        return data
 
     # -- participants and schedules -------------------------------------------------------------------------
     def participant(self, pid: str) -> dict | None:
@@ -326,7 +334,19 @@ class Store:
     def planned(self, pid: str) -> list[PlannedRow]:
         rows = self.conn.execute("SELECT idx, kind, family, scene, block, conditions, expected, break_before "
                                  "FROM planned_trials WHERE participant = ? ORDER BY idx", (pid,)).fetchall()
-        return [PlannedRow(r[0], r[1], r[2], r[3], r[4], tuple(json.loads(r[5])), r[6], bool(r[7])) for r in rows]
+        return [PlannedRow(r[0], r[1], r[2], r[3], r[4], self._conditions(pid, r[0], r[5]), r[6], bool(r[7]))
+                for r in rows]
+
+    def _conditions(self, pid, idx, text) -> tuple[str, ...]:
+        """The conditions of a planned trial (a JSON list of names), or the one-line refusal naming it."""
+        try:
+            conds = json.loads(text) if isinstance(text, str) else None
+        except (ValueError, RecursionError):
+            conds = None
+        if not (isinstance(conds, list) and conds and all(isinstance(c, str) for c in conds)):
+            raise StoreError(f"{self.path}: participant {pid!r}, trial {idx!r}: conditions={_short(text)} is "
+                             f"invalid: must be a JSON list of condition names{_NOT_OURS}")
+        return tuple(conds)
 
     def has_answers(self) -> bool:
         """Whether any participant has answered anything (a database without answers holds no one's data)."""
@@ -365,10 +385,15 @@ class Store:
         self._refuse_live(pid)
 
     def start_session(self, pid: str, protocol_hash: str, seed: int, software: dict, display: dict,
-                      measured: dict, presenter: str, resumed_from: str | None = None) -> str:
+                      measured: dict, presenter: str, resumed_from: str | None = None,
+                      scenes: dict | None = None) -> str:
         """Open a new session of ``pid``; sessions left ``running`` by a process that died become
         ``interrupted``. Refused while another process runs a session of ``pid`` (checked inside the write
-        transaction, so two concurrent resumes cannot both start)."""
+        transaction, so two concurrent resumes cannot both start).
+
+        ``scenes`` (live protocols: ``{"folder": protocol folder, "scenes": {scene: content sha256}}``) is
+        recorded in the same transaction as a ``scenes`` event: what ``studyapp replay`` checks
+        (:meth:`session_scenes`)."""
         with self.transaction(f"start a session of participant {pid!r}") as c:
             self._refuse_live(pid)
             n = c.execute("SELECT COUNT(*) FROM sessions WHERE participant = ?", (pid,)).fetchone()[0]
@@ -379,6 +404,9 @@ class Store:
                                     json.dumps(display, sort_keys=True), measured.get("refresh_hz"),
                                     measured.get("keyboard_backend"), presenter, seed, utc_now(), None, "running",
                                     resumed_from, process_identity(), None))
+            if scenes is not None:
+                n_ev = c.execute("SELECT COALESCE(MAX(id), 0) FROM events").fetchone()[0]
+                _insert(c, "events", (n_ev + 1, sid, utc_now(), "scenes", json.dumps(scenes, sort_keys=True)))
         return sid
 
     def running_sessions(self, pid: str) -> list[str]:
@@ -481,38 +509,150 @@ class Store:
              "r.chosen_2, r.response, r.rt_s, t.kind FROM responses r JOIN planned_trials t ON "
              "t.participant = r.participant AND t.idx = r.idx JOIN participants p ON p.id = t.participant "
              "WHERE t.kind != 'reference' ORDER BY p.enrol_order, t.idx")
-        rows = [tidy_row(pid, sid, block, scene, idx, fam, json.loads(conds), chosen, chosen_2, resp, rt, kind)
+        rows = [tidy_row(pid, sid, block, scene, idx, fam, self._conditions(pid, idx, conds), chosen, chosen_2, resp,
+                         rt, kind)
                 for pid, sid, block, scene, idx, fam, conds, chosen, chosen_2, resp, rt, kind in self.conn.execute(q)]
         timing = self.trial_timing()
         for r in rows:
             r.update(timing.get((r["participant"], r["trial"]), {}))
         return rows
 
-    def trial_timing(self) -> dict[tuple[str, int], dict]:
-        """(participant, trial) -> the timing summary of a live trial's frames (:mod:`data_schema.timing`)."""
-        from itertools import groupby
-
-        from .timing import summary
-
-        out = {}
-        rows = self.conn.execute("SELECT participant, idx, flip_s, render_s, gaze_t, dropped FROM frames "
-                                 "ORDER BY participant, idx, frame")
-        for key, group in groupby(rows, key=lambda r: (r[0], r[1])):
-            g = list(group)
-            out[key] = summary([r[2] for r in g], [r[3] for r in g], [r[4] for r in g], [r[5] for r in g])
+    def trial_flips(self) -> dict[tuple[str, int], tuple[list, list, list, list]]:
+        """(participant, trial) -> the checked flips of a live trial: flip times, render times (None: the last
+        frame shown again), gaze sample times (None: no sample), dropped flags."""
+        out: dict[tuple[str, int], tuple[list, list, list, list]] = {}
+        for f in self.iter_frames():
+            cols = out.setdefault((f["participant"], f["idx"]), ([], [], [], []))
+            for col, name in zip(cols, ("flip_s", "render_s", "gaze_t", "dropped")):
+                col.append(f[name])
         return out
 
+    def trial_timing(self) -> dict[tuple[str, int], dict]:
+        """(participant, trial) -> the timing summary of a live trial's frames (:mod:`data_schema.timing`)."""
+        from .timing import summary
+
+        return {key: summary(*cols) for key, cols in self.trial_flips().items()}
+
     def frames(self, pid: str | None = None, idx: int | None = None) -> list[dict]:
-        """The frames table (one row per flip of a live trial), optionally of one participant / trial."""
+        """The frames table (one row per flip of a live trial), optionally of one participant / trial; every
+        row checked (:func:`check_frame`)."""
+        return list(self.iter_frames(pid, idx))
+
+    def iter_frames(self, pid: str | None = None, idx: int | None = None) -> Iterator[dict]:
+        """:meth:`frames`, one row at a time (bounded memory); a row that studyapp cannot have logged is refused
+        in one line naming the participant, trial, frame and field (:func:`check_frame`)."""
         cols = COLUMNS["frames"]
         where, args = [], []
         for col, val in (("participant", pid), ("idx", idx)):
             if val is not None:
-                where.append(f"{col} = ?")
+                where.append(f"f.{col} = ?")
                 args.append(val)
-        q = f"SELECT {', '.join(cols)} FROM frames" + (f" WHERE {' AND '.join(where)}" if where else "") + \
-            " ORDER BY participant, idx, frame"
-        return [dict(zip(cols, r)) for r in self.conn.execute(q, args)]
+        q = (f"SELECT {', '.join('f.' + c for c in cols)}, t.conditions FROM frames f LEFT JOIN planned_trials t "
+             "ON t.participant = f.participant AND t.idx = f.idx" + (f" WHERE {' AND '.join(where)}" if where else "")
+             + " ORDER BY f.participant, f.idx, f.frame")
+        n_stimuli: dict[tuple, int] = {}
+        for r in self.conn.execute(q, args):
+            row = dict(zip(cols, r[:-1]))
+            key = (row["participant"], row["idx"])
+            if key not in n_stimuli:  # rows come ordered by trial: one parse per trial
+                n_stimuli.clear()
+                n_stimuli[key] = 0 if r[-1] is None else len(self._conditions(*key, r[-1]))
+            yield check_frame(self.path, row, n_stimuli[key])
+
+    def response_session(self, pid: str, idx: int) -> str | None:
+        """The session that answered trial ``idx`` of ``pid`` (None: not answered)."""
+        row = self.conn.execute("SELECT session FROM responses WHERE participant = ? AND idx = ?",
+                                (pid, idx)).fetchone()
+        return None if row is None else row[0]
+
+    def session_scenes(self, sid: str) -> dict | None:
+        """What session ``sid`` recorded of its scenes (:meth:`start_session`): ``{"folder": str, "scenes":
+        {scene: sha256}}``, or None for a session that recorded none (older studyapp, pre-rendered stimuli)."""
+        row = self.conn.execute("SELECT detail FROM events WHERE session = ? AND kind = 'scenes' ORDER BY id DESC "
+                                "LIMIT 1", (sid,)).fetchone()
+        if row is None:
+            return None
+        rec = _json(row[0]) if isinstance(row[0], str) else None
+        ok = (isinstance(rec, dict) and isinstance(rec.get("folder"), str) and isinstance(rec.get("scenes"), dict)
+              and all(isinstance(k, str) and isinstance(v, str) and len(v) == 64 for k, v in rec["scenes"].items()))
+        if not ok:
+            raise StoreError(f"{self.path}: session {sid}: the record of its scenes is invalid: must be a folder and "
+                             f"a sha256 per scene{_NOT_OURS}")
+        return rec
+
+
+#: The end of the refusal of a row studyapp cannot have written (its checksum is valid: it was made so).
+_NOT_OURS = ": the database was not written by studyapp (restore its last good copy)"
+#: Bounds of what a frame row holds: the presenter's clock (seconds), gaze in display pixels, scene units.
+FRAME_TIME_S, FRAME_PIXELS, FRAME_SCENE = 1e9, 1e6, 1e9
+
+
+def _short(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _json(text: str):
+    """``json.loads``, None for text that is not JSON (or nests too deep to read)."""
+    try:
+        return json.loads(text)
+    except (ValueError, RecursionError):
+        return None
+
+
+#: Real fields of a frame row: (column, bound, may be empty, lowest value).
+_FRAME_REALS = (("flip_s", FRAME_TIME_S, False, None), ("render_s", FRAME_TIME_S, True, 0.0),
+                ("gaze_t", FRAME_TIME_S, True, None), ("gaze_x", FRAME_PIXELS, True, None),
+                ("gaze_y", FRAME_PIXELS, True, None),
+                *((c, FRAME_SCENE, False, None) for c in ("pos_x", "pos_y", "pos_z", "look_x", "look_y", "look_z")))
+
+
+def check_frame(path, row: dict, n_stimuli: int) -> dict:
+    """One row of the frames table as studyapp logs it, or a :class:`StoreError` naming the database, the
+    participant, trial and frame, and the field.
+
+    Accepted: ``participant`` text; ``idx``, ``frame`` whole numbers >= 0; ``stimulus`` a whole number below
+    ``n_stimuli`` (the stimuli of the planned trial); ``flip_s`` and (or None) ``render_s`` >= 0, ``gaze_t``
+    finite seconds within +-1e9; ``gaze_x``/``gaze_y`` both None or both finite pixels within +-1e6; the six
+    camera coordinates finite scene units within +-1e9, the look-at point away from the position; ``dropped``
+    0 or 1. Integers in real columns are returned as floats. (Export streams millions of rows through here: the
+    accepted path only compares; the message is built on refusal.)
+    """
+    out = dict(row)
+    if type(row["participant"]) is not str:
+        raise _frame_refusal(path, row, "participant", "must be text")
+    for field in ("idx", "frame"):
+        v = row[field]
+        if type(v) is not int or v < 0:
+            raise _frame_refusal(path, row, field, "must be a whole number >= 0")
+    v = row["stimulus"]
+    if type(v) is not int or not 0 <= v < n_stimuli:
+        raise _frame_refusal(path, row, "stimulus", f"must be a stimulus index 0..{n_stimuli - 1} of the trial"
+                             if n_stimuli else "the trial has no stimuli")
+    for field, bound, optional, low in _FRAME_REALS:
+        v = row[field]
+        if v is None and optional:
+            continue
+        t = type(v)
+        if not ((t is float or t is int) and -bound <= v <= bound and (low is None or v >= low)):
+            lo = f"{low:g}" if low is not None else f"-{bound:g}"
+            raise _frame_refusal(path, row, field, f"must be {'empty or ' if optional else ''}a number in "
+                                 f"[{lo}, {bound:g}]")
+        if t is int:
+            out[field] = float(v)
+    if (row["gaze_x"] is None) != (row["gaze_y"] is None):
+        raise _frame_refusal(path, row, "gaze_y" if row["gaze_y"] is None else "gaze_x",
+                             "gaze_x and gaze_y must both be given or both be empty")
+    if (out["pos_x"], out["pos_y"], out["pos_z"]) == (out["look_x"], out["look_y"], out["look_z"]):
+        raise _frame_refusal(path, row, "look_x", "the look-at point equals the camera position (no view direction)")
+    if type(row["dropped"]) is not int or row["dropped"] not in (0, 1):
+        raise _frame_refusal(path, row, "dropped", "must be 0 or 1")
+    return out
+
+
+def _frame_refusal(path, row: dict, field: str, why: str) -> StoreError:
+    return StoreError(f"{path}: participant {_short(row.get('participant'))}, trial {_short(row.get('idx'))}, "
+                      f"frame {_short(row.get('frame'))}: {field}={_short(row[field])} is invalid: {why}{_NOT_OURS}")
 
 
 def tidy_row(participant: str, session: str, block: str, scene: str, trial: int, family: str,
@@ -618,7 +758,11 @@ def verify(path: Path, conn: sqlite3.Connection) -> None:
             raise _damaged(path, f"a row of {fk[0]} refers to a missing row of {fk[2]}")
         for table, cols in COLUMNS.items():
             for row in conn.execute(f"SELECT {', '.join(cols)}, crc FROM {table}"):
-                if row_crc(table, row[:-1]) != row[-1]:
+                try:
+                    ok = row_crc(table, row[:-1]) == row[-1]
+                except (TypeError, ValueError):  # a BLOB where studyapp writes numbers or text
+                    ok = False
+                if not ok:
                     raise _damaged(path, f"a row of {table} fails its checksum")
         for pid, n_planned, n_answered, n_frames in conn.execute(
                 "SELECT id, n_planned, n_answered, n_frames FROM participants"):

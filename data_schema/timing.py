@@ -20,15 +20,41 @@ COLUMNS = ("fps_median", "fps_p5", "dropped_share", "latency_p50_ms", "latency_p
 def summary(flip_s, render_s, gaze_t, dropped) -> dict:
     """The summary of one trial's flips (sequences of equal length; ``render_s``/``gaze_t`` None or NaN where
     absent). Returns :data:`COLUMNS` -> float."""
+    return pooled([(flip_s, render_s, gaze_t, dropped)])
+
+
+def pooled(trials) -> dict:
+    """The summary of the flips of several trials together (a session's figures): every trial counts, also one
+    with fewer than two rendered frames (no frame rate of its own, but its flips, drops and latencies).
+
+    ``trials`` holds ``(flip_s, render_s, gaze_t, dropped)`` per trial; frame rates are taken between
+    consecutive rendered flips of the same trial, never across trials. Returns :data:`COLUMNS` -> float."""
+    fps, lat, drops = [], [], []
+    for flip_s, render_s, gaze_t, dropped in trials:
+        fps.append(rates(flip_s, render_s))
+        flip = np.asarray(flip_s, dtype=float)
+        g = np.array([np.nan if t is None else t for t in gaze_t], dtype=float)
+        lat.append((flip - g)[np.isfinite(g)] * 1000.0)
+        drops.append(np.asarray(dropped, dtype=bool))
+    fps_all = np.concatenate(fps) if fps else np.array([])
+    lat_all = np.concatenate(lat) if lat else np.array([])
+    drop_all = np.concatenate(drops) if drops else np.array([], dtype=bool)
+    nan = float("nan")
+    return {"fps_median": float(np.median(fps_all)) if fps_all.size else nan,
+            "fps_p5": float(np.percentile(fps_all, 5)) if fps_all.size else nan,
+            "dropped_share": float(np.mean(drop_all)) if drop_all.size else nan,
+            "latency_p50_ms": float(np.percentile(lat_all, 50)) if lat_all.size else nan,
+            "latency_p95_ms": float(np.percentile(lat_all, 95)) if lat_all.size else nan}
+
+
+def rates(flip_s, render_s) -> np.ndarray:
+    """New frames per second between consecutive rendered flips of one trial (empty with fewer than two)."""
     flip = np.asarray(flip_s, dtype=float)
     rendered = np.array([r is not None and r == r for r in render_s], dtype=bool)
     gaps = np.diff(flip[rendered])
-    fps = 1.0 / gaps[gaps > 0] if gaps.size else np.array([])
-    g = np.array([np.nan if t is None else t for t in gaze_t], dtype=float)
-    lat = (flip - g)[np.isfinite(g)] * 1000.0
-    nan = float("nan")
-    return {"fps_median": float(np.median(fps)) if fps.size else nan,
-            "fps_p5": float(np.percentile(fps, 5)) if fps.size else nan,
-            "dropped_share": float(np.mean(np.asarray(dropped, dtype=bool))) if flip.size else nan,
-            "latency_p50_ms": float(np.percentile(lat, 50)) if lat.size else nan,
-            "latency_p95_ms": float(np.percentile(lat, 95)) if lat.size else nan}
+    return 1.0 / gaps[gaps > 0] if gaps.size else np.array([])
+
+
+def rendered_frames(render_s) -> int:
+    """How many flips of a trial showed a newly rendered frame."""
+    return sum(1 for r in render_s if r is not None and r == r)

@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from crafted_db import live_text
 from studyapp.runner.live import ExploreMotion, FramePacer, FrameRecord, GazeDelay, Pose, timing_summary
 
 
@@ -54,29 +55,7 @@ def test_timing_summary_from_frames():
     assert math.isnan(timing_summary([])["fps_median"])
 
 
-LIVE = """
-schema_version: 1
-name: tiny_live
-version: "1"
-family: 2afc
-question: "Which one?"
-display: {width_px: 320, height_px: 180, width_cm: 30.0, distance_cm: 40.0, refresh_hz: 60}
-scenes: [cornell]
-conditions:
-  GT: {renderer: gt, backend: cpu}
-  LaFR: {renderer: lafr, params: {delta: 4.0}, backend: cpu, latency_ms: 50, max_fps: 30}
-stimulus:
-  kind: live
-  render_px: [64, 36]
-  duration_s: 2.0
-  motion: path
-  gaze: fixation
-  min_fps: 45
-  camera_path: [{t: 0, yaw_deg: -3}, {t: 1, yaw_deg: 3}]
-design: {repetitions: 2}
-simulation: {ground_truth: GT}
-analysis: {dv: chosen, unit: participant, test: thurstone}
-"""
+LIVE = live_text(reference="GT", render_px=(64, 36))
 
 
 def test_a_simulated_live_session_logs_frames_and_timing(tmp_path, capsys):
@@ -93,6 +72,11 @@ def test_a_simulated_live_session_logs_frames_and_timing(tmp_path, capsys):
     with open_store(db) as st:
         frames = st.frames("P1")
         rows = st.tidy_rows()
+        scenes = st.session_scenes("P1-s1")
+    from renderers.catalog import resolve
+
+    # what replay checks: the protocol's folder and the content hash of each scene, recorded with the session
+    assert scenes == {"folder": str(tmp_path.resolve()), "scenes": {"cornell": resolve("cornell").content_hash()}}
     assert len(rows) == 2 and {r["chosen"] for r in rows} <= {"GT", "LaFR"}
     assert len(frames) == 2 * 2 * 3  # 2 trials x 2 stimuli x 3 simulated frames
     assert all(r["render_s"] is not None and r["render_s"] > 0 for r in frames)
@@ -103,7 +87,7 @@ def test_a_simulated_live_session_logs_frames_and_timing(tmp_path, capsys):
     capsys.readouterr()
     assert main(["sessions", "--db", str(db)]) == 0
     out = capsys.readouterr().out
-    assert "timing (live trials; trials below min_fps 45 flagged)" in out and "FLAGGED" in out
+    assert "trials below min_fps 45 flagged" in out and "FLAGGED trials 0, 1 (below min_fps)" in out
     assert main(["export", "--db", str(db), "--format", "frames", "--out", str(tmp_path / "frames.parquet")]) == 0
     import pandas as pd
 
@@ -130,22 +114,23 @@ def test_replay_re_renders_the_logged_frames_and_scores_them_along_the_gaze(tmp_
                  "--quality", "--serial", "--cache", str(tmp_path / "cache")]) == 0
     rows = (out / "frames.csv").read_text().splitlines()
     assert len(rows) == 1 + len(logged)
-    assert sorted(p.name for p in out.iterdir()) == ["GT", "LaFR", "frames.csv", "gaze.csv", "gt", "quality.csv",
-                                                      "quality.md"]
+    assert sorted(p.name for p in out.iterdir()) == ["conditions", "frames.csv", "gaze.csv", "ground_truth",
+                                                      "quality.csv", "quality.md"]
+    assert sorted(p.name for p in (out / "conditions").iterdir()) == ["GT", "LaFR"]
     q = (out / "quality.csv").read_text().splitlines()
     assert len(q) == 1 + 3 * len(logged)  # fovea, periphery, all per frame
     # the GT condition replayed is the ground truth: zero error; LaFR has some, more in the periphery
     import pandas as pd
 
     t = pd.read_csv(out / "quality.csv")
-    assert (t[t.image.str.startswith("GT/")]["mse"] == 0).all()
-    lafr = t[t.image.str.startswith("LaFR/")]
+    assert (t[t.image.str.startswith("conditions/GT/")]["mse"] == 0).all()
+    lafr = t[t.image.str.startswith("conditions/LaFR/")]
     assert lafr[lafr.region == "periphery"]["mse"].mean() > lafr[lafr.region == "fovea"]["mse"].mean()
     # studyapp quality gives the same numbers from the files replay wrote
     capsys.readouterr()
     fov = load_protocol_fov(f)
-    assert main(["quality", "--gt", str(out / "gt"), "--gaze-csv", str(out / "gaze.csv"), "--fov-y", str(fov),
-                 "--json", str(out / "LaFR")]) == 0
+    assert main(["quality", "--gt", str(out / "ground_truth"), "--gaze-csv", str(out / "gaze.csv"), "--fov-y",
+                 str(fov), "--json", str(out / "conditions" / "LaFR")]) == 0
     recs = json.loads(capsys.readouterr().out)
     assert len(recs) == len(lafr)
     np.testing.assert_allclose([r["mse"] for r in recs], lafr["mse"].to_numpy(), rtol=1e-12)

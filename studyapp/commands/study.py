@@ -181,9 +181,10 @@ def cmd_sessions(args) -> int:
         sessions = st.sessions()
         prog = st.progress()
         proto = st.protocol_json() or {}
-        frac = (proto.get("catch") or {}).get("pass_fraction", 0.75)
-        timing = st.trial_timing()
-        trial_session = {(r["participant"], r["trial"]): r["session"] for r in st.tidy_rows()} if timing else {}
+        frac = _recorded_number(db, proto, "catch", "pass_fraction", 0.75)
+        min_fps = _recorded_number(db, proto, "stimulus", "min_fps", None)
+        flips = st.trial_flips()
+        trial_session = {(r["participant"], r["trial"]): r["session"] for r in st.tidy_rows()} if flips else {}
     print(f"{db}: protocol {meta.get('protocol_name')} {meta.get('protocol_version')} "
           f"(sha256 {meta.get('protocol_hash', '')[:12]})")
     print(f"{'session':<16} {'participant':<12} {'status':<12} {'answers':>7}  {'started (UTC)':<27} resumed from")
@@ -198,33 +199,47 @@ def cmd_sessions(args) -> int:
                 "passed" if r["catch_correct"] >= frac * r["catch_planned"] else "FAILED")
             catch = f"{r['catch_correct']}/{r['catch_planned']} {verdict}"
         print(f"{r['participant']:<12} {r['answered']:>8} {r['planned']:>8}  {catch}")
-    if timing:
-        _print_timing_qa(sessions, timing, trial_session, (proto.get("stimulus") or {}).get("min_fps"))
+    if flips:
+        _print_timing_qa(sessions, flips, trial_session, min_fps)
     return 0
 
 
-def _print_timing_qa(sessions, timing, trial_session, min_fps) -> None:
-    """Live trials: frame rate and gaze-to-flip latency per session; trials below the protocol's min_fps."""
-    import numpy as np
+def _recorded_number(db: Path, proto: dict, section: str, key: str, default):
+    """``proto[section][key]`` of a recorded protocol: a finite number (or ``default`` where absent)."""
+    block = proto.get(section)
+    value = block.get(key) if isinstance(block, dict) else None
+    if value is None:
+        return default
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise CLIError(f"{db}: the recorded protocol's {section}.{key}={value!r} is not a number: the database was "
+                       "not written by studyapp (restore its last good copy)")
+    return float(value)
+
+
+def _print_timing_qa(sessions, flips, trial_session, min_fps) -> None:
+    """Live trials: frame rate and gaze-to-flip latency per session, pooled over the flips of every trial;
+    flagged: trials with fewer than two rendered frames (no frame rate) and trials below the protocol's
+    min_fps."""
+    from data_schema.timing import pooled, rendered_frames, summary
 
     floor = f"; trials below min_fps {min_fps:g} flagged" if min_fps else ""
-    print(f"timing (live trials{floor})")
+    print(f"timing (live trials, pooled over their flips{floor}; trials with fewer than two rendered frames "
+          "flagged)")
     print(f"{'session':<16} {'trials':>6} {'fps p50':>8} {'fps p5':>7} {'dropped':>8} {'lat p50':>8} {'lat p95':>8}"
-          "  below min_fps")
+          "  flagged")
     for s in sessions:
-        keys = [k for k, sid in trial_session.items() if sid == s["id"] and k in timing]
+        keys = [k for k, sid in trial_session.items() if sid == s["id"] and k in flips]
         if not keys:
             continue
-        t = [timing[k] for k in keys]
-
-        def med(col):
-            v = np.array([x[col] for x in t], dtype=float)
-            return float(np.nanmedian(v)) if np.isfinite(v).any() else float("nan")
-
-        slow = [str(k[1]) for k in keys if min_fps and timing[k]["fps_median"] < min_fps]
-        print(f"{s['id']:<16} {len(keys):>6} {med('fps_median'):>8.1f} {med('fps_p5'):>7.1f} "
-              f"{med('dropped_share'):>7.1%} {med('latency_p50_ms'):>6.0f}ms {med('latency_p95_ms'):>6.0f}ms  "
-              f"{('FLAGGED trials ' + ', '.join(slow)) if slow else '-'}")
+        t = pooled([flips[k] for k in keys])
+        few = [str(k[1]) for k in keys if rendered_frames(flips[k][1]) < 2]
+        slow = [str(k[1]) for k in keys if min_fps and str(k[1]) not in few
+                and not summary(*flips[k])["fps_median"] >= min_fps]
+        flagged = "; ".join(([f"trials {', '.join(few)} (< 2 rendered frames)"] if few else [])
+                            + ([f"trials {', '.join(slow)} (below min_fps)"] if slow else []))
+        print(f"{s['id']:<16} {len(keys):>6} {t['fps_median']:>8.1f} {t['fps_p5']:>7.1f} "
+              f"{t['dropped_share']:>7.1%} {t['latency_p50_ms']:>6.0f}ms {t['latency_p95_ms']:>6.0f}ms  "
+              f"{('FLAGGED ' + flagged) if flagged else '-'}")
 
 
 def cmd_export(args) -> int:

@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from data_schema.geometry import eye_views
+from data_schema.geometry import eye_at, eye_views
 from studyapp.runner.live import FramePacer, FrameRecord, GazeDelay
 from studyapp.runner.protocol import EXPLORE_KEYS
 
@@ -152,7 +152,8 @@ class LiveTrial:
         pose = self.motions[i].pose(t_stim, held, drag)
         views = self.views[i]
         w, h = views[0].render_width, views[0].render_height
-        gaze = None if gaze_window is None else views[0].to_render(*gaze_window)
+        # Both eyes are foveated at the gaze as seen in the eye it falls on (the right half: the right eye).
+        gaze = None if gaze_window is None else eye_at(views, *gaze_window).to_render(*gaze_window)
         params = dict(lv.params)
         t0 = time.perf_counter()
         try:

@@ -226,6 +226,23 @@ def timing_summary(frames: list[FrameRecord]) -> dict:
                    [f.dropped for f in frames])
 
 
+def scene_record(protocol) -> dict:
+    """What a live session records of its scenes (``Store.start_session(scenes=...)``): the protocol's folder
+    (scene files are found there) and the content hash of every scene (:meth:`renderers.scene.Scene.content_hash`:
+    geometry, materials, lights, camera; a built-in scene's generated description), which ``studyapp replay``
+    compares before it renders anything."""
+    scenes = list(protocol.scenes) + ([protocol.practice["scene"]] if protocol.practice else [])
+    return {"folder": str(protocol.path.resolve().parent),
+            "scenes": {s: scene_hash(protocol.scene_ref(s)) for s in dict.fromkeys(scenes)}}
+
+
+def scene_hash(ref: str) -> str:
+    """The content hash of the scene ``ref`` (a built-in name or a scene file path)."""
+    from renderers.catalog import resolve
+
+    return resolve(ref).content_hash()
+
+
 PATH_SAMPLES = 64  # poses sampled along a camera path (interpolated linearly between them)
 
 

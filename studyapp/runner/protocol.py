@@ -409,12 +409,13 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True, output_b
     return _build(load_yaml(path), path, stimuli_dir, check_renderers, output_base, full)
 
 
-def protocol_from_data(data: dict, label: str, check_renderers: bool = True) -> Protocol:
-    """The protocol a study database recorded (its JSON), checked as a file would be; errors name ``label``."""
+def protocol_from_data(data: dict, label: str, check_renderers: bool = True, folder=None) -> Protocol:
+    """The protocol a study database recorded (its JSON), checked as a file would be; errors name ``label``.
+    Its scene files are found in ``folder`` (the folder the session recorded; default the current one)."""
     from data_schema.protocol_schema import ProtocolError
 
     doc = LoadedYAML(data, {}, Path(label), ProtocolError)
-    return _build(doc, Path.cwd() / "recorded.yaml", None, check_renderers, None)
+    return _build(doc, Path(folder or Path.cwd()) / "recorded.yaml", None, check_renderers, None)
 
 
 def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, output_base,

@@ -31,6 +31,7 @@ from data_schema.names import check_name
 from data_schema.store import PlannedRow, Store, StoreError, open_store, remove_database
 from studyapp.presentation.base import Stimulus, TrialDisplay, TrialResult
 
+from .live import scene_record
 from .protocol import Protocol
 from .schedule import PlannedTrial, build_schedule, counterbalance_index, schedule_hash
 from .stimuli import frame_paths, missing_stimuli
@@ -212,7 +213,7 @@ def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_r
                                                     "eyetracker", "gl_renderer", "gpu") if k in measured}}
         sid = store.start_session(pid, protocol.content_hash, seed, software_versions(measured.get("software")),
                                   display_info, measured, str(measured.get("presenter", type(presenter).__name__)),
-                                  resumed_from=previous)
+                                  resumed_from=previous, scenes=scene_record(protocol) if protocol.live else None)
         validation = measured.get("validation")
         if validation:  # the eye tracker's accuracy, measured before the first trial
             store.record_validation(sid, validation["error_deg"],
