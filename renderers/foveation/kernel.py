@@ -156,11 +156,16 @@ class LaFRMapping(_KernelMapping):
                 "display or field of view")
         self.Z_ef = math.log1p(r_ef) / self.Lp
         q = self.alpha * self.Z_ef ** (1.0 - self.a) / (1.0 - self.a)
-        if not 0.0 < q < 1.0:
+        # Fa = 1 - ln q / ln Z_ef lies in (0, 1) iff Z_ef < q < 1 (ln Z_ef < 0): q >= 1 gives Fa >= 1, and
+        # q <= Z_ef gives Fa <= 0, where the foveal kernel (z (1 - Fa))^(1/Fa) is undefined and no LP pixel maps
+        # onto the display. In alpha: (1 - a) Z_ef^a < alpha < (1 - a) / Z_ef^(1 - a).
+        lo, hi = (1.0 - self.a) * self.Z_ef ** self.a, (1.0 - self.a) / self.Z_ef ** (1.0 - self.a)
+        self.Fa = 1.0 - math.log(q) / math.log(self.Z_ef) if q > 0.0 else -math.inf
+        if not (self.Z_ef < q < 1.0 and 0.0 < self.Fa < 1.0):
             raise UserError(
                 f"alpha={self.alpha:g} is out of range with a={self.a:g} on this display: LaFR's Fa must lie in "
-                f"(0, 1), which needs alpha * Z_ef^(1-a) < 1 - a (Z_ef = {self.Z_ef:.4f})")
-        self.Fa = 1.0 - math.log(q) / math.log(self.Z_ef)
+                f"(0, 1), which needs (1 - a) Z_ef^a < alpha < (1 - a) / Z_ef^(1 - a), here ({lo:.4g}, {hi:.4g}) "
+                f"(Z_ef = {self.Z_ef:.4f}, seed 001 Eq 15)")
         self.U_ef = (self.Z_ef * (1.0 - self.Fa)) ** (1.0 / self.Fa)
         self.p = self.beta / 0.7
         self.ext_slope = (1.0 - self.U_ef) / (1.0 - self.Z_ef)
