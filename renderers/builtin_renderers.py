@@ -9,10 +9,12 @@ rendered, cameras ``-/+ ipd/2`` along the right vector; VaFR also ``rep``: right
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 
 from data_schema.errors import UserError
+from data_schema.geometry import ViewingGeometry
 
 from . import pipeline as pl
 from .foveation import DEFAULT_PIVOTS, PRESETS, mapping_for
@@ -64,22 +66,37 @@ def _mapping_params(method: str, p: dict) -> dict:
     return {"delta": p["delta"], "alpha": p["alpha"], "beta": p["beta"], "a": p["a"]}
 
 
-def foveation_mapping(method: str, geometry, params: dict):
+def foveation_mapping(method: str, geometry, params: dict, coverage: bool = False):
     """The mapping of renderer ``method`` with its checked ``params`` for ``geometry`` (both backends).
 
     The mappings refuse parameters under which they are undefined for the display (no LP column to shade,
-    LaFR's ``Fa`` outside (0, 1)); the refusal names the renderer's parameter (``vafr.e_max=...``)."""
+    fewer than 4 LP rows, LaFR's ``Fa`` outside (0, 1)) and, with ``coverage``, those that leave part of the
+    display without samples (``check_coverage``); the refusal names the renderer's parameter
+    (``vafr.e_max=...``)."""
     mp = _mapping_params(method, params)
     try:
-        return mapping_for(method, geometry, **mp)
+        mapping = mapping_for(method, geometry, **mp)
+        if coverage:
+            mapping.check_coverage()
+        return mapping
     except UserError as exc:
         names = "|".join(map(re.escape, mp))
         raise UserError(re.sub(rf"(?<![\w.])({names})=", rf"{method}.\1=", str(exc))) from None
 
 
+@functools.lru_cache(maxsize=256)
+def _check_display(method: str, params: tuple, width: int, height: int, fov_y_deg: float) -> None:
+    # The gaze at the display's centre: the refusals do not depend on the gaze (a live trial moves it; LaFR's
+    # foveal-boundary and Fa conditions are hardest there, where the farthest corner is nearest). Cached: the
+    # registry runs the check before every frame.
+    centre = ViewingGeometry.create(width, height, fov_y_deg, (width / 2.0, height / 2.0))
+    foveation_mapping(method, centre, dict(params), coverage=True)
+
+
 def _checker(method: str):
     def check(params: dict, geometry) -> None:
-        foveation_mapping(method, geometry, params)  # raises where it is undefined
+        _check_display(method, tuple(sorted(_mapping_params(method, params).items())), geometry.width,
+                       geometry.height, geometry.fov_y_deg)
     return check
 
 

@@ -28,6 +28,11 @@ from data_schema.ranges import check_range
 from . import _kernels as K
 from .base import FoveationMapping
 
+#: Fewest LP rows of LMFR and LaFR. Rows are the angles 2 pi (j + 0.5) / h (Eq 1) and a gaze in a corner of
+#: the display sees one quadrant of it: with h >= 8 every quadrant holds two rows, so every pixel is interpolated
+#: between two rows that can both lie on the display (with 4 rows, LaFR delta = 6 on 48 x 27 left a block of the
+#: box black, both its rows off the display).
+MIN_LP_ROWS = 8
 #: LaFR's foveal boundary (seed 001 Eq 15, Fig 6).
 LAFR_FOVEAL_BOUNDARY_DEG = 4.89
 
@@ -40,6 +45,11 @@ class _KernelMapping(FoveationMapping):
         self.delta = check_range("delta", delta, 1.0, None)
         self.lp_width = max(1, int(round(display.width / self.delta)))
         self.lp_height = max(1, int(round(display.height / self.delta)))
+        if self.lp_height < MIN_LP_ROWS:
+            raise UserError(
+                f"delta={self.delta:g} is out of range on this display: the LP buffer has {self.lp_height} rows "
+                f"(round(H / delta), seed 001 Eq 1), fewer than {MIN_LP_ROWS}, so a quadrant around the gaze holds "
+                f"fewer than two rows of samples; allowed delta <= {display.height / (MIN_LP_ROWS - 0.5):.4g}")
         self.R = display.corner_distance()
         self.Lp = math.log1p(self.R)
 
@@ -88,6 +98,7 @@ class LMFRMapping(_KernelMapping):
 
     method = "lmfr"
     _kernel = K.LMFR
+    coverage_params = ("delta", "alpha")
 
     def __init__(self, display: ViewingGeometry, *, delta: float = 1.8, alpha: float = 4.0):
         super().__init__(display, delta)
@@ -140,6 +151,7 @@ class LaFRMapping(_KernelMapping):
 
     method = "lafr"
     _kernel = K.LAFR
+    coverage_params = ("delta", "alpha", "beta", "a")
 
     def __init__(self, display: ViewingGeometry, *, delta: float = 1.8, alpha: float = 0.85, beta: float = 0.7,
                  a: float = 0.25, foveal_boundary_deg: float = LAFR_FOVEAL_BOUNDARY_DEG):

@@ -71,6 +71,7 @@ class VaFRMapping(FoveationMapping):
 
     method = "vafr"
     _kernel = K.VAFR
+    coverage_params = ("e_max", "preset")
 
     def __init__(self, display: ViewingGeometry, *, pivots=None, e_max: float | None = None,
                  preset: str = "default", cap_cpd: float | None = None,
@@ -198,6 +199,9 @@ class VaFRMapping(FoveationMapping):
             total += quad(lambda e: float(self.shading_height(e) * self.acuity.du_de(e)), a, b,
                           epsabs=1e-6, epsrel=1e-12, limit=200)[0]
         return total
+
+    def _column_centres(self) -> np.ndarray:
+        return np.arange(int(np.count_nonzero(np.arange(self.lp_shape[0]) + 0.5 <= self.u_max))) + 0.5
 
     def _radial_du_de(self, e_deg):
         return self.acuity.du_de(e_deg)
