@@ -181,3 +181,18 @@ def test_values_below_the_derived_bounds_are_refused_by_the_declared_range(name,
     with pytest.raises(UserError) as err:
         resolve_params(name, {key: value})
     assert str(err.value) == f"{name}.{key}={value:g} is out of range: allowed {allowed}"
+
+
+def test_an_empty_lp_buffer_is_refused_before_the_compiled_inverse_mapping_reads_outside_it():
+    """The last guard behind the mappings' checks: the compiled kernels index the LP buffer without bounds
+    checks, so a 0 x 0 buffer (what vafr e_max=1e-300 made, with radiance up to 3.8e36 from outside it) is
+    refused, naming the method and its parameters."""
+    import types
+
+    from renderers.pipeline import LPLayout
+
+    stub = types.SimpleNamespace(lp_shape=(0, 0), method="lmfr", _params_vector=lambda: np.zeros(4),
+                                 params=lambda: {"delta": 16.0, "alpha": 4.0})
+    with pytest.raises(UserError) as err:
+        LPLayout(stub, table=False)
+    assert str(err.value) == "lmfr with delta=16, alpha=4: the LP buffer is 0 x 0 pixels, with nothing to shade"
