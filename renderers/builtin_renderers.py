@@ -9,12 +9,15 @@ rendered, cameras ``-/+ ipd/2`` along the right vector; VaFR also ``rep``: right
 
 from __future__ import annotations
 
+import functools
 import math
+import re
 
 from data_schema.errors import UserError
+from data_schema.geometry import ViewingGeometry
 
 from . import pipeline as pl
-from .foveation import PRESETS, mapping_for
+from .foveation import DEFAULT_PIVOTS, PRESETS, mapping_for
 from .plugin_types import Param, RendererPlugin
 
 COMMON = {
@@ -63,21 +66,52 @@ def _mapping_params(method: str, p: dict) -> dict:
     return {"delta": p["delta"], "alpha": p["alpha"], "beta": p["beta"], "a": p["a"]}
 
 
+def foveation_mapping(method: str, geometry, params: dict, coverage: bool = False):
+    """The mapping of renderer ``method`` with its checked ``params`` for ``geometry`` (both backends).
+
+    The mappings refuse parameters under which they are undefined for the display (no LP column to shade,
+    fewer than 4 LP rows, LaFR's ``Fa`` outside (0, 1)) and, with ``coverage``, those that leave part of the
+    display without samples (``check_coverage``); the refusal names the renderer's parameter
+    (``vafr.e_max=...``)."""
+    mp = _mapping_params(method, params)
+    try:
+        mapping = mapping_for(method, geometry, **mp)
+        if coverage:
+            mapping.check_coverage()
+        return mapping
+    except UserError as exc:
+        names = "|".join(map(re.escape, mp))
+        raise UserError(re.sub(rf"(?<![\w.])({names})=", rf"{method}.\1=", str(exc))) from None
+
+
+@functools.lru_cache(maxsize=256)
+def _check_display(method: str, params: tuple, width: int, height: int, fov_y_deg: float) -> None:
+    # The gaze at the display's centre: the refusals do not depend on the gaze (a live trial moves it; LaFR's
+    # foveal-boundary and Fa conditions are hardest there, where the farthest corner is nearest). Cached: the
+    # registry runs the check before every frame.
+    centre = ViewingGeometry.create(width, height, fov_y_deg, (width / 2.0, height / 2.0))
+    foveation_mapping(method, centre, dict(params), coverage=True)
+
+
 def _checker(method: str):
     def check(params: dict, geometry) -> None:
-        mapping_for(method, geometry, **_mapping_params(method, params))  # raises where it is undefined
+        _check_display(method, tuple(sorted(_mapping_params(method, params).items())), geometry.width,
+                       geometry.height, geometry.fov_y_deg)
     return check
+
+
+def _gt_check(params: dict, geometry) -> None:
+    gt_spp(params)
 
 
 def run_foveated(method: str):
     def run(ctx):
         p = ctx.params
         t = ctx.tracer
-        mapping = mapping_for(method, ctx.geometry, **_mapping_params(method, p))
+        mapping = foveation_mapping(method, ctx.geometry, p)
         layout = pl.LPLayout(mapping)
         ctx.extra["lp_shape"] = [layout.w, layout.h]
         ctx.extra["lp_pixels"] = int(layout.mask.sum())
-        ctx.extra["finite_checked"] = True  # finish() checks the LP buffers
         exposure = ctx.exposure  # FXAA's luma only: the image stays unexposed
         eyes = _eyes(ctx)
         images = []
@@ -97,6 +131,13 @@ def run_foveated(method: str):
     return run
 
 
+#: Smallest VaFR ``e_max`` (degrees) that leaves an LP column to shade on any display: column 0 is shaded when
+#: ``u(e_max) >= 0.5`` (seed 001 §3.2.2) and ``u(e) = integral of du/de = 2 f(e)`` (Eq 4-5) is at most
+#: ``2 f_max e`` with the curve's peak acuity ``f_max = f(0)`` (40 cpd; the caps only lower it): 0.5 / 80 deg.
+#: A capped curve (``auto``: the display's Nyquist rate) needs more; the mapping checks that per display.
+E_MAX_LOW = 0.5 / (2.0 * max(cpd for _, cpd in DEFAULT_PIVOTS))
+
+
 def _vafr_preview(params: dict) -> dict:
     """VaFR's shading load follows visual acuity, not the image: about a million LP pixels whatever the size
     (seed 001 §3.2.2), 470 per pixel of a 64 x 36 thumbnail. Capping the acuity curve at the thumbnail's own
@@ -112,7 +153,7 @@ GT = RendererPlugin(
     {**COMMON,
      "spp": Param(int, 1, 1, 256, help="samples per pixel, a square number (stratified, jittered); 1: the centre"),
      "filter": Param(str, "box", choices=("box", "tent"), help="pixel filter of the samples (box or 1-px tent)")},
-    run_gt, gpu="renderers.gpu.runners:run_gt")
+    run_gt, gpu="renderers.gpu.runners:run_gt", check=_gt_check)
 VAFR = RendererPlugin(
     "vafr", "visual-acuity-consistent foveated rendering (seed 001): constant LP buffer, FXAA in the LP buffer",
     {**COMMON, **FOVEATED,
@@ -120,7 +161,7 @@ VAFR = RendererPlugin(
                      "(right eye reprojected from the left LP buffer)"),
      "fxaa": Param(bool, True, help="FXAA 3.11 (preset 12) in the LP buffer"),
      "preset": Param(str, "default", choices=tuple(PRESETS), help="acuity curve"),
-     "e_max": Param(float, 60.0, 0.0, 90.0, low_open=True, high_open=True, help="largest eccentricity (deg)")},
+     "e_max": Param(float, 60.0, E_MAX_LOW, 90.0, high_open=True, help="largest eccentricity (deg)")},
     run_foveated("vafr"), bytes_per_pixel=40.0, check=_checker("vafr"), preview=_vafr_preview,
     gpu="renderers.gpu.runners:run_vafr")
 _AA = {"aa": Param(bool, True, help="LMFR anti-aliasing: 3x3 Gaussian in the LP buffer + foveal Gaussian")}

@@ -138,6 +138,12 @@ class LPLayout:
         self.w, self.h = w, h
         self.L = np.ascontiguousarray(L, dtype=np.float64)
         self.n = np.ascontiguousarray(n, dtype=np.int64)
+        # The compiled inverse mapping reads columns [0, w_eff) and rows [0, n[c]) without bounds checks: a
+        # 0 x 0 buffer or an empty column would read memory outside the LP buffer into the image.
+        if not (1 <= self.w_eff <= w and h >= 1 and np.all((self.n[:self.w_eff] >= 1) & (self.n[:self.w_eff] <= h))
+                and np.isfinite(self.L[:self.w_eff]).all()):
+            raise UserError(f"{self.method} with {_params_text(mapping)}: the LP buffer is {w} x {h} pixels, "
+                            "with nothing to shade")
         self.mask = np.arange(h)[:, None] < self.n[None, :]
         self.P = np.ascontiguousarray(mapping._params_vector(), dtype=np.float64)
         self.kernel = MAPPING_KERNEL[self.method]
@@ -198,17 +204,23 @@ class LPLayout:
         return r, c
 
 
+def _params_text(mapping) -> str:
+    return ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v!r}" for k, v in mapping.params().items()
+                     if k in ("e_max", "preset", "delta", "alpha", "beta", "a"))
+
+
 def _inverse_map(tracer, layout: LPLayout, lp, aa_post: bool, width: int, height: int) -> np.ndarray:
     """Screen image from the LP buffer (bilinear, tiled), with LMFR's foveal Gaussian when ``aa_post``."""
     c = tracer.counters
     disp = layout.mapping.display
-    img = np.empty((height, width, 3), dtype=np.float32)
+    # zeros, not empty: the kernel writes every pixel, and a pixel it ever missed would be black, not garbage
+    img = np.zeros((height, width, 3), dtype=np.float32)
     halo = max(FOVEAL_RADII) if aa_post else 0
     for y0, y1 in _row_tiles(width, height):
         t0 = time.perf_counter()
         a0, a1 = max(0, y0 - halo), min(height, y1 + halo)
         # Without post-filtering the kernel writes straight into the image rows (no copy).
-        tile = np.empty((a1 - a0, width, 3), dtype=np.float32) if aa_post else img[y0:y1]
+        tile = np.zeros((a1 - a0, width, 3), dtype=np.float32) if aa_post else img[y0:y1]
         _lp.inverse_map_table(lp, layout.utab, layout.inv_step, layout.exact, layout.kernel, layout.P,
                               disp.gaze_x, disp.gaze_y, layout.Lr, layout.n, layout.w_eff, float(a0), tile)
         t0 = c.add_time("inverse_map", t0)
@@ -243,6 +255,9 @@ class GBuffer:
 def render_lp(tracer: Tracer, camera: Camera, layout: LPLayout, pipeline: str, width: int, height: int):
     """Shade the LP buffer of one eye: ``(lp, jj, ii, x, y, prim, tfar)`` of the shaded pixels (for reprojection)."""
     jj, ii, x, y, sel = layout.shaded_pixels()
+    if not sel.any():  # every screen pixel would be reconstructed from unshaded (black) LP pixels
+        raise UserError(f"{layout.method} with {_params_text(layout.mapping)}: no LP pixel maps onto the "
+                        f"{width} x {height} display, nothing to shade")
     tracer.counters.offscreen_lp_pixels += int(sel.size - np.count_nonzero(sel))
     lp = np.zeros((layout.h, layout.w, 3), dtype=np.float32)
     xs, ys = x[sel], y[sel]

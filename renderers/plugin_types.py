@@ -93,7 +93,8 @@ class RendererPlugin:
     presets: dict[str, tuple[str, dict]] = field(default_factory=dict)
     preset_of: str | None = None  # set on the plug-ins made from a preset
     #: ``check(params, geometry)`` raises a one-line error when the renderer cannot render for a viewing
-    #: geometry (e.g. a foveation mapping undefined on that display); called when a protocol is validated.
+    #: geometry (e.g. a foveation mapping undefined on that display); called when a protocol is validated and
+    #: by :func:`renderers.registry.render` before every frame (both backends), so it should be cheap (cache).
     check: Callable[[dict, ViewingGeometry], None] | str | None = None
     #: ``preview(params) -> params`` for a thumbnail render (the simulated observer's 64-pixel frames): the
     #: same method without work such a small image cannot show (``None``: the params unchanged).

@@ -14,6 +14,7 @@ plug-in types live in :mod:`renderers.plugin_types`; the output contract is stat
 from __future__ import annotations
 
 import importlib
+import math
 import resource
 import time
 from dataclasses import asdict
@@ -197,6 +198,8 @@ def render(scene, renderer: str, params: dict | None, width: int, height: int,
         gaze = sc.display.gaze if (sc.display.gaze is not None and sc.display.width == width
                                    and sc.display.height == height) else (width / 2.0, height / 2.0)
     geometry = ViewingGeometry.create(width, height, cam.fov_y, check_gaze(gaze, width, height))
+    if plugin.check is not None:  # the refusals of validation, for both backends, before any work
+        _load(plugin.check)(full, geometry)
     if backend == "gpu":
         if plugin.gpu is None:
             raise UserError(f"renderer {renderer!r} has no GPU version: use --backend cpu")
@@ -223,20 +226,31 @@ def render(scene, renderer: str, params: dict | None, width: int, height: int,
     stats.update(renderer=renderer, backend=backend, params=full, width=width, height=height, gaze=list(gaze),
                  fov_y_deg=geometry.fov_y_deg, scene=sc.name, lights=sc.light_count(), peak_mb=round(_peak_mb(), 1),
                  peak_mb_is_per_render=reset, **ctx.extra)
-    check_output(renderer, img, width, height, finite_checked=bool(ctx.extra.pop("finite_checked", False)))
-    stats.pop("finite_checked", None)
+    check_output(renderer, img, width, height, full)
     return img, stats
 
 
-def check_output(renderer: str, img, width: int, height: int, finite_checked: bool = False) -> None:
+def _described(renderer: str, params: dict | None) -> str:
+    """``renderer 'vafr' (e_max=1e-300, preset='auto')``: the renderer and the parameters set off their default."""
+    plugin = get(renderer)
+    changed = {k: v for k, v in (params or {}).items() if k not in plugin.params or v != plugin.params[k].default}
+    shown = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v!r}" for k, v in changed.items())
+    return f"renderer {renderer!r} ({shown or 'default parameters'})"
+
+
+def check_output(renderer: str, img, width: int, height: int, params: dict | None = None) -> None:
     """The output contract (:mod:`renderers.plugin_types`): float32 ``(height, width, 3)``, finite, >= 0.
 
-    A violation is a bug in the plug-in, reported as such (not as the user's error)."""
+    A wrong type or shape is a bug in the plug-in, reported as such (RuntimeError). Bad values are the last
+    guard behind the parameter ranges: such an image is never returned, and the one-line :class:`UserError`
+    names the renderer and its parameters. Two reductions check the values (``min`` and ``max`` propagate
+    NaN; ``max`` finds +inf) without a boolean temporary of the image's size."""
     if not isinstance(img, np.ndarray) or img.dtype != np.float32 or img.shape != (height, width, 3):
         got = f"{getattr(img, 'dtype', type(img).__name__)} {getattr(img, 'shape', '')}"
         raise RuntimeError(f"renderer {renderer!r} broke the output contract: returned {got}, not float32 "
                            f"({height}, {width}, 3)")
-    if not finite_checked and not np.isfinite(img).all():
-        raise RuntimeError(f"renderer {renderer!r} produced non-finite pixels")
-    if float(img.min(initial=0.0)) < 0.0:
-        raise RuntimeError(f"renderer {renderer!r} produced negative radiance")
+    lo, hi = float(img.min()), float(img.max())
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise UserError(f"{_described(renderer, params)} produced non-finite pixels: refused")
+    if lo < 0.0:
+        raise UserError(f"{_described(renderer, params)} produced negative radiance ({lo:g}): refused")

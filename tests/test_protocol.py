@@ -126,7 +126,7 @@ def test_a_renderer_that_cannot_render_for_the_display_is_refused_at_validation(
         "render_px: [960, 540]", "render_px: [64, 3338]")
     f = _write(tmp_path, text)
     with pytest.raises(ProtocolError, match=r"conditions\.LaFR\(2\.2\)\.renderer: lafr cannot render for this "
-                       r"display \(64x3338 px, 29\.0°\): alpha=0\.85 is out of range"):
+                       r"display \(64x3338 px, 29\.0°\): lafr\.alpha=0\.85 is out of range"):
         load_protocol(f)
 
 

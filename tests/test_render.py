@@ -291,15 +291,27 @@ def test_one_registration_route_entry_points_only(monkeypatch):
     assert float(img.max()) == 0.75
 
 
-def test_a_broken_output_contract_is_a_bug_not_a_user_error(monkeypatch):
+def test_a_broken_output_contract_is_a_bug_and_bad_values_are_refused_in_one_line(monkeypatch):
+    """A wrong dtype is the plug-in's bug (RuntimeError); negative or non-finite radiance, which parameters can
+    cause, is never returned: one UserError line naming the renderer and the parameters set."""
+    from data_schema.errors import UserError
+
     bad = RendererPlugin("bad64", "float64 output", {}, lambda ctx: np.zeros((ctx.height, ctx.width, 3)))
     neg = RendererPlugin("neg", "negative radiance", {},
                          lambda ctx: np.full((ctx.height, ctx.width, 3), -1.0, np.float32))
-    _with_entry_points(monkeypatch, bad, neg)
+    inf = RendererPlugin("inf", "one infinite pixel", {"v": Param(float, 0.5, 0.0, None)},
+                         lambda ctx: np.pad(np.full((1, 1, 3), np.inf, np.float32),
+                                            ((0, ctx.height - 1), (0, ctx.width - 1), (0, 0)),
+                                            constant_values=ctx.params["v"]))
+    _with_entry_points(monkeypatch, bad, neg, inf)
     with pytest.raises(RuntimeError, match="broke the output contract"):
         render(tiny_scene(), "bad64", {}, 4, 3)
-    with pytest.raises(RuntimeError, match="negative radiance"):
+    with pytest.raises(UserError) as err:
         render(tiny_scene(), "neg", {}, 4, 3)
+    assert str(err.value) == "renderer 'neg' (default parameters) produced negative radiance (-1): refused"
+    with pytest.raises(UserError) as err:
+        render(tiny_scene(), "inf", {"v": 0.25}, 4, 3)
+    assert str(err.value) == "renderer 'inf' (v=0.25) produced non-finite pixels: refused"
 
 
 @settings(max_examples=20)

@@ -64,6 +64,40 @@ class FoveationMapping(abc.ABC):
         """The parameters that define this mapping (for records and cache keys)."""
         return {}
 
+    #: The renderer parameters :meth:`check_coverage` names when it refuses.
+    coverage_params: tuple[str, ...] = ()
+
+    def _column_centres(self) -> np.ndarray:
+        """``u`` of the centres of the LP columns that hold shaded pixels."""
+        return np.arange(self.lp_shape[0]) + 0.5
+
+    def check_coverage(self) -> None:
+        """Refuse (one line) parameters that leave part of the display's radius without samples.
+
+        The LP columns are rings around the gaze at ``r(u)``, the inverse mapping at the column centres (seed
+        001 Eq 10-11; Eq 1, 14-15); the screen between two rings is interpolated from them and beyond the outer
+        one clamped to it. No gap between neighbouring rings (the gaze, and the farthest corner at ``R``,
+        included) may exceed ``R / 2``: else more than half of every ray from the gaze is reconstructed from one
+        ring of samples (VaFR ``e_max`` far below the display's corners; LMFR ``alpha -> 0`` puts every ring on
+        the gaze itself, ``alpha`` large empties the fovea; LaFR ``beta -> 0`` folds the periphery onto its
+        foveal boundary, ``beta`` large onto the farthest corner). Called with the gaze at the display's centre,
+        so that the answer does not depend on where the observer looks (live trials move the gaze).
+        """
+        u = self._column_centres()
+        gx, gy = self.display.gaze
+        x, y = self.inverse(u, np.full(u.shape, 0.5))
+        R = self.display.corner_distance()
+        # rings beyond the farthest corner (VaFR's columns out to e_max) sample nothing on the display
+        rings = np.sort(np.concatenate([[0.0], np.minimum(np.hypot(x - gx, y - gy), R), [R]]))
+        gap = float(np.max(np.diff(rings)))
+        if not gap <= 0.5 * R:
+            p = self.params()
+            names = ", ".join(f"{k}={p[k]:g}" if isinstance(p[k], float) else f"{k}={p[k]!r}"
+                              for k in self.coverage_params)
+            raise UserError(f"{names} are out of range on this display: {gap:.3g} of the {R:.3g} px from the "
+                            "centre to the farthest corner lie between two neighbouring LP columns or beyond the "
+                            "last (more than half: reconstructed from one ring of samples)")
+
     # -- shared implementation ----------------------------------------------------------------------------------
     def _map(self, direction, a, b):
         a = np.asarray(a, dtype=np.float64)

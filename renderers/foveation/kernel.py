@@ -28,6 +28,10 @@ from data_schema.ranges import check_range
 from . import _kernels as K
 from .base import FoveationMapping
 
+#: Fewest LP rows of LMFR and LaFR. Rows are the angles 2 pi (j + 0.5) / h (Eq 1) and a gaze in a corner of
+#: the display sees one quadrant of it: with h >= 4 every quadrant holds a row. (Not more: the simulated
+#: observer's 64 x 36 thumbnails of a coarse catch condition, LaFR delta = 8, have 4 rows.)
+MIN_LP_ROWS = 4
 #: LaFR's foveal boundary (seed 001 Eq 15, Fig 6).
 LAFR_FOVEAL_BOUNDARY_DEG = 4.89
 
@@ -40,6 +44,11 @@ class _KernelMapping(FoveationMapping):
         self.delta = check_range("delta", delta, 1.0, None)
         self.lp_width = max(1, int(round(display.width / self.delta)))
         self.lp_height = max(1, int(round(display.height / self.delta)))
+        if self.lp_height < MIN_LP_ROWS:
+            raise UserError(
+                f"delta={self.delta:g} is out of range on this display: the LP buffer has {self.lp_height} rows "
+                f"(round(H / delta), seed 001 Eq 1), fewer than {MIN_LP_ROWS}, so a quadrant around the gaze may "
+                f"hold no row of samples; allowed delta <= {display.height / (MIN_LP_ROWS - 0.5):.4g}")
         self.R = display.corner_distance()
         self.Lp = math.log1p(self.R)
 
@@ -88,6 +97,7 @@ class LMFRMapping(_KernelMapping):
 
     method = "lmfr"
     _kernel = K.LMFR
+    coverage_params = ("delta", "alpha")
 
     def __init__(self, display: ViewingGeometry, *, delta: float = 1.8, alpha: float = 4.0):
         super().__init__(display, delta)
@@ -140,6 +150,7 @@ class LaFRMapping(_KernelMapping):
 
     method = "lafr"
     _kernel = K.LAFR
+    coverage_params = ("delta", "alpha", "beta", "a")
 
     def __init__(self, display: ViewingGeometry, *, delta: float = 1.8, alpha: float = 0.85, beta: float = 0.7,
                  a: float = 0.25, foveal_boundary_deg: float = LAFR_FOVEAL_BOUNDARY_DEG):
@@ -156,11 +167,16 @@ class LaFRMapping(_KernelMapping):
                 "display or field of view")
         self.Z_ef = math.log1p(r_ef) / self.Lp
         q = self.alpha * self.Z_ef ** (1.0 - self.a) / (1.0 - self.a)
-        if not 0.0 < q < 1.0:
+        # Fa = 1 - ln q / ln Z_ef lies in (0, 1) iff Z_ef < q < 1 (ln Z_ef < 0): q >= 1 gives Fa >= 1, and
+        # q <= Z_ef gives Fa <= 0, where the foveal kernel (z (1 - Fa))^(1/Fa) is undefined and no LP pixel maps
+        # onto the display. In alpha: (1 - a) Z_ef^a < alpha < (1 - a) / Z_ef^(1 - a).
+        lo, hi = (1.0 - self.a) * self.Z_ef ** self.a, (1.0 - self.a) / self.Z_ef ** (1.0 - self.a)
+        self.Fa = 1.0 - math.log(q) / math.log(self.Z_ef) if q > 0.0 else -math.inf
+        if not (self.Z_ef < q < 1.0 and 0.0 < self.Fa < 1.0):
             raise UserError(
                 f"alpha={self.alpha:g} is out of range with a={self.a:g} on this display: LaFR's Fa must lie in "
-                f"(0, 1), which needs alpha * Z_ef^(1-a) < 1 - a (Z_ef = {self.Z_ef:.4f})")
-        self.Fa = 1.0 - math.log(q) / math.log(self.Z_ef)
+                f"(0, 1), which needs (1 - a) Z_ef^a < alpha < (1 - a) / Z_ef^(1 - a), here ({lo:.4g}, {hi:.4g}) "
+                f"(Z_ef = {self.Z_ef:.4f}, seed 001 Eq 15)")
         self.U_ef = (self.Z_ef * (1.0 - self.Fa)) ** (1.0 / self.Fa)
         self.p = self.beta / 0.7
         self.ext_slope = (1.0 - self.U_ef) / (1.0 - self.Z_ef)

@@ -71,6 +71,7 @@ class VaFRMapping(FoveationMapping):
 
     method = "vafr"
     _kernel = K.VAFR
+    coverage_params = ("e_max", "preset")
 
     def __init__(self, display: ViewingGeometry, *, pivots=None, e_max: float | None = None,
                  preset: str = "default", cap_cpd: float | None = None,
@@ -97,6 +98,15 @@ class VaFRMapping(FoveationMapping):
         # The compiled kernels apply a constant Delta themselves; a callable one is applied around them.
         self._P = self.acuity.params_vector(self._delta_const or 1.0)
         self.u_max = float(self.acuity.u_of_e(self.e_max))
+        if not self.u_max >= 0.5:
+            # LP column 0 is shaded when its centre 0.5 lies within u(e_max) (the semi-ellipse, §3.2.2); below,
+            # the buffer has no column (0 x 0) and nothing is shaded. u depends on the acuity cap (the
+            # display's Nyquist rate with "auto"), so the smallest e_max does too.
+            e_min = math.ceil(float(self.acuity.e_of_u(0.5)[0]) * 1e5) / 1e5  # rounded up: the bound holds
+            raise UserError(
+                f"e_max={self.e_max:g} is out of range for this display with preset {preset!r}: it leaves no LP "
+                f"column to shade (u(e_max) = {self.u_max:.3g} < 0.5 LP pixel, seed 001 Eq 4-5); allowed "
+                f"e_max >= {e_min:g}")
         self.l_max, self.e_l_max = self._max_shading_height()
         self._mask = None
 
@@ -189,6 +199,9 @@ class VaFRMapping(FoveationMapping):
             total += quad(lambda e: float(self.shading_height(e) * self.acuity.du_de(e)), a, b,
                           epsabs=1e-6, epsrel=1e-12, limit=200)[0]
         return total
+
+    def _column_centres(self) -> np.ndarray:
+        return np.arange(int(np.count_nonzero(np.arange(self.lp_shape[0]) + 0.5 <= self.u_max))) + 0.5
 
     def _radial_du_de(self, e_deg):
         return self.acuity.du_de(e_deg)

@@ -15,7 +15,6 @@ def _finish(fr: Frame, ctx, images, closed: bool = False):
     if not closed:
         fr.close()
     ctx.extra["gpu"] = {"renderer": fr.dev.renderer, "context": fr.dev.source, "timing": fr.timer.method}
-    ctx.extra["finite_checked"] = True  # the gather pass counts non-finite samples (Frame.close refuses them)
     return _pick(ctx, images)
 
 

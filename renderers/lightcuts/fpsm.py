@@ -28,6 +28,7 @@ import numpy as np
 from scipy import ndimage
 
 from data_schema.errors import UserError
+from data_schema.ranges import Range
 
 from .options import FPSM_READINGS
 
@@ -37,15 +38,15 @@ LUMA = np.array([0.2126, 0.7152, 0.0722])
 _BINOMIAL = np.array([1.0, 4.0, 6.0, 4.0, 1.0]) / 16.0
 
 
+#: The range of α. Eq 7, ``ρ = sqrt(D / -2 ln(M - α))``, needs ``ln(M - α) < 0`` where the features saturate
+#: (``M = 1``: the fovea, ``fb_f = 1``), i.e. ``1 - α < 1`` after rounding in the float32 the GPU evaluates it
+#: in: ``α >= 2^-23`` (float32's epsilon). Below, ``ln(1 - α)`` rounds to 0 and ρ to NaN (0 / 0) or +inf.
+ALPHA = Range(2.0 ** -23, 1.0, high_open=True)
+
+
 def check_alpha(alpha) -> float:
-    """α, the maximum imperceptibility threshold, must lie in (0, 1)."""
-    try:
-        a = float(alpha)
-    except (TypeError, ValueError):
-        raise UserError(f"alpha={alpha!r} is invalid: must be a number in (0, 1)") from None
-    if not 0.0 < a < 1.0:
-        raise UserError(f"alpha={a:g} is out of range: allowed (0, 1)")
-    return a
+    """α, the maximum imperceptibility threshold, in :data:`ALPHA`."""
+    return ALPHA.check("alpha", alpha)
 
 
 def _finite(name: str, x) -> np.ndarray:

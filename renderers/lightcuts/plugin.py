@@ -38,7 +38,8 @@ from renderers._shade import texture_weight
 from renderers.plugin_types import Param, RendererPlugin
 
 from .foveated import foveated_lightcuts
-from .fpsm import FPSM_READINGS, acuity_map, eccentricity_map, light_budget, screen_velocity, spatiotemporal_feature
+from .fpsm import (ALPHA, FPSM_READINGS, acuity_map, eccentricity_map, light_budget, screen_velocity,
+                   spatiotemporal_feature)
 from .glossy import glossy_pass
 from .sampling import GBuffer, ray_offset_for, stochastic_lightcuts
 from .tree import LightTree, build_light_tree
@@ -312,7 +313,9 @@ def afsm_budgets(ctx, normal, albedo, velocity) -> tuple[np.ndarray, np.ndarray]
     afsm = spatiotemporal_feature(acuity_map(_eccentricity(ctx)), np.reshape(normal, (h, w, 3)),
                                   np.reshape(albedo, (h, w, 3)), velocity)
     ctx.extra["afsm"] = afsm.astype(np.float32)
-    return light_budget(afsm, ctx.params["max_lspp"]), light_budget(afsm, ctx.params["max_rspp"])
+    max_rspp = ctx.params["max_rspp"]  # 0: no glossy rays (as on the GPU), not a budget of at least one
+    rspp = light_budget(afsm, max_rspp) if max_rspp > 0 else np.zeros(afsm.shape, dtype=np.int64)
+    return light_budget(afsm, ctx.params["max_lspp"]), rspp
 
 
 def run_sl_as(ctx):
@@ -385,7 +388,7 @@ _BPP = 200.0  # full-frame float64 buffers; the per-sample arrays are tiled
 
 FSL = RendererPlugin(
     "fsl", "foveated stochastic lightcuts (seed 003): FPSM budgets, multi-resolution selection",
-    {"alpha": Param(float, 0.1, 0.0, 1.0, low_open=True, high_open=True, help="maximum imperceptibility threshold"),
+    {"alpha": Param(float, 0.1, ALPHA.low, ALPHA.high, high_open=True, help="maximum imperceptibility threshold"),
      **_MAXES, "multires": Param(bool, True, help="multi-resolution light-sample selection"),
      "fpsm_reading": Param(str, FPSM_READINGS[0], choices=FPSM_READINGS,
                            help="reading of seed 003 Eq 4-8: derived (Eq 7 with its sign corrected: rho = "
