@@ -10,8 +10,8 @@ TINY = ["--scenes", "study", "--width", "32", "--height", "18", "--gt-samples", 
 
 
 def test_tables_json_records_and_files(tmp_path, capsys):
-    cache = tmp_path / "cache"
-    assert main(["lightcuts", "tables", *TINY, "--json", "--out", str(tmp_path), "--cache", str(cache)]) == 0
+    cache, out = tmp_path / "cache", tmp_path / "out"
+    assert main(["lightcuts", "tables", *TINY, "--json", "--out", str(out), "--cache", str(cache)]) == 0
     records = json.loads(capsys.readouterr().out)
     gt_files = sorted(cache.rglob("*.npy"))
     assert len(gt_files) == 1  # GT stored once in the stimulus cache ...
@@ -34,13 +34,13 @@ def test_tables_json_records_and_files(tmp_path, capsys):
     assert t3 == {"Ours", "Ours'", "SL_as", "SL_f", "SL_p"}
     assert len([r for r in records if r["table"] == "4"]) == 5  # alpha = 0.025 ... 0.4
     assert all(r["value"] >= 0 for r in records)
-    md = (tmp_path / "lightcuts_tables.md").read_text()
+    md = (out / "lightcuts_tables.md").read_text()
     assert "Table 1" in md and "| study | Ours |" in md and "Targets" in md
-    ratios = json.loads((tmp_path / "lightcuts_ratios.json").read_text())["study"]
+    ratios = json.loads((out / "lightcuts_ratios.json").read_text())["study"]
     t3v = {r["method"]: r["value"] for r in records if r["table"] == "3" and r["metric"] == "ms"}
     assert ratios["speedup_vs_sl_f"] == pytest.approx(t3v["SL_f"] / t3v["Ours"])
     for name in ("study_fpsm.png", "study_error_ours.png", "study_error_sl_e.png", "fig8_mse_vs_alpha.png"):
-        assert (tmp_path / name).stat().st_size > 100
+        assert (out / name).stat().st_size > 100
     assert "Fig 9: ms per step" in md and "(same-run ratios, equal-time)" in md
     md2 = (tmp_path / "samples" / "lightcuts_tables.md").read_text()
     assert "(same-run ratios, equal-samples)" in md2 and "speed-up, rays" in md2
