@@ -30,27 +30,8 @@ from hypothesis import strategies as st
 
 from data_schema.errors import UserError
 from data_schema.images import MAX_IMAGE_PIXELS, ImageTooLarge, load_npy, open_image, read_npy_header
+from test_runner_prepare import TINY  # two conditions, one scene, two frames at 64 x 36
 
-TINY = """
-schema_version: 1
-name: tiny
-version: "1"
-family: 2afc
-question: "Which one?"
-display: {width_px: 64, height_px: 36, width_cm: 53.0, distance_cm: 40.95, fov_y_deg: 40}
-scenes: [cornell]
-conditions:
-  GT: {renderer: gt}
-  LaFR: {renderer: lafr, params: {delta: 4.0}}
-stimulus:
-  kind: sequence
-  duration_s: 1.0
-  fps: 2
-  camera_path: [{t: 0, yaw_deg: -2}, {t: 1, yaw_deg: 2}]
-design: {repetitions: 2}
-simulation: {ground_truth: GT}
-analysis: {dv: chosen, unit: participant, test: thurstone}
-"""
 LIMIT = "over the limit of 8192x8192 (67 M pixels) for an image"
 
 
