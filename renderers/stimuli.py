@@ -218,6 +218,9 @@ def check_entry(png: Path, shape: tuple[int, ...]) -> str | None:
     png = Path(png)
     meta_file, npy = png.with_suffix(".json"), png.with_suffix(".npy")
     shape = tuple(int(n) for n in shape)
+    for f in (meta_file, npy, png):  # a FIFO or a device would block or never end: not ours
+        if f.exists() and not f.is_file():
+            return f"{f.suffix}: not a regular file"
     try:
         if meta_file.stat().st_size > MAX_STATS_BYTES:
             return f".json: over {MAX_STATS_BYTES} bytes"

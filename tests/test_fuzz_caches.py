@@ -330,3 +330,22 @@ def test_the_cache_record_is_what_check_entry_compares(reference):
     assert rec["npy_sha256"] == hashlib.sha256(np.load(png.with_suffix(".npy")).tobytes()).hexdigest()
     with open_image(png) as im:
         assert im.size == (64, 36)
+
+
+def test_a_fifo_in_an_entry_is_damage_not_a_hang(reference, tmp_path):
+    import os
+
+    from renderers.stimuli import check_entry
+
+    ref_dir, _, _, entries = reference
+    cache = tmp_path / "cache"
+    shutil.copytree(ref_dir / "cache", cache)
+    for suffix in (".json", ".npy"):
+        f = (cache / entries[0]).with_suffix(suffix)
+        saved = f.read_bytes()
+        f.unlink()
+        os.mkfifo(f)
+        assert check_entry(cache / entries[0], (36, 64, 3)) == f"{suffix}: not a regular file"
+        f.unlink()
+        f.write_bytes(saved)
+    assert check_entry(cache / entries[0], (36, 64, 3)) is None
