@@ -137,6 +137,11 @@ def test_out_is_checked_before_any_rendering_and_a_users_folder_is_kept(tmp_path
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and message in err, err
     assert mine.read_text() == "my notes" and sorted(p.name for p in tmp_path.iterdir()) == [mine.name]
+    for out, cache in ((tmp_path / "o", tmp_path / "o" / "cache"), (tmp_path / "c" / "o", tmp_path / "c")):
+        assert main(["lightcuts", "tables", *TINY, "--out", str(out), "--cache", str(cache)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "overlap: the --out folder is replaced whole" in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == [mine.name]
 
 
 def test_out_is_a_marked_folder_replaced_whole(tmp_path, capsys, monkeypatch):

@@ -226,7 +226,11 @@ def cmd_tables(args) -> int:
     if args.out:  # refused now, not after the rendering
         from data_schema.atomic import check_dir_target
 
-        check_dir_target(args.out, MARKER)
+        out = check_dir_target(args.out, MARKER).resolve()
+        cache = Path(args.cache).resolve()
+        if cache == out or out in cache.parents or cache in out.parents:
+            raise CLIError(f"--cache {args.cache} and --out {args.out} overlap: the --out folder is replaced whole, "
+                           "so keep the stimulus cache outside it")
     width, height = frame_size(args.backend, args.width, args.height)  # opens the GPU: errors before any task
     _ground_truths(args, scenes, width, height)
     records, ratios, images, fov_y = [], {}, {}, {}
