@@ -309,16 +309,23 @@ def test_quality_refuses_a_13000_pixel_square_png_in_one_line(tmp_path):
         assert peak_kb == before or peak_kb < 400_000, peak_kb  # the imports: 13000 x 13000 x 3 bytes is 507 MB
 
 
-def test_a_damaged_stimulus_frame_is_one_line(tmp_path):
+def test_a_damaged_or_huge_stimulus_frame_is_one_line(tmp_path):
+    """Stimulus frames (the simulated observer's and the presenter's readers) go through the same check."""
+    from studyapp.presentation.base import PresentationError
+    from studyapp.presentation.psychopy_window import decode_image
     from studyapp.runner.images import load_gray
 
     f = tmp_path / "frame.png"
     f.write_bytes(png_header(64, 36))  # a header, no pixels
     with pytest.raises(UserError, match=f"^cannot read image {re.escape(str(f))}: "):
         load_gray(f)
+    with pytest.raises(PresentationError, match=f"^cannot read stimulus frame {re.escape(str(f))}: "):
+        decode_image(f)
     f.write_bytes(png_header(9000, 9000))
     with pytest.raises(ImageTooLarge, match=f"^{re.escape(f'{f}: 9000x9000 pixels is {LIMIT}')}$"):
         load_gray(f)
+    with pytest.raises(PresentationError, match=f"^{re.escape(f'{f}: 9000x9000 pixels is {LIMIT}')}$"):
+        decode_image(f)
 
 
 def test_the_cache_record_is_what_check_entry_compares(reference):
