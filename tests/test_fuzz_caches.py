@@ -74,7 +74,17 @@ def reference(tmp_path_factory):
     assert code == 0, err
     entries = sorted((d / "cache").glob("??/*.png"))
     assert len(entries) == 4 and len(tree(d / "stim")) == 4
-    return d, tree(d / "stim"), tree(d / "cache"), [e.relative_to(d / "cache") for e in entries]
+    return Reference(d, tree(d / "stim"), tree(d / "cache"), [e.relative_to(d / "cache") for e in entries])
+
+
+class Reference(tuple):
+    """(folder, stimulus set, cache, entries): named briefly in hypothesis' reports (not by its bytes)."""
+
+    def __new__(cls, *items):
+        return super().__new__(cls, items)
+
+    def __repr__(self) -> str:
+        return f"Reference({self[0]})"
 
 
 def _flip(data: bytes, at: int) -> bytes:
@@ -84,7 +94,8 @@ def _flip(data: bytes, at: int) -> bytes:
 
 
 def damage(png: Path, kind: str, where: int, other: Path) -> None:
-    """Damage the cache entry of ``png`` in one of the ways ``KINDS`` names (``where`` picks a byte)."""
+    """Damage the cache entry of ``png`` in one of the ways ``KINDS`` names (``where`` picks a byte; ``other`` is
+    another entry's PNG, undamaged, for the swaps)."""
     npy, meta = png.with_suffix(".npy"), png.with_suffix(".json")
     if kind == "truncate_png":
         png.write_bytes(png.read_bytes()[: where % png.stat().st_size])
@@ -134,7 +145,7 @@ def test_prepare_renders_damaged_entries_again_and_copies_none(reference, data):
         cache = tmp / "cache"
         shutil.copytree(ref_dir / "cache", cache)
         for e, kind, where in plans:
-            damage(cache / e, kind, where, cache / next(x for x in entries if x != e))
+            damage(cache / e, kind, where, ref_dir / "cache" / next(x for x in entries if x != e))
         code, err = run_prepare(ref_dir / "tiny.yaml", tmp / "stim", cache)
         assert code == 0, err
         reports = [ln for ln in err.splitlines() if ln.startswith("cache: ")]
@@ -163,7 +174,7 @@ def test_every_kind_of_damage_is_named(reference):
             shutil.copytree(ref_dir / "cache", cache)
             png = cache / entries[0]
             assert check_entry(png, (36, 64, 3)) is None
-            damage(png, kind, 5000, cache / entries[1])
+            damage(png, kind, 5000, ref_dir / "cache" / entries[1])
             tracemalloc.start()
             why = check_entry(png, (36, 64, 3))
             peak = tracemalloc.get_traced_memory()[1]
@@ -183,7 +194,7 @@ def test_a_cluster_prepare_checks_the_entries_it_will_take(reference, monkeypatc
     ref_dir, ref_stim, _, entries = reference
     cache = tmp_path / "cache"
     shutil.copytree(ref_dir / "cache", cache)
-    damage(cache / entries[2], "nan", 3, cache / entries[0])
+    damage(cache / entries[2], "nan", 3, ref_dir / "cache" / entries[0])
     real = cluster.render_frames
     seen = {}
 
