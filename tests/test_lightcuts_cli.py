@@ -10,8 +10,8 @@ TINY = ["--scenes", "study", "--width", "32", "--height", "18", "--gt-samples", 
 
 
 def test_tables_json_records_and_files(tmp_path, capsys):
-    cache = tmp_path / "cache"
-    assert main(["lightcuts", "tables", *TINY, "--json", "--out", str(tmp_path), "--cache", str(cache)]) == 0
+    cache, out = tmp_path / "cache", tmp_path / "out"
+    assert main(["lightcuts", "tables", *TINY, "--json", "--out", str(out), "--cache", str(cache)]) == 0
     records = json.loads(capsys.readouterr().out)
     gt_files = sorted(cache.rglob("*.npy"))
     assert len(gt_files) == 1  # GT stored once in the stimulus cache ...
@@ -34,13 +34,13 @@ def test_tables_json_records_and_files(tmp_path, capsys):
     assert t3 == {"Ours", "Ours'", "SL_as", "SL_f", "SL_p"}
     assert len([r for r in records if r["table"] == "4"]) == 5  # alpha = 0.025 ... 0.4
     assert all(r["value"] >= 0 for r in records)
-    md = (tmp_path / "lightcuts_tables.md").read_text()
+    md = (out / "lightcuts_tables.md").read_text()
     assert "Table 1" in md and "| study | Ours |" in md and "Targets" in md
-    ratios = json.loads((tmp_path / "lightcuts_ratios.json").read_text())["study"]
+    ratios = json.loads((out / "lightcuts_ratios.json").read_text())["study"]
     t3v = {r["method"]: r["value"] for r in records if r["table"] == "3" and r["metric"] == "ms"}
     assert ratios["speedup_vs_sl_f"] == pytest.approx(t3v["SL_f"] / t3v["Ours"])
     for name in ("study_fpsm.png", "study_error_ours.png", "study_error_sl_e.png", "fig8_mse_vs_alpha.png"):
-        assert (tmp_path / name).stat().st_size > 100
+        assert (out / name).stat().st_size > 100
     assert "Fig 9: ms per step" in md and "(same-run ratios, equal-time)" in md
     md2 = (tmp_path / "samples" / "lightcuts_tables.md").read_text()
     assert "(same-run ratios, equal-samples)" in md2 and "speed-up, rays" in md2
@@ -105,3 +105,56 @@ def test_tables_without_opengl_43_is_one_line_exit_2(tmp_path):
     assert p.returncode == 2 and len(lines) == 1, p.stderr
     assert lines[0].startswith("studyapp: error: OpenGL 4.3 compute shaders are not available")
     assert not (tmp_path / "o").exists()
+
+
+def _no_rendering(monkeypatch):
+    """Stand-ins for the renders: the command's own checks and output only (the GT step must not run)."""
+    import numpy as np
+
+    from renderers.lightcuts import tables
+    from studyapp.commands import lightcuts as cmd
+
+    def gts(*args):
+        raise AssertionError("rendered before --out was checked")
+
+    def fake_tables(scene, width, height, images=None, **kw):
+        img = np.full((height, width, 3), 0.5, np.float32)
+        images.update(gt=img, ours=img, sl_e=img, sl_as=img, fpsm=img[..., 0])
+        return [{"table": "1", "scene": scene.name, "method": "Ours", "metric": "mse", "region": "all",
+                 "value": 0.0}]
+
+    monkeypatch.setattr(cmd, "_ground_truths", gts)
+    monkeypatch.setattr(tables, "lightcut_tables", fake_tables)
+
+
+def test_out_is_checked_before_any_rendering_and_a_users_folder_is_kept(tmp_path, capsys, monkeypatch):
+    _no_rendering(monkeypatch)
+    mine = tmp_path / "lightcuts_tables.md"
+    mine.write_text("my notes")
+    for out, message in ((mine, f"{mine}: exists and is not a folder"),
+                         (tmp_path, f"{tmp_path}: is a folder with other files in it (no lightcuts_records.json)")):
+        assert main(["lightcuts", "tables", *TINY, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and message in err, err
+    assert mine.read_text() == "my notes" and sorted(p.name for p in tmp_path.iterdir()) == [mine.name]
+    for out, cache in ((tmp_path / "o", tmp_path / "o" / "cache"), (tmp_path / "c" / "o", tmp_path / "c")):
+        assert main(["lightcuts", "tables", *TINY, "--out", str(out), "--cache", str(cache)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "overlap: the --out folder is replaced whole" in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == [mine.name]
+
+
+def test_out_is_a_marked_folder_replaced_whole(tmp_path, capsys, monkeypatch):
+    from studyapp.commands import lightcuts as cmd
+
+    _no_rendering(monkeypatch)
+    monkeypatch.setattr(cmd, "_ground_truths", lambda *args: None)
+    out = tmp_path / "out"
+    for run in range(2):
+        assert main(["lightcuts", "tables", *TINY, "--out", str(out)]) == 0
+        printed = capsys.readouterr().out.splitlines()
+        assert printed[:3] == [str(out / n) for n in ("lightcuts_tables.md", cmd.MARKER, "lightcuts_ratios.json")]
+        assert sorted(printed) == sorted(str(p) for p in out.iterdir())  # every file it wrote, and only those
+        (out / "stale.txt").write_text("from an earlier run")  # replaced whole by the next run
+    assert json.loads((out / cmd.MARKER).read_text())[0]["method"] == "Ours"
+    assert [p.name for p in tmp_path.iterdir()] == ["out"]  # no temporary folder left

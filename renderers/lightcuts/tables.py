@@ -126,11 +126,11 @@ def lightcut_tables(scene, width: int, height: int, *, alphas=(0.025, 0.05, 0.1,
                           backend=backend)
     gt_params = gt_request["params"]
     if cache_dir is not None:
-        from renderers.stimuli import render_stimulus
+        from renderers.stimuli import entry_image, render_stimulus
 
         say(f"{sc.name}: sl_gt {gt_params} (stimulus cache)")
-        png = render_stimulus(**gt_request, cache_dir=cache_dir)
-        gt = np.load(png.with_suffix(".npy"))
+        png = render_stimulus(**gt_request, cache_dir=cache_dir)  # a damaged entry is rendered again
+        gt = entry_image(png, (height, width, 3))
         glossy = None  # taken from Ours' G-buffer below (same primary hits)
     else:
         gt, gt_st = render("sl_gt", gt_params)

@@ -27,6 +27,9 @@ render) is one Dask task into the stimulus cache first (a local cluster by defau
 one, --serial in this process); the measured renders then run in this process, one at a time."""
 
 SCENE_NAMES = ("cornell_many", "study", "yard", "sponza_vpl")
+#: The file that marks an --out folder as this command's output (data_schema.atomic.atomic_dir replaces only such a
+#: folder, an empty one or none).
+MARKER = "lightcuts_records.json"
 #: Default sizes: a quick run, and the per-eye HMD resolution of issue 16 item 3 (the GPU backend on a GPU).
 SMALL_SIZE = (192, 108)
 SEED_SIZE = (2160, 2160)
@@ -41,7 +44,9 @@ def register(sub, parser_class) -> None:
     t = lsub.add_parser("tables", help="seed 003 Tables 1-4 and Fig 5-8 on the many-light scenes",
                         description=DESCRIPTION)
     t.add_argument("--json", action="store_true", help="print the records as JSON")
-    t.add_argument("--out", metavar="DIR", help="write tables (md, csv), records (json) and figures (png)")
+    t.add_argument("--out", metavar="DIR",
+                   help=f"write tables (md), records (json) and figures (png) into DIR, a new or empty folder or an "
+                        f"earlier output of this command (it holds {MARKER}), which is replaced whole")
     t.add_argument("--scenes", default=",".join(SCENE_NAMES), metavar="A,B",
                    help=f"scenes to render (default: {','.join(SCENE_NAMES)})")
     t.add_argument("--backend", choices=("cpu", "gpu"), default="cpu",
@@ -194,6 +199,10 @@ def _ground_truths(args, scenes, width: int, height: int) -> None:
     frames = [(f"scene {name}, ground truth sl_gt {n} + {n}",
                gt_frame(name, width, height, gt_lspp=n, gt_rspp=n, seed=args.seed, backend=args.backend))
               for name in scenes]
+    if not spec.in_process:  # a cluster run takes a GT entry that is there: check those first
+        from renderers.stimuli import discard_damaged
+
+        discard_damaged(Path(args.cache), [kw for _, kw in frames])
     bar = Bar("ground truths")
     cluster.render_frames(frames, Path(args.cache), spec, progress=bar)
     bar.close()
@@ -214,6 +223,14 @@ def cmd_tables(args) -> int:
         if v is not None and not lo <= v <= 8192:
             raise CLIError(f"{name}={v} is out of range: allowed [{lo}, 8192]")
     check_alpha(args.alpha)
+    if args.out:  # refused now, not after the rendering
+        from data_schema.atomic import check_dir_target
+
+        out = check_dir_target(args.out, MARKER).resolve()
+        cache = Path(args.cache).resolve()
+        if cache == out or out in cache.parents or cache in out.parents:
+            raise CLIError(f"--cache {args.cache} and --out {args.out} overlap: the --out folder is replaced whole, "
+                           "so keep the stimulus cache outside it")
     width, height = frame_size(args.backend, args.width, args.height)  # opens the GPU: errors before any task
     _ground_truths(args, scenes, width, height)
     records, ratios, images, fov_y = [], {}, {}, {}
@@ -231,16 +248,17 @@ def cmd_tables(args) -> int:
     end_status()
     md = tables_markdown(records, ratios, args.budget, args.backend)
     if args.out:
-        from data_schema.atomic import write_text
+        from data_schema.atomic import atomic_dir, write_text
 
         out = Path(args.out)
-        paths = [write_text(out / "lightcuts_tables.md", md),
-                 write_text(out / "lightcuts_records.json", json.dumps(records, indent=1) + "\n"),
-                 write_text(out / "lightcuts_ratios.json", json.dumps(ratios, indent=1) + "\n")]
-        paths += _write_figures(out, records, images, fov_y)
+        with atomic_dir(out, MARKER) as tmp:  # the whole folder, or nothing
+            written = [write_text(tmp / "lightcuts_tables.md", md),
+                       write_text(tmp / MARKER, json.dumps(records, indent=1) + "\n"),
+                       write_text(tmp / "lightcuts_ratios.json", json.dumps(ratios, indent=1) + "\n"),
+                       *_write_figures(tmp, records, images, fov_y)]
         if not args.json:
-            for p in paths:
-                print(p)
+            for p in written:
+                print(out / p.name)
     if args.json:
         print(json.dumps(records, indent=1))
     elif not args.out:

@@ -70,39 +70,33 @@ def parse_gaze(text: str | None) -> tuple[float, float] | None:
 
 
 def load_image(path: Path):
-    """Read a PNG (via Pillow) or a .npy array (no pickles).
+    """Read a PNG (via Pillow) or a .npy array (no pickles), its size checked from the header before it is
+    decoded (:mod:`data_schema.images`: at most 8192x8192 pixels, one line naming the limit).
 
     PNG modes: grey (``L``, 16-bit ``I;16``/``I``) stays 2-D; everything else becomes 8-bit RGB
     (an alpha channel is dropped, palettes are expanded).
     """
     import numpy as np
 
+    from data_schema.images import load_npy, open_image
+
     if not path.is_file():
         raise CLIError(f"cannot read image {path}: no such file")
     suffix = path.suffix.lower()
     if suffix == ".npy":
-        try:
-            return np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise CLIError(f"cannot read image {path}: {str(exc).splitlines()[0]}") from None
+        return load_npy(path)
     if suffix != ".png":
         raise CLIError(f"cannot read image {path}: unsupported type {path.suffix or '(none)'!r}, "
                        "use .png or .npy")
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        with Image.open(path) as im:
-            im.load()
-            if im.mode in ("I;16", "I;16B", "I;16L", "I"):
-                a = np.asarray(im)
-                if a.min() < 0 or a.max() > 65535:
-                    raise CLIError(f"cannot read image {path}: 32-bit integer values outside 0..65535")
-                return a.astype(np.uint16)
-            if im.mode in ("1", "L", "LA"):
-                return np.asarray(im.convert("L"))
-            return np.asarray(im.convert("RGB"))
-    except (OSError, UnidentifiedImageError, ValueError) as exc:
-        raise CLIError(f"cannot read image {path}: {str(exc).splitlines()[0]}") from None
+    with open_image(path, load=True) as im:
+        if im.mode in ("I;16", "I;16B", "I;16L", "I"):
+            a = np.asarray(im)
+            if a.min() < 0 or a.max() > 65535:
+                raise CLIError(f"cannot read image {path}: 32-bit integer values outside 0..65535")
+            return a.astype(np.uint16)
+        if im.mode in ("1", "L", "LA"):
+            return np.asarray(im.convert("L"))
+        return np.asarray(im.convert("RGB"))
 
 
 def collect_inputs(inputs, gt: Path) -> list[Path]:

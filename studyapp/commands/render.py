@@ -117,12 +117,10 @@ def cmd_renderers(args) -> int:
 def demo_step(out_dir: Path, progress=None) -> list[Path]:
     """Render the Cornell box at 320x240 with GT and the foveated renderers on the CPU, then again on the GPU
     backend (llvmpipe where there is no GPU), and print how closely the two agree."""
-    import numpy as np
-
     from data_schema.atomic import write_bytes, write_text
     from renderers.gpu import render as gpu_render
     from renderers.gpu.agreement import agreement
-    from renderers.stimuli import render_stimulus, write_png
+    from renderers.stimuli import entry_image, render_stimulus, write_png
 
     out_dir = Path(out_dir)
     cache = out_dir / "cache"
@@ -139,7 +137,7 @@ def demo_step(out_dir: Path, progress=None) -> list[Path]:
         png = render_stimulus("cornell", name, params, 320, 240, gaze, cache_dir=cache)
         target = out_dir / f"cornell_{name}.png"
         write_bytes(target, png.read_bytes())
-        cpu_img = np.load(png.with_suffix(".npy"))
+        cpu_img = entry_image(png, (240, 320, 3))
         cpu_points = json.loads(png.with_suffix(".json").read_text())["shading_points"]
         if progress:
             progress(f"render: cornell {name} (gpu)")

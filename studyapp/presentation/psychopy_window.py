@@ -243,15 +243,15 @@ def _check_iohub_device(device: str) -> None:
 
 
 def decode_image(path: Path):
-    """Open and fully decode an image file into a PIL image in ``RGB`` (or ``RGBA``) mode."""
-    from PIL import Image
+    """Open and fully decode an image file into a PIL image in ``RGB`` (or ``RGBA``) mode (its size checked from
+    the header first: :func:`data_schema.images.open_image`)."""
+    from data_schema.images import open_image
 
     try:
-        with Image.open(path) as im:
-            im.load()
+        with open_image(path, load=True) as im:
             return im if im.mode in ("RGB", "RGBA") else im.convert("RGB")
-    except (OSError, ValueError) as exc:
-        raise PresentationError(f"cannot read stimulus frame {path}: {exc}") from None
+    except ValueError as exc:  # one line naming the file (a UserError)
+        raise PresentationError(str(exc).replace("cannot read image", "cannot read stimulus frame", 1)) from None
 
 
 def _has_display() -> bool:

@@ -11,11 +11,7 @@ from data_schema.atomic import atomic_path
 
 def load_gray(path: Path) -> np.ndarray:
     """Rec. 709 luma of an 8-bit image in [0, 1], float32 (H, W)."""
-    from PIL import Image
-
-    with Image.open(path) as im:
-        a = np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
-    return a @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+    return load_rgb(path) @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
 
 
 def save_png(path: Path, rgb: np.ndarray) -> Path:
@@ -39,8 +35,9 @@ def gaussian_blur(img: np.ndarray, sigma: float) -> np.ndarray:
 
 
 def load_rgb(path: Path) -> np.ndarray:
-    """An image file as float32 RGB in [0, 1]."""
-    from PIL import Image
+    """An image file as float32 RGB in [0, 1]: its size checked from the header before it is decoded, a
+    damaged file one line naming it (:func:`data_schema.images.open_image`)."""
+    from data_schema.images import open_image
 
-    with Image.open(path) as im:
+    with open_image(path, load=True) as im:
         return np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0

@@ -155,9 +155,10 @@ def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, ca
 
     Every missing frame of a renderer condition is one task (:func:`studyapp.cluster.render_frames`) on
     ``cluster`` (a :class:`~studyapp.cluster.ClusterSpec`; default: in this process), rendered into the
-    content-addressed cache and copied into the stimulus folder atomically as it arrives, so a killed
-    ``prepare`` resumes where it stopped (first removing the temporary files that a kill left mid-copy in the
-    folders it writes: :func:`~data_schema.atomic.remove_stale_temporaries`). ``render`` replaces
+    content-addressed cache (a damaged entry is rendered again and reported: :func:`renderers.stimuli.cached_entry`)
+    and copied into the stimulus folder atomically as it arrives, so a killed ``prepare`` resumes where it stopped
+    (first removing the temporary files that a kill left mid-copy in the folders it writes:
+    :func:`~data_schema.atomic.remove_stale_temporaries`). ``render`` replaces
     :func:`renderers.stimuli.render_stimulus` in process (tests). ``progress(done_frames, total_frames,
     seconds_left)`` is called after every frame; the time left is the frames left times the wall time per frame
     so far. Returns counts (``removed``: stale temporary files) and the elapsed time.
@@ -210,6 +211,10 @@ def _build(protocol: Protocol, todo, geometry, scale: float, root, cache: Path, 
                 targets.append(dst)
     if jobs and render is None:
         render = render_function()  # one line if the renderers are not usable here
+    if jobs and not spec.in_process:  # a cluster run takes an entry that is there: check those first
+        from renderers.stimuli import discard_damaged
+
+        discard_damaged(cache, [kw for _, kw in jobs])
     t0 = time.perf_counter()
     count = {"done": total - len(jobs) - sum(len(fr) for _, c, fr in todo if not c.renderer)}
 
