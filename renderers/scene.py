@@ -421,8 +421,10 @@ def _read_ply(path: Path, size: int, where: str) -> tuple[np.ndarray, np.ndarray
             raise bad(f"has a PLY header line it cannot use: {' '.join(words)[:60]!r}") from None
     if fmt is None:
         raise bad("has no PLY format line")
-    if any(not e[2] for e in elements):
-        raise bad("has a PLY element without properties")
+    for e in elements:
+        props = [p for p, _ in e[2]]
+        if not props or len(set(props)) < len(props):
+            raise bad(f"has a PLY element {e[0]!r} without properties or with one named twice")
     counts = {e[0]: e[1] for e in elements}
     _check_count("vertices", counts.get("vertex", 0), MAX_MESH_VERTICES, name, where)
     for e in elements:
