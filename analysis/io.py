@@ -80,8 +80,7 @@ def read_log(path: Any) -> pd.DataFrame:
         Unreadable file, a column named twice, missing columns, unknown trial family, a yes/no response
         other than 0 or 1, a ``practice``/``catch`` flag other than 0 or 1, a ``trial`` that is not a whole
         number in [0, 2**63), a non-finite ``rt_s`` or timing value, an empty participant or scene. Values are
-        checked before
-        practice and catch trials are dropped; the message names the file, the column, the first bad line
+        checked before practice and catch trials are dropped; the message names the file, the column, the first bad line
         (CSV; header = line 1) or row (other formats, 1-based) and its value.
     """
     path = Path(path)
