@@ -517,11 +517,7 @@ def _read_ply(path: Path, size: int, where: str) -> tuple[np.ndarray, np.ndarray
     n_tri = (len(polys) * max(polys.shape[1] - 2, 0) if isinstance(polys, np.ndarray)
              else sum(max(len(p) - 2, 0) for p in polys))
     _check_count("triangles", n_tri, MAX_MESH_TRIANGLES, name, where)
-    tris = _fan(polys)
-    if len(tris) and (tris.min() < 0 or tris.max() >= len(verts)):
-        bad_index = int(tris.max() if tris.max() >= len(verts) else tris.min())
-        raise bad(f"has a face with vertex index {bad_index:,}, outside the {len(verts):,} vertices")
-    return verts, tris
+    return verts, _fan(polys)
 
 
 def _check_obj_stl(path: Path, size: int, where: str) -> None:
@@ -556,10 +552,7 @@ def _read_mesh(path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
     """
     size = _check_mesh_file(path, where)
     if path.suffix.lower() == ".ply":
-        verts, tris = _read_ply(path, size, where)
-        if len(tris) == 0:
-            raise SceneError(f"{where}: mesh file {str(path)!r} has no triangles")
-        return verts, tris
+        return _checked_arrays(*_read_ply(path, size, where), path, where)
     _check_obj_stl(path, size, where)
     import pyvista as pv  # heavy: imported only when a mesh file is read
 
@@ -575,9 +568,23 @@ def _read_mesh(path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
         mesh = mesh.extract_surface()
     mesh = mesh.triangulate()
     faces = np.asarray(mesh.faces).reshape(-1, 4)
-    if len(faces) == 0 or not np.all(faces[:, 0] == 3):
-        raise SceneError(f"{where}: mesh file {str(path)!r} has no triangles")
-    return np.asarray(mesh.points, dtype=np.float64), faces[:, 1:].astype(np.int64)
+    if len(faces) and not np.all(faces[:, 0] == 3):
+        faces = faces[:0]
+    return _checked_arrays(np.asarray(mesh.points, dtype=np.float64), faces[:, 1:].astype(np.int64), path, where)
+
+
+def _checked_arrays(verts: np.ndarray, tris: np.ndarray, path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh if it has triangles, finite vertices and in-range indexes; else a SceneError naming the file."""
+    name = f"mesh file {str(path)!r}"
+    if len(tris) == 0:
+        raise SceneError(f"{where}: {name} has no triangles")
+    if not np.isfinite(verts).all():
+        raise SceneError(f"{where}: {name} has a vertex coordinate that is not a finite number")
+    lo, hi = int(tris.min()), int(tris.max())
+    if lo < 0 or hi >= len(verts):
+        raise SceneError(f"{where}: {name} has a face with vertex index {hi if hi >= len(verts) else lo:,}, "
+                         f"outside the {len(verts):,} vertices")
+    return verts, tris
 
 
 def load_yaml(path) -> Scene:

@@ -141,6 +141,18 @@ def _mesh_case(folder: Path, case: str) -> str:
         (folder / "m.ply").write_bytes(_ply(10_000_000, 1) + bytes(100))  # VTK: segmentation fault
     elif case == "index":
         (folder / "m.ply").write_bytes(_ply(3, 1) + TRIANGLE + struct.pack("<Biii", 3, 0, 1, 1_000_000))
+    elif case == "obj_index":
+        (folder / "m.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99999999\n")
+        return "m.obj"
+    elif case == "obj_nan":
+        (folder / "m.obj").write_text("v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+        return "m.obj"
+    elif case == "obj_count":  # with the limits lowered to 2 by the test
+        (folder / "m.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+        return "m.obj"
+    elif case == "stl_header":
+        (folder / "m.stl").write_bytes(bytes(80) + struct.pack("<I", 4_000_000_000) + bytes(100))
+        return "m.stl"
     elif case == "format":
         (folder / "m.ply").write_bytes(b"")
         (folder / "m.ply").rename(folder / "m.vtk")
@@ -158,8 +170,16 @@ def _mesh_case(folder: Path, case: str) -> str:
     ("short", "m.ply' declares 10,000,000 vertex elements of 12 bytes, more than its"),
     ("index", "m.ply' has a face with vertex index 1,000,000, outside the 3 vertices"),
     ("format", "m.vtk' has an unsupported format '.vtk': allowed .ply, .obj, .stl"),
+    ("obj_index", "m.obj' has a face with vertex index 99,999,998, outside the 3 vertices"),
+    ("obj_nan", "m.obj' has a vertex coordinate that is not a finite number"),
+    ("obj_count", "m.obj' declares 3 vertices, more than the 2 a mesh may have"),
+    ("stl_header", "m.stl' is neither ASCII STL nor binary STL of the size its header declares"),
 ])
-def test_hostile_mesh_files_are_refused_before_decoding(tmp_path, capsys, case, match):
+def test_hostile_mesh_files_are_refused_before_decoding(tmp_path, capsys, monkeypatch, case, match):
+    import renderers.scene
+
+    if case == "obj_count":
+        monkeypatch.setattr(renderers.scene, "MAX_MESH_VERTICES", 2)
     name = _mesh_case(tmp_path, case)
     err = _refused(_render(tmp_path, SCENE.replace("MESH", name).replace("FOV", "50")), tmp_path, capsys, match)
     assert "s.yaml:3: meshes[0].file: " in err
