@@ -11,6 +11,7 @@ failures are kept below as ``@example``.
 from __future__ import annotations
 
 import csv
+import io
 import math
 import os
 import struct
@@ -402,3 +403,19 @@ def test_fuzzed_data_range(text):
     ref = np.zeros((9, 9))
     q = image_quality(ref + 0.5, ref, fov_y_deg=60.0, data_range=rng)
     assert np.isfinite(q["psnr"].astype(float)).all() and np.isfinite(q["ssim"].astype(float)).all()
+
+
+@pytest.mark.parametrize("column,value,match", [
+    ("trial", math.inf, "row 2: column trial (the 0-based trial index) must be a whole number in [0, 2**63), "
+                        "found inf"),
+    ("trial", 1e300, "row 2: column trial (the 0-based trial index) must be a whole number in [0, 2**63)"),
+    ("participant", math.nan, "row 2: column participant must not be empty, found nan"),
+])
+def test_parquet_log_values_are_checked(tmp_path, capsys, column, value, match):
+    import pandas as pd
+
+    df = pd.read_csv(io.StringIO(LOG), dtype={"participant": object, "trial": float})
+    df.loc[1, column] = value
+    df.to_parquet(tmp_path / "log.parquet")
+    _refused(["analyze", tmp_path / "log.parquet", "--out", tmp_path / "rep", "--no-figures"], tmp_path, capsys,
+             f"log.parquet: {match}")
