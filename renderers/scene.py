@@ -425,6 +425,13 @@ def _read_ply(path: Path, size: int, where: str) -> tuple[np.ndarray, np.ndarray
         props = [p for p, _ in e[2]]
         if not props or len(set(props)) < len(props):
             raise bad(f"has a PLY element {e[0]!r} without properties or with one named twice")
+    kinds = {(e[0], p): t for e in elements for p, t in e[2]}
+    if any(isinstance(kinds.get(("vertex", a)), tuple) for a in "xyz"):
+        raise bad("has a vertex x, y or z that is a list, not a number")
+    for p in ("vertex_indices", "vertex_index"):
+        t = kinds.get(("face", p))
+        if t is not None and not (isinstance(t, tuple) and np.dtype(t[1]).kind in "iu"):
+            raise bad(f"has a face {p} that is not a list of integers")
     counts = {e[0]: e[1] for e in elements}
     _check_count("vertices", counts.get("vertex", 0), MAX_MESH_VERTICES, name, where)
     for e in elements:
@@ -462,11 +469,13 @@ def _read_ply(path: Path, size: int, where: str) -> tuple[np.ndarray, np.ndarray
             pos += n * dtype.itemsize
             data[ename] = {p: rec[p] for p, _ in props}
             continue
-        if fmt != "ascii" and len(props) == 1 and n and pos < len(body):  # faces all of one size: one read
+        if (fmt != "ascii" and len(props) == 1 and isinstance(props[0][1], tuple) and n
+                and pos + np.dtype(props[0][1][0]).itemsize <= len(body)):  # faces all of one size: one read
             (p, (ct, it)), = props
             k = int(np.frombuffer(body, order + ct, 1, pos)[0])
-            dtype = np.dtype([("n", order + ct), ("i", order + it, (max(k, 0),))])
-            if k >= 0 and pos + n * dtype.itemsize <= len(body):
+            fits = 0 <= k and pos + n * (np.dtype(ct).itemsize + k * np.dtype(it).itemsize) <= len(body)
+            dtype = np.dtype([("n", order + ct), ("i", order + it, (k if fits else 0,))])
+            if fits:
                 rec = np.frombuffer(body, dtype, n, pos)
                 if (rec["n"] == k).all():
                     pos += n * dtype.itemsize

@@ -321,10 +321,10 @@ def ply_files(draw) -> bytes:
     nf = draw(st.sampled_from([0, 1, 2, 5, 10 ** 6]))
     vprops = draw(st.lists(st.sampled_from(["x", "y", "z", "nx"]), min_size=0, max_size=4))
     head = ["ply", f"format {fmt} 1.0", f"element vertex {nv}"]
-    head += [f"property {draw(st.sampled_from(PLY_TYPES))} {p}" for p in vprops]
-    head += [f"element face {nf}", "property list " + draw(st.sampled_from(["uchar int", "uchar uint", "int int",
-                                                                             "char short", "float int"])) +
-             " vertex_indices"]
+    lists = ["list uchar int", "list uchar uint", "list int int", "list char short", "list float int",
+             "list uchar float"]
+    head += [f"property {draw(st.sampled_from(PLY_TYPES + lists[:1]))} {p}" for p in vprops]
+    head += [f"element face {nf}", f"property {draw(st.sampled_from(lists + PLY_TYPES[:2]))} vertex_indices"]
     if draw(st.booleans()):
         head.append("end_header")
     body = draw(st.one_of(st.binary(max_size=200), st.text(alphabet="0123456789 -.\nenaif", max_size=200)
@@ -340,6 +340,15 @@ def ply_files(draw) -> bytes:
 @example(ply=_ply(100, 1, "ascii") + b"0 0 0\n" * 3)
 @example(ply=b"ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty char x\nproperty char x\n"
               b"element face 0\nproperty list uchar int vertex_indices\nend_header\n")
+@example(ply=b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+              b"element face 1\nproperty uchar vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3\n")
+@example(ply=b"ply\nformat ascii 1.0\nelement vertex 3\nproperty list uchar int x\nproperty float y\n"
+              b"property float z\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n"
+              b"1 0 0 0\n2 1 1 0 0\n1 0 1 0\n")
+@example(ply=b"ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty char x\nelement face 1\n"
+              b"property list int int vertex_indices\nend_header\n\x00")
+@example(ply=b"ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty char x\nelement face 1\n"
+              b"property list int int vertex_indices\nend_header\n\x00\x00\x00 ")
 def test_fuzzed_ply_files(tmp_path_factory, ply):
     """Any PLY bytes: finite-shaped vertices and in-range triangles, or one SceneError line (VTK crashed)."""
     from renderers.scene import MAX_MESH_TRIANGLES, SceneError, _read_mesh
