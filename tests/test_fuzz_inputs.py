@@ -281,18 +281,18 @@ SCALAR_TEXT = st.one_of(
 
 
 @FUZZ(150)
-@given(tag=st.sampled_from(TAGS), value=SCALAR_TEXT)
-@example(tag="!!float ", value="abc")
-@example(tag="!!int ", value=BIG_INT)
-@example(tag="!!timestamp ", value="nonsense")
-@example(tag="", value="2020-99-99")
-@example(tag="!!bool ", value="")
-def test_fuzzed_yaml_scalars(tmp_path_factory, tag, value):
-    """Any tag on any scalar: JSON-kind data, or one YAMLFileError line naming the file and line 2."""
+@given(tag=st.sampled_from(TAGS), value=SCALAR_TEXT, place=st.sampled_from(["b: {}", "{}: b", "b: [x, {}]"]))
+@example(tag="!!float ", value="abc", place="b: {}")
+@example(tag="!!int ", value=BIG_INT, place="{}: b")
+@example(tag="!!timestamp ", value="nonsense", place="b: [x, {}]")
+@example(tag="", value="2020-99-99", place="b: {}")
+@example(tag="!!bool ", value="", place="b: {}")
+def test_fuzzed_yaml_scalars(tmp_path_factory, tag, value, place):
+    """Any tag on any scalar (a value, a key, an item): JSON-kind data, or one YAMLFileError line naming the file."""
     from data_schema.yamlfile import YAMLFileError, load_yaml
 
     f = tmp_path_factory.mktemp("y") / "f.yaml"
-    f.write_text(f"a: 1\nb: {tag}{value}\n")
+    f.write_text("a: 1\n" + place.format(tag + value) + "\n")
     try:
         data = load_yaml(f).data
     except YAMLFileError as exc:
