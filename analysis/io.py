@@ -15,13 +15,15 @@ import numpy as np
 import pandas as pd
 
 from data_schema.errors import UserError
-from data_schema.trial_log import FAMILIES, FAMILY_COLUMNS, REQUIRED
+from data_schema.trial_log import FAMILIES, FAMILY_COLUMNS, REQUIRED, TIMING_COLUMNS
 
 __all__ = ["LogError", "read_log", "validate_log"]
 
 TEXT_COLUMNS = ("participant", "session", "block", "scene", "family", "condition", "condition_a",
                 "condition_b", "conditions", "chosen", "chosen_2")
 DB_SUFFIXES = (".db", ".sqlite", ".sqlite3")
+#: Measured columns: finite numbers or empty (NaN).
+FLOAT_COLUMNS = ("rt_s", *TIMING_COLUMNS)
 
 
 class LogError(UserError):
@@ -76,8 +78,9 @@ def read_log(path: Any) -> pd.DataFrame:
     ------
     LogError
         Unreadable file, a column named twice, missing columns, unknown trial family, a yes/no response
-        other than 0 or 1, a ``practice``/``catch`` flag other than 0 or 1. Values are checked before
-        practice and catch trials are dropped; the message names the file, the column, the first bad line
+        other than 0 or 1, a ``practice``/``catch`` flag other than 0 or 1, a ``trial`` that is not a whole
+        number in [0, 2**63), a non-finite ``rt_s`` or timing value, an empty participant or scene. Values are
+        checked before practice and catch trials are dropped; the message names the file, the column, the first bad line
         (CSV; header = line 1) or row (other formats, 1-based) and its value.
     """
     path = Path(path)
@@ -110,12 +113,8 @@ def _where(i: int, first_line: int | None) -> str:
     return f"line {i + first_line}" if first_line is not None else f"row {i + 1}"
 
 
-def _binary_column(values: pd.Series, column: str, name: str, first_line: int | None, what: str,
-                   rows: np.ndarray | None = None) -> np.ndarray:
-    """``values`` as floats that are 0 or 1 (NaN kept), or a LogError naming the first other value.
-
-    ``rows`` (bool mask) restricts the check to some rows (the others are returned unchecked).
-    """
+def _numbers(values: pd.Series) -> tuple[np.ndarray, pd.Series]:
+    """``values`` as float64 (NaN for empty and for text that is not a number) and the raw values (empty: NA)."""
     raw = values
     if pd.api.types.is_bool_dtype(raw):
         num = raw.astype("float64").to_numpy(dtype=float, na_value=np.nan)
@@ -123,18 +122,53 @@ def _binary_column(values: pd.Series, column: str, name: str, first_line: int | 
         num = raw.to_numpy(dtype=float, na_value=np.nan)
     else:
         text = raw.astype("string").str.strip()
-        num = pd.to_numeric(text.mask(text == ""), errors="coerce").to_numpy(dtype=float, na_value=np.nan)
         raw = text.mask(text == "")
-    present = raw.notna().to_numpy()
-    bad = present & ~((num == 0.0) | (num == 1.0))
-    if rows is not None:
-        bad &= rows
+        with np.errstate(over="ignore"):  # a 400-digit number is inf, refused by the callers' checks
+            num = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float, na_value=np.nan)
+    return num, raw
+
+
+def _refuse_first(bad: np.ndarray, raw: pd.Series, column: str, name: str, first_line: int | None,
+                  problem: str) -> None:
+    """A LogError naming the first row of ``bad`` (if any), the column and the value (cut to 40 characters)."""
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         v = raw.iloc[i]
         v = v.item() if isinstance(v, np.generic) else v
-        v = int(v) if isinstance(v, float) and v.is_integer() else v
-        raise LogError(f"{name}: {_where(i, first_line)}: column {column} {what} must be 0 or 1, found {v!r}")
+        v = int(v) if isinstance(v, float) and v.is_integer() and abs(v) < 2 ** 63 else v
+        text = repr(v) if len(repr(v)) <= 42 else f"{repr(v)[:39]}... ({len(str(v)):,} characters)"
+        raise LogError(f"{name}: {_where(i, first_line)}: column {column} {problem}, found {text}")
+
+
+def _binary_column(values: pd.Series, column: str, name: str, first_line: int | None, what: str,
+                   rows: np.ndarray | None = None) -> np.ndarray:
+    """``values`` as floats that are 0 or 1 (NaN kept), or a LogError naming the first other value.
+
+    ``rows`` (bool mask) restricts the check to some rows (the others are returned unchecked).
+    """
+    num, raw = _numbers(values)
+    bad = raw.notna().to_numpy() & ~((num == 0.0) | (num == 1.0))
+    if rows is not None:
+        bad &= rows
+    _refuse_first(bad, raw, column, name, first_line, f"{what} must be 0 or 1")
+    return num
+
+
+def _trial_column(values: pd.Series, name: str, first_line: int | None) -> np.ndarray:
+    """Trial indexes as int64: whole numbers in [0, 2**63) (empty: 0), or a LogError naming the first other."""
+    num, raw = _numbers(values)
+    with np.errstate(invalid="ignore"):
+        ok = np.isfinite(num) & (num >= 0) & (num < 2.0 ** 63) & (np.floor(num) == num)
+    _refuse_first(raw.notna().to_numpy() & ~ok, raw, "trial", name, first_line,
+                  "(the 0-based trial index) must be a whole number in [0, 2**63)")
+    return np.where(ok, num, 0).astype(np.int64)
+
+
+def _float_column(values: pd.Series, column: str, name: str, first_line: int | None) -> np.ndarray:
+    """A measured column (``rt_s``, the live timing) as float64: finite numbers, empty as NaN."""
+    num, raw = _numbers(values)
+    _refuse_first(raw.notna().to_numpy() & ~np.isfinite(num), raw, column, name, first_line,
+                  "must be a finite number (or empty)")
     return num
 
 
@@ -184,15 +218,19 @@ def validate_log(df: pd.DataFrame, name: str = "log", first_line: int | None = N
             flag = _binary_column(df[c], c, name, first_line, "(a flag)")
             df[c] = np.nan_to_num(flag, nan=0.0).astype(np.int64)  # an empty flag is 0
     if "trial" in df.columns:
-        df["trial"] = pd.to_numeric(df["trial"], errors="coerce").fillna(0).astype(np.int64)
+        df["trial"] = _trial_column(df["trial"], name, first_line)
+    for c in FLOAT_COLUMNS:
+        if c in df.columns:
+            df[c] = _float_column(df[c], c, name, first_line)
     drop = np.zeros(len(df), dtype=bool)
     for c in ("practice", "catch"):
         if c in df.columns:
             drop |= df[c].to_numpy() != 0
+    for c in ("participant", "scene"):  # of the analysed trials: an empty one would be a participant/scene ""
+        text = df[c].astype("string").str.strip()
+        _refuse_first(~drop & text.fillna("").eq("").to_numpy(), df[c], c, name, first_line, "must not be empty")
     if drop.any():
         df = df.loc[~drop]
         if len(df) == 0:
             raise LogError(f"{name}: the log has only practice/catch trials")
-    if df["participant"].isna().any():
-        raise LogError(f"{name}: column participant has empty values")
     return df.reset_index(drop=True)

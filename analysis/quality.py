@@ -50,6 +50,9 @@ _SSIM_PAD = (SSIM_WIN_SIZE - 1) // 2
 
 #: Default ``data_range`` per dtype: the largest value of the integer type, 1.0 for floats.
 _DTYPE_RANGE = {"uint8": 255.0, "uint16": 65535.0}
+#: Allowed ``data_range`` (``--data-range``): SSIM's constants ``(0.01 L)^2`` and ``(0.03 L)^2`` must stay
+#: normal floats and mean something against the pixel values; 1e-6 to 1e12 spans any linear radiance.
+DATA_RANGE = Range(1e-6, 1e12)
 
 _NOTE_EMPTY = "no pixels in this region: metrics left empty"
 _NOTE_SSIM_BORDER = (f"region lies within {_SSIM_PAD} px of the image border: SSIM left empty "
@@ -125,7 +128,7 @@ def _check_pair(image: Any, reference: Any, data_range: Any) -> tuple[np.ndarray
                 raise UserError(f"float images have values in [{lo:g}, {hi:g}], outside [0, 1]: "
                                  "pass data_range (e.g. the GT's peak value)")
     else:
-        rng = _open_interval("data_range", data_range, 0.0, math.inf)
+        rng = DATA_RANGE.check("data_range", data_range)
     return img.astype(np.float64), ref.astype(np.float64), rng
 
 
@@ -265,7 +268,8 @@ def _region_row(name: str, mask: np.ndarray, se: np.ndarray, ssim: np.ndarray, i
         return row
     mse = float(se[mask].mean())
     row["mse"] = mse
-    row["psnr"] = math.inf if mse == 0.0 else 10.0 * math.log10(data_range * data_range / mse)
+    # as a difference of logs: L^2 / MSE would overflow or underflow for extreme L or MSE
+    row["psnr"] = math.inf if mse == 0.0 else 20.0 * math.log10(data_range) - 10.0 * math.log10(mse)
     notes = [_NOTE_IDENTICAL] if mse == 0.0 else []
     if n_ssim:
         row["ssim"] = float(ssim[ssim_mask].mean())

@@ -12,6 +12,12 @@ The limits are checked on the event stream (libyaml's parser where available), c
 size of the node it repeats, so a bomb is refused before anything is built. Then the document is composed
 with every field's line recorded (:class:`LoadedYAML`), duplicate keys are errors instead of silently keeping
 the last value, and only ``true``/``false`` are booleans (YAML 1.2), so ``yes``/``no`` answers stay strings.
+
+Values are JSON's kinds only (mappings, lists, strings, numbers, booleans, null): a plain ``2024-05-01`` stays a
+string (YAML 1.2 has no timestamps) and the tags ``!!binary``, ``!!timestamp``, ``!!set``, ``!!omap`` and
+``!!pairs`` are refused. A scalar its tag cannot convert (``!!float abc``, ``!!int 0b102``, ``!!bool maybe``)
+and an integer outside 64 bits (a 5000-digit ``!!int``, which Python would not even convert) are one line
+``FILE:LINE: malformed YAML: ...`` too.
 """
 
 from __future__ import annotations
@@ -28,17 +34,64 @@ from .errors import UserError
 MAX_BYTES = 1 << 20
 MAX_DEPTH = 64
 MAX_NODES = 100_000
+#: Integers must fit in a signed 64-bit integer (what SQLite and numpy hold); longer literals are refused unread.
+INT_BITS = 63
+_MAX_INT_CHARS = 100
+#: Tags whose values JSON (and so the schemas and the study database) cannot hold.
+_REFUSED_TAGS = ("binary", "timestamp", "set", "omap", "pairs")
 
 
 class YAMLFileError(UserError):
     """A YAML file that cannot be used; the message is one line ``FILE:LINE: FIELD: problem``."""
 
 
+def _scalar_text(node) -> str:
+    """A node's value for a message: at most 40 characters, its length said when cut."""
+    value = node.value if isinstance(node, yaml.ScalarNode) else f"<{node.id}>"
+    return repr(value) if len(value) <= 40 else f"{value[:37]!r}... ({len(value):,} characters)"
+
+
+def _short_tag(tag: str) -> str:
+    return tag.replace("tag:yaml.org,2002:", "!!")
+
+
 class _Loader(yaml.SafeLoader):
-    """SafeLoader with YAML 1.2 booleans: ``yes``/``no``/``on``/``off`` stay strings."""
+    """SafeLoader with YAML 1.2 booleans (``yes``/``no``/``on``/``off`` stay strings) and JSON's kinds only."""
+
+    def construct_object(self, node, deep=False):
+        """Any value its tag's constructor cannot convert is a YAML error at the node's line, not a traceback."""
+        try:
+            return super().construct_object(node, deep)
+        except yaml.YAMLError:
+            raise
+        except (ValueError, TypeError, KeyError, AttributeError, OverflowError, IndexError):
+            kind = _short_tag(node.tag).lstrip("!")
+            raise yaml.constructor.ConstructorError(
+                None, None, f"{_short_tag(node.tag)} {_scalar_text(node)} is not a valid {kind}",
+                node.start_mark) from None
+
+    def construct_yaml_int(self, node):
+        text = self.construct_scalar(node)
+        if len(text) > _MAX_INT_CHARS:  # not converted at all: a huge literal costs time (sexagesimal) or fails
+            raise yaml.constructor.ConstructorError(
+                None, None, f"integer {_scalar_text(node)} is outside the 64-bit range", node.start_mark)
+        value = super().construct_yaml_int(node)
+        if not -(1 << INT_BITS) <= value < (1 << INT_BITS):
+            raise yaml.constructor.ConstructorError(
+                None, None, f"integer {_scalar_text(node)} is outside the 64-bit range", node.start_mark)
+        return value
+
+    def refuse_tag(self, node):
+        raise yaml.constructor.ConstructorError(
+            None, None, f"tag {_short_tag(node.tag)} is not allowed (only mappings, lists, strings, numbers, "
+            "booleans and null)", node.start_mark)
 
 
-_Loader.yaml_implicit_resolvers = {k: [(tag, rx) for tag, rx in v if tag != "tag:yaml.org,2002:bool"]
+_Loader.add_constructor("tag:yaml.org,2002:int", _Loader.construct_yaml_int)
+for _tag in _REFUSED_TAGS:
+    _Loader.add_constructor(f"tag:yaml.org,2002:{_tag}", _Loader.refuse_tag)
+_Loader.yaml_implicit_resolvers = {k: [(tag, rx) for tag, rx in v
+                                       if tag not in ("tag:yaml.org,2002:bool", "tag:yaml.org,2002:timestamp")]
                                    for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()}
 _Loader.add_implicit_resolver("tag:yaml.org,2002:bool", re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"),
                               list("tTfF"))

@@ -321,10 +321,248 @@ def _quiet_vtk():
         vtk.vtkObject.SetGlobalWarningDisplay(previous)
 
 
+#: Mesh files: the formats whose size and declared counts are checked before anything is decoded.
+MESH_FORMATS = (".ply", ".obj", ".stl")
+#: Limits of one mesh file (the temple, the largest built-in scene, has about 0.5 M triangles).
+MAX_MESH_BYTES = 256 << 20
+MAX_MESH_VERTICES = 10_000_000
+MAX_MESH_TRIANGLES = 10_000_000
+_PLY_HEADER_BYTES = 1 << 16
+_PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+              "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+              "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
+
+
+def _check_mesh_file(path: Path, where: str) -> int:
+    """The size of a mesh file that may be read: an existing regular file of a checked format within the limit.
+
+    Nothing is opened: a FIFO would block, a device never end. A symlink is judged by what it points to.
+    """
+    import stat
+
+    name = f"mesh file {str(path)!r}"
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        raise SceneError(f"{where}: {name} does not exist") from None
+    except (OSError, ValueError) as exc:
+        raise SceneError(f"{where}: {name} cannot be read: {getattr(exc, 'strerror', None) or exc}") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise SceneError(f"{where}: {name} is a folder, not a mesh file")
+    if not stat.S_ISREG(st.st_mode):
+        raise SceneError(f"{where}: {name} is not a regular file (a device, FIFO or socket): refusing to read it")
+    if path.suffix.lower() not in MESH_FORMATS:
+        raise SceneError(f"{where}: {name} has an unsupported format {path.suffix or '(no suffix)'!r}: allowed "
+                         f"{', '.join(MESH_FORMATS)}")
+    if st.st_size > MAX_MESH_BYTES:
+        raise SceneError(f"{where}: {name} is {st.st_size / 1e6:,.0f} MB, more than the {MAX_MESH_BYTES >> 20} MB "
+                         "a mesh file may have: refusing to read it")
+    return st.st_size
+
+
+def _check_count(what: str, n: int, limit: int, name: str, where: str) -> None:
+    if n > limit:
+        raise SceneError(f"{where}: {name} declares {n:,} {what}, more than the {limit:,} a mesh may have: "
+                         "refusing to read it")
+
+
+def _fan(polygons: list[np.ndarray] | np.ndarray) -> np.ndarray:
+    """Triangles ``(0, j, j+1)`` of each polygon (rows of an ``(n, k)`` array or a list of index arrays)."""
+    if isinstance(polygons, np.ndarray):
+        k = polygons.shape[1]
+        if k < 3:
+            return np.zeros((0, 3), np.int64)
+        return np.concatenate([polygons[:, [0, j, j + 1]] for j in range(1, k - 1)]).astype(np.int64)
+    tris = [p[[0, j, j + 1]] for p in polygons for j in range(1, len(p) - 1)]
+    return np.asarray(tris, dtype=np.int64).reshape(-1, 3)
+
+
+def _read_ply(path: Path, size: int, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and triangles of a PLY file, read here, not by VTK.
+
+    VTK's PLY reader aborts or crashes on a header declaring more vertices than the file holds and on a face
+    index past the vertices; here the header's counts are checked against the limits and the file's size, and
+    every index against the vertex count, each a one-line :class:`SceneError`.
+    """
+    name = f"mesh file {str(path)!r}"
+
+    def bad(problem: str) -> SceneError:
+        return SceneError(f"{where}: {name} {problem}")
+
+    with open(path, "rb") as fh:
+        head = fh.read(_PLY_HEADER_BYTES)
+        end = head.find(b"end_header")
+        if not head.startswith(b"ply") or end < 0:
+            raise bad("is not a PLY file (no 'ply' ... 'end_header' header in its first 64 KB)")
+        start = end + len(b"end_header")
+        start += 2 if head[start:start + 2] == b"\r\n" else 1
+        fh.seek(start)
+        body = fh.read()
+    try:
+        lines = [ln.split() for ln in head[:end].decode("ascii").splitlines()[1:]]
+    except UnicodeDecodeError:
+        raise bad("has a PLY header that is not ASCII text") from None
+    fmt, elements = None, []  # elements: [name, count, [(prop, dtype) or (prop, (count dtype, index dtype))]]
+    for words in lines:
+        if not words or words[0] in ("comment", "obj_info"):
+            continue
+        try:
+            if words[0] == "format" and words[1] in ("ascii", "binary_little_endian", "binary_big_endian"):
+                fmt = words[1]
+            elif words[0] == "element" and len(words) == 3 and words[2].isdigit() and len(words[2]) < 20:
+                elements.append([words[1], int(words[2]), []])
+            elif words[0] == "property" and words[1] == "list" and len(words) == 5 and elements:
+                elements[-1][2].append((words[4], (_PLY_TYPES[words[2]], _PLY_TYPES[words[3]])))
+            elif words[0] == "property" and len(words) == 3 and elements:
+                elements[-1][2].append((words[2], _PLY_TYPES[words[1]]))
+            else:
+                raise KeyError(words[0])
+        except (KeyError, IndexError):
+            raise bad(f"has a PLY header line it cannot use: {' '.join(words)[:60]!r}") from None
+    if fmt is None:
+        raise bad("has no PLY format line")
+    for e in elements:
+        props = [p for p, _ in e[2]]
+        if not props or len(set(props)) < len(props):
+            raise bad(f"has a PLY element {e[0]!r} without properties or with one named twice")
+    kinds = {(e[0], p): t for e in elements for p, t in e[2]}
+    if any(isinstance(kinds.get(("vertex", a)), tuple) for a in "xyz"):
+        raise bad("has a vertex x, y or z that is a list, not a number")
+    for p in ("vertex_indices", "vertex_index"):
+        t = kinds.get(("face", p))
+        if t is not None and not (isinstance(t, tuple) and np.dtype(t[1]).kind in "iu"):
+            raise bad(f"has a face {p} that is not a list of integers")
+    counts = {e[0]: e[1] for e in elements}
+    _check_count("vertices", counts.get("vertex", 0), MAX_MESH_VERTICES, name, where)
+    for e in elements:
+        if e[0] != "vertex":
+            _check_count(f"{e[0]} elements", e[1], MAX_MESH_TRIANGLES, name, where)
+    order = "<" if fmt == "binary_little_endian" else ">"
+    data: dict[str, dict] = {}
+    rows, row = (body.split(b"\n") if fmt == "ascii" else []), 0
+    pos = 0
+    for ename, n, props in elements:
+        cols: dict = {p: [] for p, _ in props}
+        if fmt == "ascii" and (len(props) == 1 or all(isinstance(t, str) for _, t in props)):
+            try:  # one number per property, or faces all of one size: one conversion
+                table = np.array(b" ".join(rows[row:row + n]).split(), dtype=np.float64)
+            except ValueError:
+                table = np.zeros(0)
+            width = len(props) if all(isinstance(t, str) for _, t in props) else int(table[0] + 1) if len(
+                table) and 0 <= table[0] < len(table) else 0
+            if row + n <= len(rows) and width and len(table) == n * width:
+                table = table.reshape(n, width)
+                if isinstance(props[0][1], str):
+                    data[ename] = {p: table[:, j] for j, (p, _) in enumerate(props)}
+                    row += n
+                    continue
+                if (table[:, 0] == width - 1).all() and (table[:, 1:] == np.round(table[:, 1:])).all():
+                    data[ename] = {props[0][0]: table[:, 1:].astype(np.int64)}
+                    row += n
+                    continue
+        if fmt != "ascii" and all(isinstance(t, str) for _, t in props):  # fixed-size records: one read
+            dtype = np.dtype([(p, order + t) for p, t in props])
+            if pos + n * dtype.itemsize > len(body):
+                raise bad(f"declares {n:,} {ename} elements of {dtype.itemsize} bytes, more than its "
+                          f"{size:,} bytes hold")
+            rec = np.frombuffer(body, dtype, n, pos)
+            pos += n * dtype.itemsize
+            data[ename] = {p: rec[p] for p, _ in props}
+            continue
+        if (fmt != "ascii" and len(props) == 1 and isinstance(props[0][1], tuple) and n
+                and pos + np.dtype(props[0][1][0]).itemsize <= len(body)):  # faces all of one size: one read
+            (p, (ct, it)), = props
+            k = int(np.frombuffer(body, order + ct, 1, pos)[0])
+            fits = 0 <= k and pos + n * (np.dtype(ct).itemsize + k * np.dtype(it).itemsize) <= len(body)
+            dtype = np.dtype([("n", order + ct), ("i", order + it, (k if fits else 0,))])
+            if fits:
+                rec = np.frombuffer(body, dtype, n, pos)
+                if (rec["n"] == k).all():
+                    pos += n * dtype.itemsize
+                    data[ename] = {p: rec["i"].astype(np.int64).reshape(n, k)}
+                    continue
+        for i in range(n):  # records with lists or ASCII text: read one by one (counts are bounded above)
+            if fmt == "ascii":
+                if row >= len(rows):
+                    raise bad(f"declares {n:,} {ename} elements but ends after {i:,}")
+                words, w, row = rows[row].split(), 0, row + 1
+            for p, t in props:
+                if fmt == "ascii":
+                    try:
+                        if isinstance(t, tuple):
+                            k = int(words[w])
+                            if not 0 <= k <= len(words) - w - 1:
+                                raise ValueError
+                            cols[p].append(np.array(words[w + 1:w + 1 + k], dtype=np.int64))
+                            w += 1 + k
+                        else:
+                            cols[p].append(float(words[w]))
+                            w += 1
+                    except (ValueError, IndexError):
+                        raise bad(f"has a malformed {ename} element {i:,}") from None
+                else:
+                    tt = (t[0],) if isinstance(t, tuple) else (t,)
+                    dt = np.dtype(order + tt[0])
+                    if pos + dt.itemsize > len(body):
+                        raise bad(f"declares {n:,} {ename} elements but ends after {i:,}")
+                    v = np.frombuffer(body, dt, 1, pos)[0]
+                    pos += dt.itemsize
+                    if isinstance(t, tuple):
+                        it = np.dtype(order + t[1])
+                        if v < 0 or pos + int(v) * it.itemsize > len(body):
+                            raise bad(f"declares {n:,} {ename} elements but ends after {i:,}")
+                        cols[p].append(np.frombuffer(body, it, int(v), pos).astype(np.int64))
+                        pos += int(v) * it.itemsize
+                    else:
+                        cols[p].append(v)
+        data[ename] = {p: (np.asarray(c, dtype=np.float64) if c and not isinstance(c[0], np.ndarray) else c)
+                       for p, c in cols.items()}
+    vertex = data.get("vertex", {})
+    if not all(a in vertex for a in "xyz"):
+        raise bad("has no vertex element with x, y and z")
+    verts = np.stack([np.asarray(vertex[a], dtype=np.float64) for a in "xyz"], axis=1)
+    face = data.get("face", {})
+    polys = face.get("vertex_indices", face.get("vertex_index", []))
+    n_tri = (len(polys) * max(polys.shape[1] - 2, 0) if isinstance(polys, np.ndarray)
+             else sum(max(len(p) - 2, 0) for p in polys))
+    _check_count("triangles", n_tri, MAX_MESH_TRIANGLES, name, where)
+    return verts, _fan(polys)
+
+
+def _check_obj_stl(path: Path, size: int, where: str) -> None:
+    """Refuse an OBJ or STL file whose counts exceed the limits before VTK allocates for them."""
+    name = f"mesh file {str(path)!r}"
+    with open(path, "rb") as fh:
+        if path.suffix.lower() == ".stl":
+            head = fh.read(84)
+            if len(head) == 84:
+                n = int.from_bytes(head[80:84], "little")
+                if size == 84 + 50 * n:  # binary STL: the count matches the size
+                    _check_count("triangles", n, MAX_MESH_TRIANGLES, name, where)
+                    return
+            if not head.lstrip().startswith(b"solid"):
+                raise SceneError(f"{where}: {name} is neither ASCII STL nor binary STL of the size its header "
+                                 "declares")
+            return  # ASCII STL: a triangle takes over 80 bytes, so the size limit bounds the count
+        n_v = n_t = 0
+        for line in fh:  # OBJ has no header: count the vertex lines and the triangles of the face lines
+            if line.startswith((b"v ", b"v\t")):
+                n_v += 1
+            elif line.startswith((b"f ", b"f\t")):
+                n_t += max(len(line.split()) - 3, 0)
+        _check_count("vertices", n_v, MAX_MESH_VERTICES, name, where)
+        _check_count("triangles", n_t, MAX_MESH_TRIANGLES, name, where)
+
+
 def _read_mesh(path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices and triangles of a mesh file; an unreadable or empty file is a one-line SceneError."""
-    if not path.is_file():
-        raise SceneError(f"{where}: mesh file {str(path)!r} does not exist")
+    """Vertices and triangles of a mesh file; an unusable file is a one-line SceneError, checked before decoding.
+
+    PLY is read here (:func:`_read_ply`); OBJ and STL by pyvista/VTK once their counts are checked.
+    """
+    size = _check_mesh_file(path, where)
+    if path.suffix.lower() == ".ply":
+        return _checked_arrays(*_read_ply(path, size, where), path, where)
+    _check_obj_stl(path, size, where)
     import pyvista as pv  # heavy: imported only when a mesh file is read
 
     try:
@@ -339,9 +577,23 @@ def _read_mesh(path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
         mesh = mesh.extract_surface()
     mesh = mesh.triangulate()
     faces = np.asarray(mesh.faces).reshape(-1, 4)
-    if len(faces) == 0 or not np.all(faces[:, 0] == 3):
-        raise SceneError(f"{where}: mesh file {str(path)!r} has no triangles")
-    return np.asarray(mesh.points, dtype=np.float64), faces[:, 1:].astype(np.int64)
+    if len(faces) and not np.all(faces[:, 0] == 3):
+        faces = faces[:0]
+    return _checked_arrays(np.asarray(mesh.points, dtype=np.float64), faces[:, 1:].astype(np.int64), path, where)
+
+
+def _checked_arrays(verts: np.ndarray, tris: np.ndarray, path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh if it has triangles, finite vertices and in-range indexes; else a SceneError naming the file."""
+    name = f"mesh file {str(path)!r}"
+    if len(tris) == 0:
+        raise SceneError(f"{where}: {name} has no triangles")
+    if not np.isfinite(verts).all():
+        raise SceneError(f"{where}: {name} has a vertex coordinate that is not a finite number")
+    lo, hi = int(tris.min()), int(tris.max())
+    if lo < 0 or hi >= len(verts):
+        raise SceneError(f"{where}: {name} has a face with vertex index {hi if hi >= len(verts) else lo:,}, "
+                         f"outside the {len(verts):,} vertices")
+    return verts, tris
 
 
 def load_yaml(path) -> Scene:
@@ -390,8 +642,10 @@ def load_yaml(path) -> Scene:
         mname = m.get("material", next(iter(mat_index)))
         if mname not in mat_index:
             raise docy.error(("meshes", k, "material"), f"{mname!r} is not defined in materials")
-        v, f = _read_mesh((path.parent / str(m["file"])).resolve(), f"{path}:{docy.line_of(('meshes', k))}: "
-                          f"meshes[{k}].file")
+        where = f"{path}:{docy.line_of(('meshes', k))}: meshes[{k}].file"
+        if "\0" in str(m["file"]):  # the OS cannot name it; Python would raise ValueError
+            raise SceneError(f"{where}: mesh file {str(m['file'])!r} contains a NUL character")
+        v, f = _read_mesh(path.parent / str(m["file"]), where)
         v = v * float(m.get("scale", 1.0)) + np.asarray(m.get("translate", (0, 0, 0)), dtype=np.float64)
         verts.append(v)
         faces.append(f + base)

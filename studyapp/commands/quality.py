@@ -17,6 +17,14 @@ IMAGE_SUFFIXES = (".png", ".npy")
 TABLE_COLUMNS = ("image", "region", "mse", "psnr", "ssim", "n_pixels", "n_ssim_pixels", "note")
 
 
+def _data_range(text: str) -> float:
+    """``--data-range``: checked against :data:`analysis.quality.DATA_RANGE` (imported only when given)."""
+    from analysis.quality import DATA_RANGE
+    from data_schema.ranges import argtype
+
+    return argtype("--data-range", DATA_RANGE)(text)
+
+
 def register(subparsers, parser_class) -> None:
     from data_schema.ranges import FOV_Y, Range, argtype
 
@@ -38,10 +46,9 @@ def register(subparsers, parser_class) -> None:
     q.add_argument("--fovea-deg", type=argtype("--fovea-deg", Range(0.0, 90.0, low_open=True, high_open=True)),
                    default=5.0, metavar="DEG",
                    help="fovea radius in degrees of eccentricity, in (0, 90) (default: 5)")
-    q.add_argument("--data-range", type=argtype("--data-range", Range(0.0, None, low_open=True)), default=None,
-                   metavar="L",
-                   help="peak-to-peak value range for PSNR/SSIM (default: 255 for 8-bit, 65535 for 16-bit, "
-                        "1 for float .npy)")
+    q.add_argument("--data-range", type=_data_range, default=None, metavar="L",
+                   help="peak-to-peak value range for PSNR/SSIM, in [1e-6, 1e12] (default: 255 for 8-bit, "
+                        "65535 for 16-bit, 1 for float .npy)")
     q.add_argument("--gaze-csv", metavar="FILE",
                    help="each image at its own gaze: a CSV file,gaze_x,gaze_y (files relative to the CSV); with "
                         "--gt DIR each image is compared with the same-named GT frame (studyapp replay writes both)")
