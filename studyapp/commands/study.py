@@ -285,7 +285,8 @@ def register(subparsers, parser_class) -> None:
     from studyapp.cluster import add_arguments
 
     add_arguments(pr)
-    pr.set_defaults(func=cmd_prepare)
+    pr.set_defaults(func=cmd_prepare, interrupted_hint="frames rendered so far are kept in the cache: run the same "
+                                                       "prepare again to continue")
 
     r = subparsers.add_parser("run", help="run (or resume) a participant's session",
                               description="Run a participant's session of a protocol in a PsychoPy window, or "
@@ -309,7 +310,7 @@ def register(subparsers, parser_class) -> None:
     r.add_argument("--gaze-log", metavar="FILE", help="with --eyetracker: write gaze samples to this CSV")
     r.add_argument("--sim-delay", type=float, default=0.0, help=__import__("argparse").SUPPRESS)
     r.add_argument("--screenshot-dir", help=__import__("argparse").SUPPRESS)  # tests: back-buffer shots
-    r.set_defaults(func=cmd_run)
+    r.set_defaults(func=cmd_run, interrupted_hint="committed answers are kept: continue a session with --resume")
 
     s = subparsers.add_parser("sessions", help="list the sessions of a study database",
                               description="List sessions (status, answers, resumes) and per-participant progress.")
