@@ -72,3 +72,49 @@ def absolute_camera(scene: str, camera: dict | None) -> dict | None:
     out["position"] = [float(x) for x in pos]
     out["look_at"] = [float(x) for x in pos + dist * d]
     return out
+
+
+#: A view is refused when its direction is within about 0.006° of the up vector (the sine of the angle between
+#: them below this), or look_at is within this fraction of the scene's scale of the position: the camera's
+#: right and up vectors (``renderers.scene.Camera.basis``) would be undefined or swing wildly, also in float32.
+DEGENERATE = 1e-4
+
+
+def view_problem(position, look_at, up) -> str | None:
+    """Why a camera at ``position`` looking at ``look_at`` with ``up`` has no basis, or None if it has one."""
+    p, f, u = np.asarray(position, float), np.subtract(look_at, position, dtype=float), np.asarray(up, float)
+    n = float(np.linalg.norm(f))
+    if not n > DEGENERATE * (1.0 + float(np.linalg.norm(p))):
+        return "look_at is the camera's own position (no view direction)"
+    if float(np.linalg.norm(np.cross(f / n, u / np.linalg.norm(u)))) < DEGENERATE:
+        return f"the view direction is parallel to the scene's up vector {_vec(u)} (looking straight up or down)"
+    return None
+
+
+def segment_problem(a, b, up) -> tuple[float, str] | None:
+    """Where a camera moving linearly from pose ``a`` to pose ``b`` (position and look_at interpolated with the
+    same weight, as :class:`~studyapp.runner.live.PathMotion` does) has no basis: ``(w, problem)`` with ``w`` in
+    [0, 1] along the way, or None.
+
+    The view direction ``f(w)`` is linear in ``w``, so ``|f(w) x up|`` is smallest at a point found in closed
+    form; it must stay above :data:`DEGENERATE` times the longer end direction (which bounds ``|f(w)|``).
+    """
+    for w, pose in ((0.0, a), (1.0, b)):
+        problem = view_problem(pose.position, pose.look_at, up)
+        if problem:
+            return w, problem
+    u = np.asarray(up, float) / np.linalg.norm(up)
+    fa, fb = np.subtract(a.look_at, a.position, dtype=float), np.subtract(b.look_at, b.position, dtype=float)
+    ca, cb = np.cross(fa, u), np.cross(fb, u)
+    d = cb - ca
+    dd = float(d @ d)
+    w = 0.0 if dd == 0.0 else min(1.0, max(0.0, -float(ca @ d) / dd))
+    if float(np.linalg.norm(ca + w * d)) >= DEGENERATE * max(np.linalg.norm(fa), np.linalg.norm(fb)):
+        return None
+    near = float(np.linalg.norm(fa + w * (fb - fa))) < 0.01 * max(np.linalg.norm(fa), np.linalg.norm(fb))
+    return w, ("the camera passes (almost) through its look_at (the view direction flips)" if near else
+               f"the view direction sweeps (almost) through the scene's up vector {_vec(u)}")
+
+
+def _vec(v) -> str:
+    return "(" + ", ".join(f"{float(x):g}" for x in v) + ")"
