@@ -91,29 +91,42 @@ def view_problem(position, look_at, up) -> str | None:
     return None
 
 
-def segment_problem(a, b, up) -> tuple[float, str] | None:
-    """Where a camera moving linearly from pose ``a`` to pose ``b`` (position and look_at interpolated with the
-    same weight, as :class:`~studyapp.runner.live.PathMotion` does) has no basis: ``(w, problem)`` with ``w`` in
-    [0, 1] along the way, or None.
+def path_problem(poses, up) -> tuple[float, str] | None:
+    """Where a camera moving through ``poses`` (each with ``position`` and ``look_at``), linearly from one to
+    the next as :class:`~studyapp.runner.live.PathMotion` does, has no basis: ``(x, problem)`` with ``x`` the
+    place as a fractional index into ``poses`` (2.5: halfway from the third to the fourth), or None.
 
-    The view direction ``f(w)`` is linear in ``w``, so ``|f(w) x up|`` is smallest at a point found in closed
-    form; it must stay above :data:`DEGENERATE` times the longer end direction (which bounds ``|f(w)|``).
+    Between two poses the view direction ``f(w)`` is linear in ``w``, so ``|f(w) x up|`` is smallest at a point
+    found in closed form; it must stay above :data:`DEGENERATE` times the longer end direction (which bounds
+    ``|f(w)|``), so no direction in between is within :data:`DEGENERATE` of the up vector or vanishes.
     """
-    for w, pose in ((0.0, a), (1.0, b)):
-        problem = view_problem(pose.position, pose.look_at, up)
+    p = np.array([q.position for q in poses], dtype=float)
+    f = np.array([q.look_at for q in poses], dtype=float) - p
+    u = np.asarray(up, dtype=float) / np.linalg.norm(up)
+    for k, q in enumerate(poses):
+        problem = view_problem(q.position, q.look_at, u) if k in _suspects(p, f, u) else None
         if problem:
-            return w, problem
-    u = np.asarray(up, float) / np.linalg.norm(up)
-    fa, fb = np.subtract(a.look_at, a.position, dtype=float), np.subtract(b.look_at, b.position, dtype=float)
-    ca, cb = np.cross(fa, u), np.cross(fb, u)
-    d = cb - ca
-    dd = float(d @ d)
-    w = 0.0 if dd == 0.0 else min(1.0, max(0.0, -float(ca @ d) / dd))
-    if float(np.linalg.norm(ca + w * d)) >= DEGENERATE * max(np.linalg.norm(fa), np.linalg.norm(fb)):
+            return float(k), problem
+    n = np.linalg.norm(f, axis=1)
+    c = np.cross(f, u)
+    ca, d = c[:-1], c[1:] - c[:-1]
+    dd = np.einsum("ij,ij->i", d, d)
+    w = np.clip(-np.einsum("ij,ij->i", ca, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    low = np.linalg.norm(ca + w[:, None] * d, axis=1) < DEGENERATE * np.maximum(n[:-1], n[1:])
+    if not low.any():
         return None
-    near = float(np.linalg.norm(fa + w * (fb - fa))) < 0.01 * max(np.linalg.norm(fa), np.linalg.norm(fb))
-    return w, ("the camera passes (almost) through its look_at (the view direction flips)" if near else
-               f"the view direction sweeps (almost) through the scene's up vector {_vec(u)}")
+    k = int(np.argmax(low))
+    near = np.linalg.norm(f[k] + w[k] * (f[k + 1] - f[k])) < 0.01 * max(n[k], n[k + 1])
+    return k + float(w[k]), ("the camera passes (almost) through its look_at (the view direction flips)" if near
+                             else f"the view direction sweeps (almost) through the scene's up vector {_vec(u)}")
+
+
+def _suspects(p: np.ndarray, f: np.ndarray, u: np.ndarray) -> set[int]:
+    """Indexes of the poses :func:`view_problem` may refuse (all poses at once; it says why)."""
+    n = np.linalg.norm(f, axis=1)
+    bad = ~(n > DEGENERATE * (1.0 + np.linalg.norm(p, axis=1)))
+    bad |= np.linalg.norm(np.cross(f, u), axis=1) < DEGENERATE * np.where(n > 0, n, 1.0)
+    return set(np.flatnonzero(bad).tolist())
 
 
 def _vec(v) -> str:

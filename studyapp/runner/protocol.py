@@ -312,7 +312,7 @@ def _check_live_poses(doc: LoadedYAML, protocol: Protocol) -> None:
     runner follows it, and the explore start (which must also lie inside the given bounds), in every scene."""
     from renderers.catalog import resolve
 
-    from .camera import segment_problem, view_problem
+    from .camera import path_problem, view_problem
     from .live import explore_start, path_poses
 
     scenes = protocol.scenes + ((protocol.practice["scene"],) if protocol.practice else ())
@@ -332,15 +332,15 @@ def _check_live_poses(doc: LoadedYAML, protocol: Protocol) -> None:
                                 f"{list(pose.position)} (the start: no explore.start for {scene}) is outside these "
                                 "bounds: the camera would jump at the first frame")
             continue
-        poses = path_poses(protocol, scene)
-        for (ta, a), (tb, b) in zip(poses, poses[1:]):
-            found = segment_problem(a, b, up)
-            if found:
-                t = ta + found[0] * (tb - ta)
-                keys = protocol.camera_path
-                i = min(range(len(keys)), key=lambda k: abs(keys[k]["t"] - t)) if keys else None
-                raise doc.error(("stimulus", "camera_path") + ((i,) if i is not None else ()),
-                                f"in scene {scene} at t = {t:.3g}: {found[1]}")
+        samples = path_poses(protocol, scene)
+        found = path_problem([pose for _, pose in samples], up)
+        if found:
+            k = min(int(found[0]), len(samples) - 2)
+            t = samples[k][0] + (found[0] - k) * (samples[k + 1][0] - samples[k][0])
+            keys = protocol.camera_path
+            i = min(range(len(keys)), key=lambda j: abs(keys[j]["t"] - t)) if keys else None
+            raise doc.error(("stimulus", "camera_path") + ((i,) if i is not None else ()),
+                            f"in scene {scene} at t = {t:.3g}: {found[1]}")
 
 
 def _check_camera_path(doc: LoadedYAML, stim: dict) -> None:
