@@ -184,7 +184,7 @@ def renderer_names() -> set[str] | None:
 
 def _conditions(doc: LoadedYAML, data: dict, base: Path, check_renderers: bool) -> dict[str, Condition]:
     out = {}
-    reg = _registry() if check_renderers else None  # simulated runs skip the (slow) renderer import
+    reg = _registry() if check_renderers else None  # False: a library caller that renders nothing (the demo)
     known = None if reg is None else set(reg.available())
     for name, spec in data["conditions"].items():
         where = ("conditions", name)
@@ -268,7 +268,7 @@ def _check_live(doc: LoadedYAML, data: dict, conditions: dict, family: str, chec
     if min_fps is not None and min_fps > refresh:
         raise doc.error(("stimulus", "min_fps"), f"{min_fps:g} fps is above the display's refresh rate "
                         f"({refresh:g} Hz): every trial would be flagged as too slow")
-    reg = _registry() if check_renderers else None  # simulated runs render on the CPU
+    reg = _registry() if check_renderers else None
     for name, cond in conditions.items():
         where = ("conditions", name)
         if cond.renderer is None:
@@ -454,9 +454,10 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True, output_b
         Folder the protocol's ``stimuli_dir`` is relative to (default: the protocol's own folder; the CLI
         gives the current folder for the shipped protocols, which live inside the installed package).
     check_renderers : bool
-        When ``renderers.registry`` is importable, renderer names and parameters are checked against it
-        (default); False skips the check (simulated runs, which render nothing, and do not import the
-        renderers).
+        When ``renderers.registry`` is importable, renderer names, parameters and geometry, scenes and the
+        camera poses of live stimuli are checked against it (default; ``validate`` and ``run``, simulated or
+        not, always check: ``studyapp.commands.study.checked_protocol``); False skips those checks, for
+        library callers that render nothing (the demo's synthetic stimuli, tests of the schedule).
     full : bool
         The full-size variant (the protocol's ``full`` block in place; stimuli in ``<stimuli_dir>/full``).
 
