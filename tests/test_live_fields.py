@@ -11,7 +11,6 @@ import pytest
 
 from studyapp.cli import main
 from studyapp.runner.camera import path_problem, view_problem
-from studyapp.runner.live import Pose
 
 BASE = """\
 schema_version: 1
@@ -126,16 +125,16 @@ def test_a_path_is_checked_between_its_poses():
     assert view_problem((0, 0, 0), (0, 0, 1), up) is None
     assert "parallel" in view_problem((0, 0, 0), (0, -3, 0), up)
     assert "own position" in view_problem((5, 5, 5), (5, 5, 5), up)
-    a, b = Pose((0, 0, 0), (1, 1, 0)), Pose((0, 0, 0), (-1, 1, 0))
+    a, b = ((0, 0, 0), (1, 1, 0)), ((0, 0, 0), (-1, 1, 0))
     x, problem = path_problem([a, b], up)  # both ends 45° from up, straight up halfway
     assert x == pytest.approx(0.5) and "sweeps" in problem
     x, problem = path_problem([a, a, b], up)
     assert x == pytest.approx(1.5) and "sweeps" in problem
-    x, problem = path_problem([Pose((0, 0, 0), (0, 0, 5)), Pose((0, 0, 10), (0, 0, 5))], up)
+    x, problem = path_problem([((0, 0, 0), (0, 0, 5)), ((0, 0, 10), (0, 0, 5))], up)
     assert x == pytest.approx(0.5) and "passes" in problem
-    x, problem = path_problem([a, Pose((1, 1, 1), (1, 1, 1)), b], up)  # a pose itself: named as such
+    x, problem = path_problem([a, ((1, 1, 1), (1, 1, 1)), b], up)  # a pose itself: named as such
     assert x == 1.0 and "own position" in problem
-    assert path_problem([a, Pose((0, 0, 0), (-1, 1, 1))], up) is None
+    assert path_problem([a, ((0, 0, 0), (-1, 1, 1))], up) is None
     # what it accepts holds everywhere between the poses: the view is never within 1e-4 rad of up
     f = [np.array([1 - 2 * w, 1, w]) for w in np.linspace(0, 1, 1001)]
     assert min(np.linalg.norm(np.cross(v / np.linalg.norm(v), up)) for v in f) > 1e-4

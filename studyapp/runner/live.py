@@ -226,40 +226,11 @@ def timing_summary(frames: list[FrameRecord]) -> dict:
                    [f.dropped for f in frames])
 
 
-PATH_SAMPLES = 64  # poses sampled along a camera path (interpolated linearly between them)
-
-
-def explore_start(protocol, scene: str) -> Pose:
-    """Where exploring ``scene`` starts: ``explore.start`` of the scene, else the scene's camera."""
-    from renderers.catalog import resolve
-
-    start = (protocol.explore.get("start") or {}).get(scene)
-    if start:
-        return Pose(tuple(start["position"]), tuple(start["look_at"]))
-    cam = resolve(protocol.scene_ref(scene)).camera
-    return Pose(tuple(cam.position), tuple(cam.look_at))
-
-
-def path_poses(protocol, scene: str) -> tuple[tuple[float, Pose], ...]:
-    """The camera path in ``scene`` as :class:`PathMotion` follows it: :data:`PATH_SAMPLES` ``(t, Pose)`` pairs,
-    interpolated linearly between them."""
-    from renderers.catalog import resolve
-
-    from .camera import absolute_camera, path_camera
-
-    ref = protocol.scene_ref(scene)
-    cam = resolve(ref).camera
-    path = []
-    for k in range(PATH_SAMPLES):
-        t = k / (PATH_SAMPLES - 1)
-        c = absolute_camera(ref, path_camera(protocol, t)) or {}
-        path.append((t, Pose(tuple(c.get("position", cam.position)), tuple(c.get("look_at", cam.look_at)))))
-    return tuple(path)
-
-
 def live_stimulus(protocol, condition: str, scene: str, scale: float = 1.0) -> LiveStimulus:
     """The :class:`LiveStimulus` of ``condition`` in ``scene`` for a live protocol (geometry at ``scale``)."""
     from renderers.catalog import resolve
+
+    from .camera import path_samples, start_pose
 
     cond = protocol.conditions[condition]
     ref = protocol.scene_ref(scene)
@@ -270,7 +241,7 @@ def live_stimulus(protocol, condition: str, scene: str, scale: float = 1.0) -> L
                   render_size=(geometry.width, geometry.height))
     if protocol.motion == "explore":
         ex = protocol.explore
-        pose = explore_start(protocol, scene)
+        pose = Pose(*start_pose(protocol, scene))
         bounds = (ex.get("bounds") or {}).get(scene)
         if bounds is None:  # the scene's bounding box, grown to hold the start position
             v = np.vstack([resolve(ref).vertices, np.asarray(pose.position, dtype=float)[None]])
@@ -278,7 +249,7 @@ def live_stimulus(protocol, condition: str, scene: str, scale: float = 1.0) -> L
         return LiveStimulus(**common, start=pose, move_speed=float(ex.get("move_speed", 1.0)),
                             turn_speed_deg=float(ex.get("turn_speed_deg", 60.0)),
                             bounds=(tuple(bounds[0]), tuple(bounds[1])))
-    return LiveStimulus(**common, path=path_poses(protocol, scene))
+    return LiveStimulus(**common, path=tuple((t, Pose(p, q)) for t, p, q in path_samples(protocol, scene)))
 
 
 def synthetic_gaze(duration_s: float, width: int, height: int, rng: np.random.Generator,

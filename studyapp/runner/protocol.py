@@ -312,28 +312,27 @@ def _check_live_poses(doc: LoadedYAML, protocol: Protocol) -> None:
     runner follows it, and the explore start (which must also lie inside the given bounds), in every scene."""
     from renderers.catalog import resolve
 
-    from .camera import path_problem, view_problem
-    from .live import explore_start, path_poses
+    from .camera import path_problem, path_samples, start_pose, view_problem
 
     scenes = protocol.scenes + ((protocol.practice["scene"],) if protocol.practice else ())
     for scene in dict.fromkeys(scenes):
         up = resolve(protocol.scene_ref(scene)).camera.up
         if protocol.motion == "explore":
-            pose = explore_start(protocol, scene)
+            position, look_at = start_pose(protocol, scene)
             given = scene in (protocol.explore.get("start") or {})
             where = ("stimulus", "explore", "start", scene) if given else (
                 ("scenes", protocol.scenes.index(scene)) if scene in protocol.scenes else ("practice", "scene"))
-            problem = view_problem(pose.position, pose.look_at, up)
+            problem = view_problem(position, look_at, up)
             if problem:
                 raise doc.error(where, f"{problem}{'' if given else f' (the camera of scene {scene})'}")
             bounds = (protocol.explore.get("bounds") or {}).get(scene)
-            if bounds and not given and not all(a <= v <= b for v, a, b in zip(pose.position, *bounds)):
+            if bounds and not given and not all(a <= v <= b for v, a, b in zip(position, *bounds)):
                 raise doc.error(("stimulus", "explore", "bounds", scene), f"the scene's camera at "
-                                f"{list(pose.position)} (the start: no explore.start for {scene}) is outside these "
+                                f"{list(position)} (the start: no explore.start for {scene}) is outside these "
                                 "bounds: the camera would jump at the first frame")
             continue
-        samples = path_poses(protocol, scene)
-        found = path_problem([pose for _, pose in samples], up)
+        samples = path_samples(protocol, scene)
+        found = path_problem([(p, q) for _, p, q in samples], up)
         if found:
             k = min(int(found[0]), len(samples) - 2)
             t = samples[k][0] + (found[0] - k) * (samples[k + 1][0] - samples[k][0])
