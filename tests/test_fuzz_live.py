@@ -39,8 +39,9 @@ NUMBER = st.one_of(st.sampled_from([0.001, 0.01, 0.0334, 0.5, 1.0, 2.0, 30.0, 60
 def pose(draw) -> dict:
     position = draw(POINT)
     kind = draw(st.sampled_from(["free", "same", "above", "below"]))
-    look = {"free": draw(POINT), "same": list(position), "above": [position[0], position[1] + draw(
-        st.sampled_from([1e-9, 1.0, 50.0])), position[2]], "below": [position[0], position[1] - 3.0, position[2]]}[kind]
+    up = draw(st.sampled_from([1e-9, 1.0, 50.0]))
+    look = {"free": draw(POINT), "same": list(position), "above": [position[0], position[1] + up, position[2]],
+            "below": [position[0], position[1] - 3.0, position[2]]}[kind]
     return {"position": position, "look_at": look}
 
 

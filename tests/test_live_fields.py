@@ -8,33 +8,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_run_refusals import LIVE, replaced
 
 from studyapp.cli import main
 from studyapp.runner.camera import path_problem, view_problem
 
-BASE = """\
-schema_version: 1
-name: fields
-version: "1"
-family: 2afc
-question: "Which one?"
-display: {width_px: 320, height_px: 180, width_cm: 30.0, distance_cm: 40.0, refresh_hz: 60}
-scenes: [cornell]
-conditions:
-  GT: {renderer: gt, backend: cpu}
-  LaFR: {renderer: lafr, params: {delta: 4.0}, backend: cpu}
-stimulus:
-  kind: live
-  render_px: [64, 36]
-  duration_s: 2.0
-  min_fps: 30
-  gaze: fixation
-%s
-keys: {switch: {q: 0, e: 1}, answer: {"1": A, "2": B}}
-design: {repetitions: 1}
-simulation: {ground_truth: GT}
-analysis: {dv: chosen, unit: participant, test: thurstone}
-"""
+# the small live study of test_run_refusals, its stimulus block replaced by each case's (%s)
+BASE = replaced(LIVE, ("duration_s: 1.0", "duration_s: 2.0"), (
+    "  motion: path\n  gaze: fixation\n  camera_path: [{t: 0, yaw_deg: -3}, {t: 1, yaw_deg: 3}]\n",
+    "  min_fps: 30\n  gaze: fixation\n%s\n"),
+    ("design:", 'keys: {switch: {q: 0, e: 1}, answer: {"1": A, "2": B}}\ndesign:'))
 EXPLORE = "  motion: explore\n  explore: {bounds: {cornell: %s}, start: {cornell: {position: %s, look_at: %s}}}"
 PATH = "  motion: path\n  camera_path:\n%s"
 BOX = "[[0, 0, -900], [560, 560, 560]]"
@@ -43,10 +26,7 @@ OK_EXPLORE = EXPLORE % (BOX, "[278, 273, -800]", "[278, 273, 0]")
 
 
 def _validate(tmp_path, capsys, stimulus: str, replace=()) -> tuple[int, str]:
-    text = BASE % stimulus
-    for old, new in replace:
-        assert old in text
-        text = text.replace(old, new)
+    text = replaced(BASE % stimulus, *replace)
     (tmp_path / "p.yaml").write_text(text)
     status = main(["validate", str(tmp_path / "p.yaml")])
     out, err = capsys.readouterr()
@@ -56,22 +36,22 @@ def _validate(tmp_path, capsys, stimulus: str, replace=()) -> tuple[int, str]:
 
 @pytest.mark.parametrize("stimulus,replace,expected", [
     (EXPLORE % ("[[0, 0, 0], [560, -1, 560]]", "[278, 273, -800]", "[278, 273, 0]"), (),
-     "p.yaml:18: stimulus.explore.bounds.cornell: y min 0 is above y max -1"),
+     "p.yaml:19: stimulus.explore.bounds.cornell: y min 0 is above y max -1"),
     (EXPLORE % (BOX, "[278, 273, 600]", "[278, 273, 0]"), (),
-     "p.yaml:18: stimulus.explore.start.cornell.position: outside stimulus.explore.bounds.cornell (z = 600 not in "
+     "p.yaml:19: stimulus.explore.start.cornell.position: outside stimulus.explore.bounds.cornell (z = 600 not in "
      "[-900, 560]): the camera would jump at the first frame"),
     ("  motion: explore\n  explore: {bounds: {cornell: [[0, 0, 0], [560, 560, 560]]}}", (),
-     "p.yaml:18: stimulus.explore.bounds.cornell: the scene's camera at [278.0, 273.0, -800.0] (the start: no "
+     "p.yaml:19: stimulus.explore.bounds.cornell: the scene's camera at [278.0, 273.0, -800.0] (the start: no "
      "explore.start for cornell) is outside these bounds"),
     (EXPLORE % (BOX, "[278, 273, -800]", "[278, 500, -800]"), (),
-     "p.yaml:18: stimulus.explore.start.cornell: the view direction is parallel to the scene's up vector (0, 1, 0)"),
+     "p.yaml:19: stimulus.explore.start.cornell: the view direction is parallel to the scene's up vector (0, 1, 0)"),
     (EXPLORE % (BOX, "[278, 273, -800]", "[278, 273, -800]"), (),
-     "p.yaml:18: stimulus.explore.start.cornell: look_at is the camera's own position"),
+     "p.yaml:19: stimulus.explore.start.cornell: look_at is the camera's own position"),
     (PATH % "    - {t: 0, position: [0, 1, 0], look_at: [0, 1, 5]}\n    - {t: 1, position: [0, 1, 0], look_at: "
-     "[0, 9, 0]}", (), "p.yaml:20: stimulus.camera_path[1]: in scene cornell at t = 1: the view direction is "
+     "[0, 9, 0]}", (), "p.yaml:21: stimulus.camera_path[1]: in scene cornell at t = 1: the view direction is "
      "parallel to the scene's up vector"),
     (PATH % "    - {t: 0, position: [0, 1, 0], look_at: [0, 1, 0]}", (),
-     "p.yaml:19: stimulus.camera_path[0]: in scene cornell at t = 0: look_at is the camera's own position"),
+     "p.yaml:20: stimulus.camera_path[0]: in scene cornell at t = 0: look_at is the camera's own position"),
     # every keyframe and every one of the 64 path samples looks fine; the way between two samples does not
     (PATH % "    - {t: 0, position: [0, 1, 0], look_at: [1, 2, 0]}\n    - {t: 1, position: [0, 1, 0], look_at: "
      "[-1, 2, 0]}", (), "stimulus.camera_path[0]: in scene cornell at t = 0.5: the view direction sweeps (almost) "
@@ -81,23 +61,23 @@ def _validate(tmp_path, capsys, stimulus: str, replace=()) -> tuple[int, str]:
     (PATH % "    - {t: 0, pitch_deg: 80}\n    - {t: 1, pitch_deg: 89}", (("scenes: [cornell]", "scenes: [yard]"),),
      "stimulus.camera_path[1]: in scene yard at t = 0.964: the view direction sweeps (almost) through"),
     (PATH % "    - {t: 0.5, yaw_deg: -3}\n    - {t: 0.2, yaw_deg: 3}", (),
-     "p.yaml:20: stimulus.camera_path[1].t: 0.2 is not after the previous keyframe's t = 0.5"),
+     "p.yaml:21: stimulus.camera_path[1].t: 0.2 is not after the previous keyframe's t = 0.5"),
     (PATH % "    - {t: 0, yaw_deg: -3}\n    - {t: 1, yaw_deg: 3, pitch_deg: 5}", (),
-     "p.yaml:20: stimulus.camera_path[1].pitch_deg: not in the first keyframe, so never used"),
+     "p.yaml:21: stimulus.camera_path[1].pitch_deg: not in the first keyframe, so never used"),
     (PATH % "    - {t: 0, yaw_deg: -3, look_at: [0, 0, 0]}\n    - {t: 1, yaw_deg: 3}", (),
-     "p.yaml:19: stimulus.camera_path[0].look_at: yaw_deg/pitch_deg turn the scene camera's view and replace "
+     "p.yaml:20: stimulus.camera_path[0].look_at: yaw_deg/pitch_deg turn the scene camera's view and replace "
      "look_at"),
     (PATH % "    - {t: 0, yaw_deg: -3}\n  explore: {move_speed: 2}", (),
-     "p.yaml:20: stimulus.explore: explore settings belong to motion: explore"),
+     "p.yaml:21: stimulus.explore: explore settings belong to motion: explore"),
     (OK_EXPLORE, (("duration_s: 2.0", "duration_s: 0.02"),),
-     "p.yaml:14: stimulus.duration_s: 0.02 s is shorter than two refreshes of the display (60 Hz)"),
+     "p.yaml:15: stimulus.duration_s: 0.02 s is shorter than two refreshes of the display (60 Hz)"),
     (OK_EXPLORE, (("min_fps: 30", "min_fps: 75"),),
-     "p.yaml:15: stimulus.min_fps: 75 fps is above the display's refresh rate (60 Hz)"),
-    (OK_EXPLORE, (("backend: cpu}\n  LaFR", "backend: cpu, max_fps: 0.5}\n  LaFR"),),
-     "p.yaml:9: conditions.GT.max_fps: at 0.5 fps a 2 s stimulus shows fewer than two frames"),
-    (OK_EXPLORE, (("delta: 4.0}, backend: cpu}", "delta: 4.0}, backend: cpu, latency_ms: 500}"),
+     "p.yaml:16: stimulus.min_fps: 75 fps is above the display's refresh rate (60 Hz)"),
+    (OK_EXPLORE, (("quality: 1.0}", "quality: 1.0, max_fps: 0.5}"),),
+     "p.yaml:10: conditions.GT.max_fps: at 0.5 fps a 2 s stimulus shows fewer than two frames"),
+    (OK_EXPLORE, (("quality: 0.5}", "quality: 0.5, latency_ms: 500}"),
                   ("duration_s: 2.0", "duration_s: 0.5")),
-     "p.yaml:10: conditions.LaFR.latency_ms: a gaze delay of 500 ms is not shorter than the stimulus (duration_s "
+     "p.yaml:11: conditions.LaFR.latency_ms: a gaze delay of 500 ms is not shorter than the stimulus (duration_s "
      "0.5 s): the gaze would never drive the foveation"),
 ])
 def test_contradictory_live_fields_are_refused_naming_field_and_conflict(stimulus, replace, expected, tmp_path,

@@ -10,34 +10,26 @@ exit 2, and the folder holds nothing but the protocol afterwards (no database, n
 from __future__ import annotations
 
 import pytest
+import test_live
 
 from studyapp.cli import main
 
-LIVE = """
-schema_version: 1
-name: refused
-version: "1"
-family: 2afc
-question: "Which one?"
-display: {width_px: 320, height_px: 180, width_cm: 30.0, distance_cm: 40.0, refresh_hz: 60}
-scenes: [cornell]
-conditions:
-  GT: {renderer: gt, backend: cpu, quality: 1.0}
-  LaFR: {renderer: lafr, params: {delta: 4.0}, backend: cpu, quality: 0.5}
-stimulus:
-  kind: live
-  render_px: [64, 36]
-  duration_s: 1.0
-  motion: path
-  gaze: fixation
-  camera_path: [{t: 0, yaw_deg: -3}, {t: 1, yaw_deg: 3}]
-design: {repetitions: 1}
-simulation: {ground_truth: GT}
-analysis: {dv: chosen, unit: participant, test: thurstone}
-"""
+
+def replaced(text: str, *pairs: tuple[str, str]) -> str:
+    """``text`` with each ``(old, new)`` replaced; every ``old`` must be there."""
+    for old, new in pairs:
+        assert old in text, old
+        text = text.replace(old, new)
+    return text
+
+
+# test_live's small live study with declared qualities (for a simulated run without stimuli), no caps
+LIVE = replaced(test_live.LIVE, ("{renderer: gt, backend: cpu}", "{renderer: gt, backend: cpu, quality: 1.0}"),
+                (", latency_ms: 50, max_fps: 30}", ", quality: 0.5}"), ("  duration_s: 2.0\n", "  duration_s: 1.0\n"),
+                ("  min_fps: 45\n", ""), ("repetitions: 2", "repetitions: 1"))
 # the same study pre-rendered: its simulated observer answers from the declared qualities (nothing rendered)
-SEQUENCE = LIVE.replace("  kind: live\n", "  kind: sequence\n  fps: 2\n").replace(
-    "  motion: path\n  gaze: fixation\n", "").replace(", backend: cpu", "")
+SEQUENCE = replaced(LIVE, ("  kind: live\n", "  kind: sequence\n  fps: 2\n"),
+                    ("  motion: path\n  gaze: fixation\n", ""), (", backend: cpu", ""))
 
 # (protocol, replaced, replacement, the refusal's field and problem)
 CASES = {
@@ -107,4 +99,4 @@ def test_a_valid_protocol_still_runs_simulated(tmp_path, capsys, monkeypatch):
     assert main(["validate", proto]) == 0
     assert main(["run", proto, "--participant", "P1", "--simulate", "--quiet"]) == 0
     assert "session P1-s1: completed, 1/1 trials answered" in capsys.readouterr().out
-    assert (tmp_path / "refused.db").is_file()
+    assert (tmp_path / "tiny_live.db").is_file()
