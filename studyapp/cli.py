@@ -177,13 +177,24 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--out", metavar="DIR", default="demo_out", help="output folder (default: demo_out)")
     d.add_argument("--fov-y", type=fov_arg, default=100.0, metavar="DEG",
                    help="vertical field of view in degrees, in (0, 180) (default: 100)")
-    d.set_defaults(func=cmd_demo)
+    d.set_defaults(func=cmd_demo, interrupted_hint="the steps finished so far are kept in the output folder")
 
     import importlib
 
     for name in COMMAND_MODULES:
         importlib.import_module(name).register(sub, _Parser)
     return p
+
+
+#: What ``studyapp: interrupted (...)`` adds when a command is stopped by Ctrl-C or SIGTERM, unless the command
+#: registered its own hint with ``parser.set_defaults(interrupted_hint=...)`` (``run``: its --resume hint,
+#: ``prepare``: the frame cache). Commands write through temporary files, so a stopped one leaves nothing.
+INTERRUPTED_HINT = "nothing was written"
+
+
+def interrupted_hint(args) -> str:
+    """The hint printed when the command of ``args`` (None: not parsed yet) is interrupted."""
+    return getattr(args, "interrupted_hint", None) or INTERRUPTED_HINT
 
 
 class Terminated(KeyboardInterrupt):
@@ -198,6 +209,7 @@ def main(argv=None) -> int:
     parser = build_parser()
     if signal.getsignal(signal.SIGTERM) in (signal.SIG_DFL, None):
         signal.signal(signal.SIGTERM, _on_sigterm)
+    args = None
     try:
         args = parser.parse_args(argv)
         return args.func(args)
@@ -214,7 +226,7 @@ def main(argv=None) -> int:
         return EXIT_USAGE
     except KeyboardInterrupt as exc:
         what = "terminated" if isinstance(exc, Terminated) else "interrupted"
-        print(f"studyapp: {what} (committed answers are kept: continue a session with --resume)", file=sys.stderr)
+        print(f"studyapp: {what} ({interrupted_hint(args)})", file=sys.stderr)
         return 143 if isinstance(exc, Terminated) else 130
 
 

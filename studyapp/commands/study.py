@@ -38,16 +38,34 @@ def _fmt_seconds(s: float) -> str:
     return f"{s // 3600}h{s % 3600 // 60:02d}m" if s >= 3600 else (f"{s // 60}m{s % 60:02d}s" if s >= 60 else f"{s}s")
 
 
+def checked_protocol(args, stimuli: str | None = None):
+    """The protocol ``args.protocol`` (``--full``: its full-size variant) after every check of ``validate``.
+
+    Schema, cross-references, renderer names, parameters and geometry, scenes, live fields (with the renderers
+    imported even for a simulated run, which renders live stimuli too), and a schedule built (participant P1,
+    seed 0). ``validate`` and ``run`` (simulated or not) both call this one function, ``run`` before any database
+    is created or opened for writing and before any stimulus is prepared, so that a protocol ``validate`` refuses
+    is refused by ``run`` in the same line, leaving nothing behind.
+
+    Returns
+    -------
+    (Protocol, list of PlannedTrial)
+        The protocol and the schedule of participant P1, seed 0.
+    """
+    from studyapp.runner.schedule import build_schedule
+
+    p = _protocol(args.protocol, stimuli, check_renderers=True, full=args.full)
+    return p, build_schedule(p, "P1", 0)
+
+
 # -- handlers ------------------------------------------------------------------------------------------------
 def cmd_validate(args) -> int:
     from studyapp.runner.protocol import renderer_names
-    from studyapp.runner.schedule import build_schedule
     from studyapp.runner.stimuli import missing_stimuli
 
-    p = _protocol(args.protocol, full=args.full)
+    p, sched = checked_protocol(args)
     print(f"{p.path}: valid")
     print(p.describe())
-    sched = build_schedule(p, "P1", 0)
     kinds = {k: sum(t.kind == k for t in sched) for k in ("practice", "reference", "trial", "catch")}
     print("schedule (participant P1, seed 0): " + ", ".join(f"{v} {k}" for k, v in kinds.items() if v))
     if renderer_names() is None and any(c.renderer for c in p.conditions.values()):
@@ -117,7 +135,7 @@ def cmd_run(args) -> int:
     from data_schema.atomic import check_target, real_file, real_folder
 
     notes: list[str] = []  # printed once the session has started (errors stay one line)
-    p = _protocol(args.protocol, args.stimuli, check_renderers=not args.simulate, full=args.full)
+    p, _ = checked_protocol(args, args.stimuli)  # validate's checks, before anything is created or rendered
     db = Path(args.db) if args.db else Path(f"{p.name}.db")
     real_file(db, "--db")  # a FIFO would block SQLite's open, a device node is no database: refuse before
     if args.gaze_log:
@@ -289,7 +307,8 @@ def register(subparsers, parser_class) -> None:
     from studyapp.cluster import add_arguments
 
     add_arguments(pr)
-    pr.set_defaults(func=cmd_prepare)
+    pr.set_defaults(func=cmd_prepare, interrupted_hint="frames rendered so far are kept in the cache: run the same "
+                                                       "prepare again to continue")
 
     r = subparsers.add_parser("run", help="run (or resume) a participant's session",
                               description="Run a participant's session of a protocol in a PsychoPy window, or "
@@ -313,7 +332,7 @@ def register(subparsers, parser_class) -> None:
     r.add_argument("--gaze-log", metavar="FILE", help="with --eyetracker: write gaze samples to this CSV")
     r.add_argument("--sim-delay", type=float, default=0.0, help=__import__("argparse").SUPPRESS)
     r.add_argument("--screenshot-dir", help=__import__("argparse").SUPPRESS)  # tests: back-buffer shots
-    r.set_defaults(func=cmd_run)
+    r.set_defaults(func=cmd_run, interrupted_hint="committed answers are kept: continue a session with --resume")
 
     s = subparsers.add_parser("sessions", help="list the sessions of a study database",
                               description="List sessions (status, answers, resumes) and per-participant progress.")

@@ -243,28 +243,22 @@ def scene_hash(ref: str) -> str:
     return resolve(ref).content_hash()
 
 
-PATH_SAMPLES = 64  # poses sampled along a camera path (interpolated linearly between them)
-
-
 def live_stimulus(protocol, condition: str, scene: str, scale: float = 1.0) -> LiveStimulus:
     """The :class:`LiveStimulus` of ``condition`` in ``scene`` for a live protocol (geometry at ``scale``)."""
     from renderers.catalog import resolve
 
-    from .camera import absolute_camera, path_camera
+    from .camera import path_samples, start_pose
 
     cond = protocol.conditions[condition]
     ref = protocol.scene_ref(scene)
     geometry = protocol.render_geometry(scale)
-    cam = resolve(ref).camera
     common = dict(condition=condition, scene=ref, renderer=cond.renderer, params=dict(cond.params),
                   backend=protocol.backend_of(condition), latency_ms=cond.latency_ms, max_fps=cond.max_fps,
                   motion=protocol.motion, duration_s=float(protocol.duration_s), fov_y_deg=geometry.fov_y_deg,
                   render_size=(geometry.width, geometry.height))
     if protocol.motion == "explore":
         ex = protocol.explore
-        start = (ex.get("start") or {}).get(scene)
-        pose = Pose(tuple(start["position"]), tuple(start["look_at"])) if start else \
-            Pose(tuple(cam.position), tuple(cam.look_at))
+        pose = Pose(*start_pose(protocol, scene))
         bounds = (ex.get("bounds") or {}).get(scene)
         if bounds is None:  # the scene's bounding box, grown to hold the start position
             v = np.vstack([resolve(ref).vertices, np.asarray(pose.position, dtype=float)[None]])
@@ -272,12 +266,7 @@ def live_stimulus(protocol, condition: str, scene: str, scale: float = 1.0) -> L
         return LiveStimulus(**common, start=pose, move_speed=float(ex.get("move_speed", 1.0)),
                             turn_speed_deg=float(ex.get("turn_speed_deg", 60.0)),
                             bounds=(tuple(bounds[0]), tuple(bounds[1])))
-    path = []
-    for k in range(PATH_SAMPLES):
-        t = k / (PATH_SAMPLES - 1)
-        c = absolute_camera(ref, path_camera(protocol, t)) or {}
-        path.append((t, Pose(tuple(c.get("position", cam.position)), tuple(c.get("look_at", cam.look_at)))))
-    return LiveStimulus(**common, path=tuple(path))
+    return LiveStimulus(**common, path=tuple((t, Pose(p, q)) for t, p, q in path_samples(protocol, scene)))
 
 
 def synthetic_gaze(duration_s: float, width: int, height: int, rng: np.random.Generator,

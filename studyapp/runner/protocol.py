@@ -186,7 +186,7 @@ def renderer_names() -> set[str] | None:
 
 def _conditions(doc: LoadedYAML, data: dict, base: Path, check_renderers: bool) -> dict[str, Condition]:
     out = {}
-    reg = _registry() if check_renderers else None  # simulated runs skip the (slow) renderer import
+    reg = _registry() if check_renderers else None  # False: a library caller that renders nothing (the demo)
     known = None if reg is None else set(reg.available())
     for name, spec in data["conditions"].items():
         where = ("conditions", name)
@@ -239,7 +239,8 @@ def _display(doc: LoadedYAML, data: dict) -> tuple[Display, tuple[int, int]]:
 
 def _check_live(doc: LoadedYAML, data: dict, conditions: dict, family: str, check_renderers: bool) -> None:
     """Live stimuli: a duration, a motion, a gaze source with what it needs, renderer conditions with a
-    version for their backend, frame-rate caps the display can show, and no pre-rendered sources."""
+    version for their backend, frame-rate caps the display can show, and no pre-rendered sources; and no field
+    contradicting another (explore bounds and start, duration, frame-rate floor and caps, gaze delay)."""
     stim = data["stimulus"]
     if "duration_s" not in stim:
         raise doc.error(("stimulus",), "a live stimulus needs duration_s (the longest a trial shows it)")
@@ -250,14 +251,26 @@ def _check_live(doc: LoadedYAML, data: dict, conditions: dict, family: str, chec
     if motion == "explore" and "camera_path" in stim:
         raise doc.error(("stimulus", "camera_path"), "explore moves the camera from the participant's keys: no "
                         "camera_path")
+    if motion == "path" and "explore" in stim:
+        raise doc.error(("stimulus", "explore"), "explore settings belong to motion: explore (this stimulus "
+                        "follows its camera_path): remove them, or set motion: explore")
     gaze = stim.get("gaze", "fixation")
     if gaze == "tracker" and "eyetracker" not in data:
         raise doc.error(("stimulus", "gaze"), "gaze: tracker needs an eyetracker block (device, settings)")
     for name in (stim.get("explore") or {}).get("bounds", {}) | (stim.get("explore") or {}).get("start", {}):
         if name not in data["scenes"] and name != (data.get("practice") or {}).get("scene"):
             raise doc.error(("stimulus", "explore"), f"scene {name!r} is not one of the protocol's scenes")
+    _check_explore_region(doc, stim.get("explore") or {})
     refresh = float(data["display"].get("refresh_hz", 60.0))
-    reg = _registry() if check_renderers else None  # simulated runs render on the CPU
+    duration = float(stim["duration_s"])
+    if duration * refresh < 2:
+        raise doc.error(("stimulus", "duration_s"), f"{duration:g} s is shorter than two refreshes of the display "
+                        f"({refresh:g} Hz): a live trial needs at least two frames")
+    min_fps = stim.get("min_fps")
+    if min_fps is not None and min_fps > refresh:
+        raise doc.error(("stimulus", "min_fps"), f"{min_fps:g} fps is above the display's refresh rate "
+                        f"({refresh:g} Hz): every trial would be flagged as too slow")
+    reg = _registry() if check_renderers else None
     for name, cond in conditions.items():
         where = ("conditions", name)
         if cond.renderer is None:
@@ -266,10 +279,87 @@ def _check_live(doc: LoadedYAML, data: dict, conditions: dict, family: str, chec
         if cond.max_fps is not None and cond.max_fps > refresh:
             raise doc.error(where + ("max_fps",), f"{cond.max_fps:g} fps is above the display's refresh rate "
                             f"({refresh:g} Hz): a cap the display cannot show")
+        if cond.max_fps is not None and duration * cond.max_fps < 2:
+            raise doc.error(where + ("max_fps",), f"at {cond.max_fps:g} fps a {duration:g} s stimulus shows fewer "
+                            "than two frames")
+        if cond.latency_ms >= 1000.0 * duration:
+            raise doc.error(where + ("latency_ms",), f"a gaze delay of {cond.latency_ms:g} ms is not shorter than "
+                            f"the stimulus (duration_s {duration:g} s): the gaze would never drive the foveation")
         backend = cond.backend or "gpu"
         if reg is not None and backend == "gpu" and reg.get(cond.renderer).gpu is None:
             raise doc.error(where + ("renderer",), f"renderer {cond.renderer!r} has no GPU version for live "
                             "stimuli: use backend: cpu (slow) or another renderer")
+
+
+def _check_explore_region(doc: LoadedYAML, explore: dict) -> None:
+    """Explore bounds with min <= max on every axis, and a start position inside its scene's bounds."""
+    bounds = explore.get("bounds", {})
+    for scene, (lo, hi) in bounds.items():
+        for axis, a, b in zip("xyz", lo, hi):
+            if a > b:
+                raise doc.error(("stimulus", "explore", "bounds", scene), f"{axis} min {a:g} is above {axis} max "
+                                f"{b:g}: the bounds [[xmin, ymin, zmin], [xmax, ymax, zmax]] hold no position")
+    for scene, start in explore.get("start", {}).items():
+        if scene in bounds:
+            lo, hi = bounds[scene]
+            outside = [f"{axis} = {v:g} not in [{a:g}, {b:g}]" for axis, v, a, b in zip("xyz", start["position"],
+                                                                                          lo, hi) if not a <= v <= b]
+            if outside:
+                raise doc.error(("stimulus", "explore", "start", scene, "position"), "outside stimulus.explore."
+                                f"bounds.{scene} ({'; '.join(outside)}): the camera would jump at the first frame")
+
+
+def _check_live_poses(doc: LoadedYAML, protocol: Protocol) -> None:
+    """Every camera pose of a live stimulus has a view: the camera path's, sampled and interpolated as the
+    runner follows it, and the explore start (which must also lie inside the given bounds), in every scene."""
+    from renderers.catalog import resolve
+
+    from .camera import path_problem, path_samples, start_pose, view_problem
+
+    scenes = protocol.scenes + ((protocol.practice["scene"],) if protocol.practice else ())
+    for scene in dict.fromkeys(scenes):
+        up = resolve(protocol.scene_ref(scene)).camera.up
+        if protocol.motion == "explore":
+            position, look_at = start_pose(protocol, scene)
+            given = scene in (protocol.explore.get("start") or {})
+            where = ("stimulus", "explore", "start", scene) if given else (
+                ("scenes", protocol.scenes.index(scene)) if scene in protocol.scenes else ("practice", "scene"))
+            problem = view_problem(position, look_at, up)
+            if problem:
+                raise doc.error(where, f"{problem}{'' if given else f' (the camera of scene {scene})'}")
+            bounds = (protocol.explore.get("bounds") or {}).get(scene)
+            if bounds and not given and not all(a <= v <= b for v, a, b in zip(position, *bounds)):
+                raise doc.error(("stimulus", "explore", "bounds", scene), f"the scene's camera at "
+                                f"{list(position)} (the start: no explore.start for {scene}) is outside these "
+                                "bounds: the camera would jump at the first frame")
+            continue
+        samples = path_samples(protocol, scene)
+        found = path_problem([(p, q) for _, p, q in samples], up)
+        if found:
+            k = min(int(found[0]), len(samples) - 2)
+            t = samples[k][0] + (found[0] - k) * (samples[k + 1][0] - samples[k][0])
+            keys = protocol.camera_path
+            i = min(range(len(keys)), key=lambda j: abs(keys[j]["t"] - t)) if keys else None
+            raise doc.error(("stimulus", "camera_path") + ((i,) if i is not None else ()),
+                            f"in scene {scene} at t = {t:.3g}: {found[1]}")
+
+
+def _check_camera_path(doc: LoadedYAML, stim: dict) -> None:
+    """Keyframe times that increase, and keyframes that are all used: every key in the first keyframe (a key
+    first given later would be ignored) and no look_at beside yaw_deg/pitch_deg (the offsets replace it)."""
+    path = stim.get("camera_path") or []
+    first = set(path[0]) if path else set()
+    for i, key in enumerate(path):
+        if i and key["t"] <= path[i - 1]["t"]:
+            raise doc.error(("stimulus", "camera_path", i, "t"), f"{key['t']:g} is not after the previous keyframe's "
+                            f"t = {path[i - 1]['t']:g}: keyframe times must increase")
+        late = sorted(set(key) - first)
+        if late:
+            raise doc.error(("stimulus", "camera_path", i, late[0]), "not in the first keyframe, so never used: give "
+                            "it in the first keyframe too")
+        if "look_at" in key and {"yaw_deg", "pitch_deg"} & set(key):
+            raise doc.error(("stimulus", "camera_path", i, "look_at"), "yaw_deg/pitch_deg turn the scene camera's "
+                            "view and replace look_at: give one or the other")
 
 
 def _check_renderers_on_display(doc, conditions, display, render_size, fixation) -> None:
@@ -394,9 +484,10 @@ def load_protocol(path, stimuli_dir=None, check_renderers: bool = True, output_b
         Folder the protocol's ``stimuli_dir`` is relative to (default: the protocol's own folder; the CLI
         gives the current folder for the shipped protocols, which live inside the installed package).
     check_renderers : bool
-        When ``renderers.registry`` is importable, renderer names and parameters are checked against it
-        (default); False skips the check (simulated runs, which render nothing, and do not import the
-        renderers).
+        When ``renderers.registry`` is importable, renderer names, parameters and geometry, scenes and the
+        camera poses of live stimuli are checked against it (default; ``validate`` and ``run``, simulated or
+        not, always check: ``studyapp.commands.study.checked_protocol``); False skips those checks, for
+        library callers that render nothing (the demo's synthetic stimuli, tests of the schedule).
     full : bool
         The full-size variant (the protocol's ``full`` block in place; stimuli in ``<stimuli_dir>/full``).
 
@@ -458,6 +549,7 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
         raise doc.error(("stimulus",), "a sequence needs duration_s and fps")
     if kind == "image" and "fps" in stim:
         raise doc.error(("stimulus", "fps"), "still images have no frame rate (use kind: sequence)")
+    _check_camera_path(doc, stim)
     live_keys = [k for k in ("motion", "gaze", "min_fps", "explore") if k in stim]
     if kind != "live" and live_keys:
         raise doc.error(("stimulus", live_keys[0]), "only live stimuli (kind: live) have this")
@@ -543,7 +635,7 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
         data.get("stimuli_dir", f"stimuli/{data['name']}"))
     if full:
         sdir = sdir / "full"
-    return Protocol(
+    protocol = Protocol(
         path=path, data=data, name=data["name"], version=data["version"], family=family,
         question=data["question"], instructions=data.get("instructions", ""), block=data.get("block", ""),
         display=display, render_size=render_size, fixation=(float(fix["x"]), float(fix["y"])), fixation_mark=fix.get("mark", True),
@@ -560,3 +652,6 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
         stimuli_dir=sdir, content_hash=content_hash(data), motion=stim.get("motion", "path"),
         gaze_source=stim.get("gaze", "fixation"), min_fps=stim.get("min_fps"), explore=dict(stim.get("explore", {})),
         eyetracker=data.get("eyetracker"), full=full)
+    if kind == "live" and check_renderers and _registry() is not None:  # the poses need the scenes' cameras
+        _check_live_poses(doc, protocol)
+    return protocol
