@@ -861,17 +861,21 @@ def export_pwcmp(db_path, out) -> Path:
     return write_text(out, buf.getvalue())
 
 
-#: Rows per row group (Parquet) or per written block (CSV) of ``export --format frames``: the export holds one
-#: block, not the table (1.44 M frames in ~200 MB: docs/benchmarks.md, "Frames export").
+#: Rows ``export --format frames`` reads and converts at a time (as Python objects, ~1 KB a row) ...
 FRAMES_BLOCK_ROWS = 32768
+#: ... and rows per Parquet row group (held as Arrow columns, ~140 bytes a row; a larger group compresses
+#: better): memory is bounded by these, not by the table (docs/benchmarks.md, "Frames export").
+FRAMES_ROW_GROUP_ROWS = 262144
 
 
 def export_frames(db_path, out) -> Path:
     """Write the frames of every live trial (one row per flip) as Parquet (``.parquet``) or CSV.
 
     Columns: the frames table's, ``idx`` named ``trial``, and ``gaze_age_ms`` (flip time - gaze sample time).
-    Streamed: :data:`FRAMES_BLOCK_ROWS` rows at a time from a cursor, each block a Parquet row group or a run
-    of CSV lines, so memory does not grow with the table; the file is the one a whole-table DataFrame gives.
+    Streamed: :data:`FRAMES_BLOCK_ROWS` rows at a time from a cursor, written as runs of CSV lines or gathered
+    into Parquet row groups of :data:`FRAMES_ROW_GROUP_ROWS`, so memory does not grow with the table. The file
+    is the one ``DataFrame.to_csv``/``to_parquet`` of the whole table gives (Parquet: the same bytes up to one
+    row group, the same schema and values beyond).
     """
     out = Path(out)
     with open_store(db_path) as st, damage_is_refused(st.path):
@@ -888,17 +892,32 @@ def export_frames(db_path, out) -> Path:
                 import pyarrow as pa
                 import pyarrow.parquet as pq
 
+                tables = (pa.Table.from_pandas(_frames_table(db_path, rows), preserve_index=False)
+                          for rows in itertools.chain([first], blocks))
                 writer = None
                 try:
-                    for rows in itertools.chain([first], blocks):
-                        table = pa.Table.from_pandas(_frames_table(db_path, rows), preserve_index=False)
+                    for group in _row_groups(tables, FRAMES_ROW_GROUP_ROWS):
                         if writer is None:  # what DataFrame.to_parquet writes: its schema, snappy
-                            writer = pq.ParquetWriter(tmp, table.schema, compression="snappy")
-                        writer.write_table(table)
+                            writer = pq.ParquetWriter(tmp, group.schema, compression="snappy")
+                        writer.write_table(group, row_group_size=group.num_rows)
                 finally:
                     if writer is not None:
                         writer.close()
     return out
+
+
+def _row_groups(tables: Iterable, size: int) -> Iterator:
+    """Arrow tables joined into tables of at least ``size`` rows (the last may have fewer)."""
+    import pyarrow as pa
+
+    pending: list = []
+    for t in tables:
+        pending.append(t)
+        if sum(p.num_rows for p in pending) >= size:
+            yield pa.concat_tables(pending)
+            pending = []
+    if pending:
+        yield pa.concat_tables(pending)
 
 
 def _frame_blocks(st: Store, size: int) -> Iterator[list[tuple]]:

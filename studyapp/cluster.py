@@ -81,9 +81,7 @@ SERIAL = ClusterSpec(serial=True)
 
 
 def add_arguments(parser) -> None:
-    """The cluster options of a command: ``--scheduler``, ``--workers``, ``--serial``."""
-    from data_schema.ranges import Range, argtype
-
+    """The cluster options of a command: ``--scheduler``, ``--workers``, ``--workers-over-cores``, ``--serial``."""
     g = parser.add_argument_group("cluster (docs/distributed.md)")
     g.add_argument("--scheduler", metavar="ADDR",
                    help=f"a running Dask scheduler, e.g. tcp://HOST:8786 (default: ${ENV_SCHEDULER}, else a local "
@@ -165,8 +163,9 @@ def check_address(address: str, where: str) -> str:
         return address
     try:
         name = host.encode("idna").decode("ascii")  # a unicode name as DNS sees it (each label <= 63 bytes)
-    except UnicodeError:
-        raise refuse(f"the host name {host!r} has an empty label or one over 63 characters") from None
+    except UnicodeError as exc:  # Python's codec says "label too long" or "label empty or too long"
+        why = str(exc).rpartition("UnicodeError: ")[2].rstrip(")") or "not IDNA"
+        raise refuse(f"the host name {host!r} is not a domain name ({why}; labels of 1-63 characters)") from None
     labels = name[:-1].split(".") if name.endswith(".") else name.split(".")
     if len(name) > 253 or not all(_LABEL.fullmatch(lb) for lb in labels):
         raise refuse(f"the host name {host!r} is not labels of 1-63 letters, digits and hyphens, 253 "
