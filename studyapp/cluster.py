@@ -139,17 +139,17 @@ def check_address(address: str, where: str) -> str:
     if not sep:
         raise refuse("no scheme")
     if scheme not in SCHEMES:
-        raise refuse(f"unknown scheme {scheme!r}: known {', '.join(SCHEMES)}")
+        raise refuse(f"unknown scheme {_shown(scheme, 40)}: known {', '.join(SCHEMES)}")
     host, sep, port = loc.rpartition(":")
     if not sep or not port:
         raise refuse("no port: a scheduler listens on 8786 unless told otherwise")
     if not re.fullmatch(r"[0-9]{1,5}", port, re.ASCII) or not 1 <= int(port) <= 65535:
-        raise refuse(f"port {port!r} is not a whole number in [1, 65535]")
+        raise refuse(f"port {_shown(port, 40)} is not a whole number in [1, 65535]")
     if host.startswith("[") and host.endswith("]"):
         try:
             ipaddress.IPv6Address(host[1:-1])
         except ValueError:
-            raise refuse(f"{host} is not an IPv6 address") from None
+            raise refuse(f"{_shown(host, 100)[1:-1]} is not an IPv6 address") from None
         return address
     if ":" in host or "[" in host or "]" in host:
         raise refuse("an IPv6 address needs brackets, e.g. tcp://[::1]:8786")
@@ -159,18 +159,25 @@ def check_address(address: str, where: str) -> str:
         try:
             ipaddress.IPv4Address(host)
         except ValueError:
-            raise refuse(f"{host} is not an IPv4 address") from None
+            raise refuse(f"{_shown(host, 100)[1:-1]} is not an IPv4 address") from None
         return address
     try:
         name = host.encode("idna").decode("ascii")  # a unicode name as DNS sees it (each label <= 63 bytes)
     except UnicodeError as exc:  # Python's codec says "label too long" or "label empty or too long"
         why = str(exc).rpartition("UnicodeError: ")[2].rstrip(")") or "not IDNA"
-        raise refuse(f"the host name {host!r} is not a domain name ({why}; labels of 1-63 characters)") from None
+        raise refuse(f"the host name {_shown(host, 100)} is not a domain name ({why}; labels of 1-63 "
+                     "characters)") from None
     labels = name[:-1].split(".") if name.endswith(".") else name.split(".")
     if len(name) > 253 or not all(_LABEL.fullmatch(lb) for lb in labels):
-        raise refuse(f"the host name {host!r} is not labels of 1-63 letters, digits and hyphens, 253 "
+        raise refuse(f"the host name {_shown(host, 100)} is not labels of 1-63 letters, digits and hyphens, 253 "
                      "characters in all")
     return address
+
+
+def _shown(text: str, most: int = 300) -> str:
+    """``text`` quoted for a one-line error, cut to ``most`` characters (an address may be any argument)."""
+    shown = repr(text)
+    return shown if len(shown) <= most else shown[: most - 4] + "...'"
 
 
 def from_args(args) -> ClusterSpec:
@@ -184,12 +191,12 @@ def from_args(args) -> ClusterSpec:
         raise UserError("--workers sizes the local cluster: the workers of --scheduler are started with "
                         "`dask worker` (docs/distributed.md)")
     if scheduler is not None:
-        check_address(scheduler, f"--scheduler {scheduler!r}")
+        check_address(scheduler, f"--scheduler {_shown(scheduler)}")
     elif not serial and not workers:
         # Set but empty means unset, as Dask reads it (and as `DASK_SCHEDULER_ADDRESS= studyapp ...` intends).
         scheduler = os.environ.get(ENV_SCHEDULER) or None
         if scheduler is not None:
-            check_address(scheduler, f"{ENV_SCHEDULER}={scheduler!r}")
+            check_address(scheduler, f"{ENV_SCHEDULER}={_shown(scheduler)}")
     if workers is not None:
         workers = check_workers(workers, bool(getattr(args, "workers_over_cores", False)))
     return ClusterSpec(scheduler=scheduler, workers=workers, serial=serial)
