@@ -39,6 +39,7 @@ import csv
 import errno
 import hashlib
 import io
+import itertools
 import json
 import math
 import os
@@ -1004,23 +1005,99 @@ def export_pwcmp(db_path, out) -> Path:
     return write_text(out, buf.getvalue())
 
 
+#: Rows ``export --format frames`` reads and converts at a time (as Python objects, ~1 KB a row) ...
+FRAMES_BLOCK_ROWS = 32768
+#: ... and rows per Parquet row group (held as Arrow columns, ~140 bytes a row; a larger group compresses
+#: better): memory is bounded by these, not by the table (docs/benchmarks.md, "Frames export").
+FRAMES_ROW_GROUP_ROWS = 262144
+
+
 def export_frames(db_path, out) -> Path:
-    """Write the frames of every live trial (one row per flip) as Parquet (``.parquet``) or CSV."""
+    """Write the frames of every live trial (one row per flip) as Parquet (``.parquet``) or CSV.
+
+    Columns: the frames table's, ``idx`` named ``trial``, and ``gaze_age_ms`` (flip time - gaze sample time).
+    Streamed: :data:`FRAMES_BLOCK_ROWS` rows at a time from a cursor, written as runs of CSV lines or gathered
+    into Parquet row groups of :data:`FRAMES_ROW_GROUP_ROWS`, so memory does not grow with the table. The file
+    is the one ``DataFrame.to_csv``/``to_parquet`` of the whole table gives (Parquet: the same bytes up to one
+    row group, the same schema and values beyond).
+    """
+    out = Path(out)
+    with open_store(db_path) as st, damage_is_refused(st.path):
+        blocks = _frame_blocks(st, FRAMES_BLOCK_ROWS)
+        first = next(blocks, None)
+        if first is None:
+            raise StoreError(f"{db_path}: no live-trial frames to export")
+        with atomic_path(out) as tmp:
+            if out.suffix.lower() == ".csv":
+                with open(tmp, "w", encoding="utf-8", newline="") as fh:
+                    for i, rows in enumerate(itertools.chain([first], blocks)):
+                        _frames_table(db_path, rows).to_csv(fh, header=i == 0, index=False, lineterminator="\n")
+            else:
+                import pyarrow as pa
+                import pyarrow.parquet as pq
+
+                tables = (pa.Table.from_pandas(_frames_table(db_path, rows), preserve_index=False)
+                          for rows in itertools.chain([first], blocks))
+                writer = None
+                try:
+                    for group in _row_groups(tables, FRAMES_ROW_GROUP_ROWS):
+                        if writer is None:  # what DataFrame.to_parquet writes: its schema, snappy
+                            writer = pq.ParquetWriter(tmp, group.schema, compression="snappy")
+                        writer.write_table(group, row_group_size=group.num_rows)
+                finally:
+                    if writer is not None:
+                        writer.close()
+    return out
+
+
+def _row_groups(tables: Iterable, size: int) -> Iterator:
+    """Arrow tables joined into tables of at least ``size`` rows (the last may have fewer)."""
+    import pyarrow as pa
+
+    pending: list = []
+    for t in tables:
+        pending.append(t)
+        if sum(p.num_rows for p in pending) >= size:
+            yield pa.concat_tables(pending)
+            pending = []
+    if pending:
+        yield pa.concat_tables(pending)
+
+
+def _frame_blocks(st: Store, size: int) -> Iterator[list[tuple]]:
+    """The frames table in key order, ``size`` rows at a time from one cursor (SQLite walks the primary key:
+    no sort, nothing held but the block)."""
+    cur = st.conn.execute(f"SELECT {', '.join(COLUMNS['frames'])} FROM frames ORDER BY participant, idx, frame")
+    while rows := cur.fetchmany(size):
+        yield rows
+
+
+def _frames_table(db_path, rows: Sequence[tuple]):
+    """One block of frame rows as the export's DataFrame: fixed dtypes, so that every block has the same
+    schema (text ``participant``, int64 counts, float64 reals with NaN for NULL), ``idx`` named ``trial``, and
+    ``gaze_age_ms``."""
+    import numpy as np
     import pandas as pd
 
-    with open_store(db_path) as st:
-        rows = st.frames()
-    if not rows:
-        raise StoreError(f"{db_path}: no live-trial frames to export")
-    df = pd.DataFrame(rows).rename(columns={"idx": "trial"})
-    df["gaze_age_ms"] = (df["flip_s"] - df["gaze_t"]) * 1000.0
-    out = Path(out)
-    with atomic_path(out) as tmp:
-        if out.suffix.lower() == ".csv":
-            df.to_csv(tmp, index=False, lineterminator="\n")
+    data = {}
+    for name, values in zip(COLUMNS["frames"], zip(*rows)):
+        types = _FRAME_TYPES.get(name, (float, int, type(None)))
+        if not all(type(v) in types for v in values):  # exact conversions only (numpy would parse "5", cut 1.5)
+            bad = next(v for v in values if type(v) not in types)
+            raise StoreError(f"{db_path}: a row of frames holds {name}={bad!r:.40}, not a value studyapp logs: the "
+                             "database was not written by studyapp (restore its last good copy)")
+        if name == "participant":
+            data[name] = list(values)
         else:
-            df.to_parquet(tmp, index=False)
-    return out
+            data["trial" if name == "idx" else name] = np.array(values, np.float64 if float in types else np.int64)
+    df = pd.DataFrame(data)
+    df["gaze_age_ms"] = (df["flip_s"] - df["gaze_t"]) * 1000.0
+    return df
+
+
+#: The Python types SQLite returns for the frames table's columns as studyapp writes them (default: a real,
+#: NULL allowed; SQLite may return a whole real as int).
+_FRAME_TYPES = {"participant": (str,), "idx": (int,), "frame": (int,), "stimulus": (int,), "dropped": (int,)}
 
 
 def timed_commit_latencies(db_path, n: int = 1000) -> list[float]:
@@ -1036,3 +1113,38 @@ def timed_commit_latencies(db_path, n: int = 1000) -> list[float]:
             st.commit_response("B1", i, sid, ["A"], chosen="a", rt_s=0.5, onset_s=1.0)
             lat.append(time.perf_counter() - t0)
     return lat
+
+
+def synthetic_frames_study(db_path, n_frames: int, per_trial: int = 720, trials_per_participant: int = 100) -> Path:
+    """A new study database holding ``n_frames`` flips of live 2AFC trials (``per_trial`` flips each: 8 s at
+    90 Hz), written through :meth:`Store.commit_response` like a session's (benchmark and test helper).
+
+    Every value is one studyapp logs: flips 1/90 s apart, a render time on new frames (None on every 9th: the
+    last frame shown again), a gaze sample 4-8 ms old (none on every 50th flip), a camera walking along x,
+    every 100th flip dropped.
+    """
+    from types import SimpleNamespace
+
+    n_trials = -(-n_frames // per_trial)
+    with open_store(db_path, "create") as st:
+        st.bind_protocol("synthetic_frames", "1", "0" * 64, {"name": "synthetic_frames"})
+        for p in range(-(-n_trials // trials_per_participant)):
+            pid = f"P{p + 1:03d}"
+            first = p * trials_per_participant
+            count = min(trials_per_participant, n_trials - first)
+            st.enrol(pid, p, p, "0" * 64, [PlannedRow(i, "trial", "2afc", "hall", "", ("LaFR", "GT"), "", False)
+                                           for i in range(count)])
+            sid = st.start_session(pid, "0" * 64, p, {}, {}, {}, "synthetic")
+            for i in range(count):
+                n = min(per_trial, n_frames - (first + i) * per_trial)
+                flips = [SimpleNamespace(
+                    frame=k, stimulus=(k // 360) % 2, flip_s=10.0 * i + k / 90.0,
+                    render_s=None if k % 9 == 8 else 0.004 + (k % 7) * 1e-4,
+                    gaze_t=None if k % 50 == 49 else 10.0 * i + k / 90.0 - 0.004 - (k % 5) * 1e-3,
+                    gaze_x=None if k % 50 == 49 else 960.0 + (k % 200) * 1.5,
+                    gaze_y=None if k % 50 == 49 else 540.0 - (k % 120) * 0.75,
+                    position=(k * 0.01, 1.6, -3.0), look_at=(k * 0.01, 1.2, 0.0), dropped=k % 100 == 99)
+                    for k in range(n)]
+                st.commit_response(pid, i, sid, ["A"], chosen="LaFR", rt_s=0.8, onset_s=10.0 * i, frames=flips)
+            st.end_session(sid, "completed")
+    return Path(db_path)

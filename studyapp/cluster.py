@@ -3,10 +3,15 @@
 Who renders (:class:`ClusterSpec`, the options of :func:`add_arguments`):
 
 - by default a ``LocalCluster`` of one single-threaded worker process per core, started and stopped by the
-  command (``--workers N`` sizes it; each worker's numba kernels get ``cores // N`` threads);
-- ``--scheduler tcp://HOST:PORT`` (or the environment variable ``DASK_SCHEDULER_ADDRESS``): a running
-  scheduler and its workers, on this machine or a lab's (docs/distributed.md);
+  command (``--workers N`` sizes it: a whole number up to the cores, more with ``--workers-over-cores``, and
+  never more workers than tasks; each worker's numba kernels get ``cores // N`` threads);
+- ``--scheduler tcp://HOST:PORT`` (or the environment variable ``DASK_SCHEDULER_ADDRESS``; set but empty means
+  unset, as for Dask): a running scheduler and its workers, on this machine or a lab's (docs/distributed.md);
 - ``--workers 1`` or ``--serial``: in this process, no Dask at all.
+
+Every option and address is checked by :func:`from_args` before anything runs, without importing Dask
+(:func:`check_address`); Dask's own configuration (``DASK_CONFIG``) is read when Dask is imported, and a file
+it refuses is one line too (:func:`_distributed`).
 
 What runs: :func:`run_tasks` submits one task per unit of work (a frame), drives the progress bar and the time
 left from the futures as they complete (``as_completed``), and turns a failing task into one line naming it
@@ -26,7 +31,9 @@ import asyncio
 import concurrent.futures
 import contextlib
 import functools
+import ipaddress
 import os
+import re
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -38,6 +45,12 @@ from data_schema.errors import UserError
 ENV_SCHEDULER = "DASK_SCHEDULER_ADDRESS"
 #: Seconds to wait for a scheduler to answer before giving up in one line.
 CONNECT_TIMEOUT_S = 5.0
+#: Local workers allowed with ``--workers-over-cores`` (each is a process of ~90 MB).
+WORKERS_MAX = 1024
+#: Address schemes of Dask's comms that reach another process (``inproc://`` does not).
+SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
+#: A DNS label: letters, digits, hyphens (underscores too: some lab hosts have them), 1-63 characters.
+_LABEL = re.compile(r"[A-Za-z0-9_](?:[A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?", re.ASCII)
 
 
 @dataclass(frozen=True)
@@ -68,30 +81,125 @@ SERIAL = ClusterSpec(serial=True)
 
 
 def add_arguments(parser) -> None:
-    """The cluster options of a command: ``--scheduler``, ``--workers``, ``--serial``."""
-    from data_schema.ranges import Range, argtype
-
+    """The cluster options of a command: ``--scheduler``, ``--workers``, ``--workers-over-cores``, ``--serial``."""
     g = parser.add_argument_group("cluster (docs/distributed.md)")
     g.add_argument("--scheduler", metavar="ADDR",
                    help=f"a running Dask scheduler, e.g. tcp://HOST:8786 (default: ${ENV_SCHEDULER}, else a local "
                         "cluster started for this command)")
-    g.add_argument("--workers", type=argtype("--workers", Range(1, 1024, integer=True)), metavar="N",
-                   help="worker processes of the local cluster (default: one per core; 1 renders in this process)")
+    g.add_argument("--workers", type=_whole_number, metavar="N",
+                   help="worker processes of the local cluster, at most one per core and per frame (default: one "
+                        "per core; 1 renders in this process)")
+    g.add_argument("--workers-over-cores", action="store_true",
+                   help=f"allow --workers above this machine's cores (up to {WORKERS_MAX})")
     g.add_argument("--serial", action="store_true", help="render in this process, without Dask")
+
+
+def _whole_number(text: str) -> int:
+    """``--workers``' argparse type: digits only (``1e3`` would be read as 1000 by a float parser)."""
+    import argparse
+
+    if not re.fullmatch(r"\s*[+-]?[0-9]{1,9}\s*", text, re.ASCII):
+        if re.fullmatch(r"\s*[+-]?[0-9]+\s*", text, re.ASCII):  # too many digits to be a count of processes
+            raise argparse.ArgumentTypeError(f"--workers={text.strip()} is out of range: allowed [1, "
+                                             f"{os.cpu_count() or 1}], this machine's cores")
+        raise argparse.ArgumentTypeError(f"--workers={text!r} is invalid: must be a whole number in digits")
+    return int(text)
+
+
+def check_workers(n: int, over_cores: bool = False, cores: int | None = None) -> int:
+    """``n`` local workers, or the one-line refusal: 1 up to ``cores`` (this machine's), up to
+    :data:`WORKERS_MAX` with ``over_cores``."""
+    from data_schema.ranges import Range
+
+    cores = cores or os.cpu_count() or 1
+    if over_cores:
+        return Range(1, WORKERS_MAX, integer=True).check("--workers", n)
+    try:
+        return Range(1, cores, integer=True).check("--workers", n)
+    except UserError as exc:
+        if n < 1:
+            raise
+        raise UserError(f"{exc} (this machine's {cores} cores: add --workers-over-cores for more)") from None
+
+
+def check_address(address: str, where: str) -> str:
+    """``address`` if it is a Dask scheduler address another process can reach, else the one-line refusal
+    naming ``where`` it came from (``--scheduler ADDR``): a known scheme, a host (a DNS name of labels of 1-63
+    characters and 253 in all, an IPv4 address, or an IPv6 address in brackets), a port 1-65535. Dask is not
+    imported; nothing is resolved or connected."""
+    def refuse(why: str) -> UserError:
+        return UserError(f"{where} is not a scheduler address: {why}; give tcp://HOST:PORT, e.g. "
+                         "tcp://192.168.1.10:8786")
+
+    if not address.strip():
+        raise refuse("it is empty (leave the option out for a local cluster)")
+    if any(c.isspace() or not c.isprintable() for c in address):
+        raise refuse("it holds spaces or control characters")
+    scheme, sep, loc = address.partition("://")
+    if not sep:
+        raise refuse("no scheme")
+    if scheme not in SCHEMES:
+        raise refuse(f"unknown scheme {_shown(scheme, 40)}: known {', '.join(SCHEMES)}")
+    host, sep, port = loc.rpartition(":")
+    if not sep or not port:
+        raise refuse("no port: a scheduler listens on 8786 unless told otherwise")
+    if not re.fullmatch(r"[0-9]{1,5}", port, re.ASCII) or not 1 <= int(port) <= 65535:
+        raise refuse(f"port {_shown(port, 40)} is not a whole number in [1, 65535]")
+    if host.startswith("[") and host.endswith("]"):
+        try:
+            ipaddress.IPv6Address(host[1:-1])
+        except ValueError:
+            raise refuse(f"{_shown(host, 100)[1:-1]} is not an IPv6 address") from None
+        return address
+    if ":" in host or "[" in host or "]" in host:
+        raise refuse("an IPv6 address needs brackets, e.g. tcp://[::1]:8786")
+    if not host:
+        raise refuse("no host")
+    if re.fullmatch(r"[0-9.]+", host, re.ASCII):
+        try:
+            ipaddress.IPv4Address(host)
+        except ValueError:
+            raise refuse(f"{_shown(host, 100)[1:-1]} is not an IPv4 address") from None
+        return address
+    try:
+        name = host.encode("idna").decode("ascii")  # a unicode name as DNS sees it (each label <= 63 bytes)
+    except UnicodeError as exc:  # Python's codec says "label too long" or "label empty or too long"
+        why = str(exc).rpartition("UnicodeError: ")[2].rstrip(")") or "not IDNA"
+        raise refuse(f"the host name {_shown(host, 100)} is not a domain name ({why}; labels of 1-63 "
+                     "characters)") from None
+    labels = name[:-1].split(".") if name.endswith(".") else name.split(".")
+    if len(name) > 253 or not all(_LABEL.fullmatch(lb) for lb in labels):
+        raise refuse(f"the host name {_shown(host, 100)} is not labels of 1-63 letters, digits and hyphens, 253 "
+                     "characters in all")
+    return address
+
+
+def _shown(text: str, most: int = 300) -> str:
+    """``text`` quoted for a one-line error, cut to ``most`` characters (an address may be any argument)."""
+    shown = repr(text)
+    return shown if len(shown) <= most else shown[: most - 4] + "...'"
 
 
 def from_args(args) -> ClusterSpec:
     """The :class:`ClusterSpec` of parsed :func:`add_arguments` options (and ``$DASK_SCHEDULER_ADDRESS``)."""
     scheduler = getattr(args, "scheduler", None)
-    if getattr(args, "serial", False) and scheduler:
+    workers = getattr(args, "workers", None)
+    serial = bool(getattr(args, "serial", False))
+    if serial and scheduler is not None:
         raise UserError("--serial and --scheduler exclude each other: choose one")
-    if scheduler and getattr(args, "workers", None):
+    if scheduler is not None and workers:
         raise UserError("--workers sizes the local cluster: the workers of --scheduler are started with "
                         "`dask worker` (docs/distributed.md)")
-    if not scheduler and not getattr(args, "serial", False) and not getattr(args, "workers", None):
+    if scheduler is not None:
+        check_address(scheduler, f"--scheduler {_shown(scheduler)}")
+    elif not serial and not workers:
+        # Set but empty means unset, as Dask reads it (and as `DASK_SCHEDULER_ADDRESS= studyapp ...` intends).
         scheduler = os.environ.get(ENV_SCHEDULER) or None
-    return ClusterSpec(scheduler=scheduler, workers=getattr(args, "workers", None),
-                       serial=bool(getattr(args, "serial", False)))
+        if scheduler is not None:
+            check_address(scheduler, f"{ENV_SCHEDULER}={_shown(scheduler)}")
+    if workers is not None:
+        workers = check_workers(workers, bool(getattr(args, "workers_over_cores", False)))
+    return ClusterSpec(scheduler=scheduler, workers=workers, serial=serial)
 
 
 @contextlib.contextmanager
@@ -100,11 +208,8 @@ def connect(spec: ClusterSpec) -> Iterator:
     if spec.in_process:
         yield None
         return
-    try:
-        from distributed import Client, LocalCluster
-    except ImportError as exc:
-        raise UserError(f"Dask distributed is not installed here ({exc}): pip install 'dask[distributed]', or "
-                        "render in this process with --serial") from None
+    distributed = _distributed()
+    Client, LocalCluster = distributed.Client, distributed.LocalCluster  # noqa: N806 - classes
     import logging
 
     if spec.scheduler:
@@ -128,6 +233,22 @@ def connect(spec: ClusterSpec) -> Iterator:
         cluster.close()
 
 
+def _distributed():
+    """The ``distributed`` module, or one line saying why not: not installed, or Dask refused its configuration
+    (read at import: ``DASK_CONFIG``, ``~/.config/dask``, ``/etc/dask``; e.g. ``DASK_CONFIG=/etc/passwd``)."""
+    try:
+        import distributed
+    except ImportError as exc:
+        raise UserError(f"Dask distributed is not installed here ({exc}): pip install 'dask[distributed]', or "
+                        "render in this process with --serial") from None
+    except Exception as exc:  # noqa: BLE001 - Dask's config files are the user's input: one line
+        where = (f"DASK_CONFIG={os.environ['DASK_CONFIG']}" if "DASK_CONFIG" in os.environ else
+                 "Dask's configuration (~/.config/dask, /etc/dask)")
+        raise UserError(f"{where}: Dask cannot read its configuration ({_first_line(exc).rstrip(':, ')}): fix or "
+                        "unset it, or render in this process with --serial") from None
+    return distributed
+
+
 def _client(client_class, address: str):
     """A ``Client`` of the scheduler at ``address``, or one line (within ``CONNECT_TIMEOUT_S``) saying why not."""
     import gc
@@ -148,8 +269,9 @@ def _client(client_class, address: str):
     if scheme == "tcp":  # nothing listening: say so at once, not after Dask's retries
         try:
             socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S).close()
-        except OSError as exc:
-            raise UserError(f"{where}: no Dask scheduler answers there ({exc.strerror or exc}): {hint}") from None
+        except (OSError, UnicodeError) as exc:  # UnicodeError: a name the resolver cannot encode
+            why = getattr(exc, "strerror", None) or _first_line(exc)
+            raise UserError(f"{where}: no Dask scheduler answers there ({why}): {hint}") from None
     # In a thread with a deadline: a service that accepts the connection but is no scheduler never answers.
     box: dict = {}
 
@@ -177,6 +299,14 @@ def _client(client_class, address: str):
 def _first_line(exc: BaseException) -> str:
     text = str(exc).strip()
     return text.splitlines()[0] if text else type(exc).__name__
+
+
+def for_tasks(spec: ClusterSpec, n_tasks: int) -> ClusterSpec:
+    """``spec`` for ``n_tasks`` tasks: a local cluster of no more workers than tasks (an idle worker is a
+    process started for nothing; one task renders in this process)."""
+    if spec.scheduler or spec.in_process or spec.local_workers <= n_tasks:
+        return spec
+    return ClusterSpec(workers=max(1, n_tasks))
 
 
 def task_error(label: str, exc: BaseException) -> UserError:
@@ -221,6 +351,8 @@ def run_tasks(tasks: list[Task], spec: ClusterSpec, on_result: Callable[[Task, o
     t0 = time.perf_counter()
     if not tasks:
         return 0.0
+    if client is None and not spec.in_process:
+        spec = for_tasks(spec, len(tasks))
     if client is None and not spec.in_process:
         with connect(spec) as c:
             return run_tasks(tasks, spec, on_result, progress, client=c)

@@ -1,0 +1,147 @@
+"""Benchmark of ``studyapp export --format frames`` (issue 25 item 9): peak memory and time against the number
+of logged flips.
+
+Run:  .venv/bin/python benchmarks/bench_export.py [--rows 360000,1440000] [--before-rows 360000]
+          [--dir DIR] [--write docs/benchmarks.md]
+
+Each database holds ``N`` flips of live 2AFC trials (720 flips each: 8 s at 90 Hz; 100 trials per participant)
+written through the store's own insert path (``data_schema.store.synthetic_frames_study``: every row with its
+checksum, as a session writes it). Building 1.44 M rows is the slow part (about a minute), so the databases are
+kept in ``--dir`` (default: ``$TMPDIR/studyapp_bench_export``) and reused by later runs.
+
+Each export runs as a fresh child under ``/usr/bin/time -v`` (peak resident memory of the whole process:
+Python, pandas, pyarrow and the export; the store's checks on open included): the command itself for Parquet
+and CSV, and, for comparison at ``--before-rows``, the whole-table export this streaming replaced (every row in
+one DataFrame). Target: peak under 500 MB for 1.44 M frames.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(HERE))
+
+from _report import command_line, machine_line, peak_rss_mb, without_time_report  # noqa: E402
+
+TARGET_MB = 500.0
+#: The export before streaming (kept here to measure it): the frames table in one DataFrame.
+WHOLE_TABLE = """
+import sys
+import pandas as pd
+from data_schema.store import open_store
+with open_store(sys.argv[1]) as st:
+    rows = st.frames()
+df = pd.DataFrame(rows).rename(columns={"idx": "trial"})
+df["gaze_age_ms"] = (df["flip_s"] - df["gaze_t"]) * 1000.0
+df.to_parquet(sys.argv[2], index=False)
+"""
+
+
+def database(folder: Path, rows: int) -> tuple[Path, float | None]:
+    """The cached database of ``rows`` flips (built, under a temporary name then renamed, if missing) and the
+    seconds its build took (None: reused)."""
+    from data_schema.store import remove_database, synthetic_frames_study
+
+    db = folder / f"frames_{rows}.db"
+    if db.is_file():
+        return db, None
+    partial = folder / f".frames_{rows}.partial.db"
+    remove_database(partial)
+    t0 = time.perf_counter()
+    synthetic_frames_study(partial, rows)
+    os.replace(partial, db)
+    return db, time.perf_counter() - t0
+
+
+def measure(argv: list[str], out: Path) -> dict:
+    """Peak RSS (MB), wall seconds and output size of one child run under ``/usr/bin/time -v``."""
+    out.unlink(missing_ok=True)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    t0 = time.perf_counter()
+    r = subprocess.run(["/usr/bin/time", "-v", sys.executable, *argv], capture_output=True, text=True, env=env,
+                       check=False)
+    wall = time.perf_counter() - t0
+    if r.returncode != 0:
+        raise RuntimeError(f"{' '.join(argv)} failed:\n{without_time_report(r.stderr)}")
+    size = out.stat().st_size
+    out.unlink()
+    return {"peak_mb": peak_rss_mb(r.stderr), "seconds": wall, "size_mb": size / 1e6}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--rows", default="360000,1440000", help="flips per database, comma-separated")
+    ap.add_argument("--before-rows", default="360000",
+                    help="flips of the whole-table export measured for comparison ('' for none)")
+    ap.add_argument("--dir", help="where the databases are kept (default: $TMPDIR/studyapp_bench_export)")
+    ap.add_argument("--write", metavar="MD", help="replace the frames-export section of this Markdown file")
+    args = ap.parse_args()
+    sizes = [int(x) for x in args.rows.split(",") if x]
+    before = [int(x) for x in args.before_rows.split(",") if x]
+    folder = Path(args.dir or Path(tempfile.gettempdir()) / "studyapp_bench_export")
+    folder.mkdir(parents=True, exist_ok=True)
+    load0 = os.getloadavg()
+    results, built = [], {}
+    for n in sorted(set(sizes) | set(before)):
+        db, seconds = database(folder, n)
+        if seconds is not None:
+            built[n] = seconds
+        runs = []
+        if n in sizes:
+            runs += [("streamed (this command)", fmt, ["-m", "studyapp", "export", "--db", str(db), "--format",
+                                                       "frames", "--out", str(folder / f"out{n}.{fmt}")],
+                      folder / f"out{n}.{fmt}") for fmt in ("parquet", "csv")]
+        if n in before:
+            before_out = folder / "before.parquet"
+            runs.append(("whole table (before)", "parquet", ["-c", WHOLE_TABLE, str(db), str(before_out)], before_out))
+        for how, fmt, argv, out in runs:
+            m = measure(argv, out)
+            results.append({"rows": n, "how": how, "format": fmt, **m})
+            print(f"{n:>9,} {fmt:<8} {how:<24} peak {m['peak_mb']:7.0f} MB  {m['seconds']:6.1f} s  "
+                  f"{m['size_mb']:6.1f} MB", flush=True)
+    load1 = os.getloadavg()
+
+    from data_schema.store import FRAMES_BLOCK_ROWS, FRAMES_ROW_GROUP_ROWS
+
+    largest = max(sizes)
+    worst = max(r["peak_mb"] for r in results if r["rows"] == largest and r["how"].startswith("streamed"))
+    lines = ["## Frames export (`benchmarks/bench_export.py`)", "",
+             f"`{command_line('benchmarks/bench_export.py', sys.argv[1:])}`. {machine_line()} Load averages at the "
+             f"start and end: {' '.join(f'{x:.2f}' for x in load0)} -> {' '.join(f'{x:.2f}' for x in load1)} (wall "
+             "times are a shared machine's).", "",
+             "`studyapp export --db DB --format frames --out FILE` on databases of live 2AFC trials (720 flips each, "
+             "100 trials per participant) written through the store's insert path; peak resident memory of the "
+             "whole child process (`/usr/bin/time -v`: Python, pandas, pyarrow, the store's checks on open and the "
+             f"export). The export reads {FRAMES_BLOCK_ROWS:,} rows at a time from a cursor and writes them as runs "
+             f"of CSV lines or gathers them into Parquet row groups of {FRAMES_ROW_GROUP_ROWS:,} rows (Arrow "
+             "columns); \"whole table (before)\" is the export this replaced (every row in one DataFrame; one "
+             "row group per 1,048,576 rows, pyarrow's default, hence its smaller file).", "",
+             "| frames | format | export | peak memory | wall | file |",
+             "|---:|---|---|---:|---:|---:|"]
+    for r in results:
+        lines.append(f"| {r['rows']:,} | {r['format']} | {r['how']} | {r['peak_mb']:,.0f} MB | {r['seconds']:.1f} s "
+                     f"| {r['size_mb']:.1f} MB |")
+    verdict = "holds" if worst < TARGET_MB else "is MISSED"
+    lines += ["", f"Target: peak under {TARGET_MB:.0f} MB for {largest:,} frames: {verdict} ({worst:,.0f} MB)."]
+    if built:
+        lines.append("Building the databases (cached for later runs): " + ", ".join(
+            f"{n:,} rows in {s:.0f} s" for n, s in sorted(built.items())) + ".")
+    print("\n".join(lines))
+    if args.write:
+        from _report import replace_section
+
+        replace_section(args.write, "frames-export", lines)
+    return 0 if worst < TARGET_MB else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
