@@ -1065,11 +1065,11 @@ def _row_groups(tables: Iterable, size: int) -> Iterator:
 
 
 def _frame_blocks(st: Store, size: int) -> Iterator[list[tuple]]:
-    """The frames table in key order, ``size`` rows at a time from one cursor (SQLite walks the primary key:
-    no sort, nothing held but the block)."""
-    cur = st.conn.execute(f"SELECT {', '.join(COLUMNS['frames'])} FROM frames ORDER BY participant, idx, frame")
-    while rows := cur.fetchmany(size):
-        yield rows
+    """The frames table in key order, ``size`` rows at a time, each row checked by :meth:`Store.iter_frames`
+    (one cursor: nothing held but the block)."""
+    rows = st.iter_frames()
+    while block := [tuple(r.values()) for r in itertools.islice(rows, size)]:
+        yield block
 
 
 def _frames_table(db_path, rows: Sequence[tuple]):

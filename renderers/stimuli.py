@@ -311,28 +311,6 @@ def cached_entry(cache_dir, key: str, shape: tuple[int, ...]) -> Path | None:
     return None
 
 
-def discard_damaged(cache_dir, frames: Iterable[dict]) -> int:
-    """Check the cache entries of ``frames`` (:func:`render_stimulus` arguments) that exist: the damaged ones are
-    removed and reported in one line (:func:`report_damaged`), so that a cluster renders them again. Returns
-    how many. A frame that is refused (bad input) is left for its render to name."""
-    damaged, seen = [], set()
-    for kw in frames:
-        try:
-            req = frame_request(**kw)
-        except ValueError:
-            continue
-        png = cached_png(cache_dir, req.key)
-        if req.key in seen or not png.is_file():
-            continue
-        seen.add(req.key)
-        why = check_entry(png, (req.height, req.width, 3))
-        if why is not None:
-            _discard(png)
-            damaged.append((png, why))
-    report_damaged(damaged)
-    return len(damaged)
-
-
 def entry_image(png: Path, shape: tuple[int, ...] | None = None) -> np.ndarray:
     """The linear image of the cache entry of ``png`` (returned by :func:`render_stimulus`, which checked it),
     read with its header checked first (:func:`data_schema.images.load_npy`)."""

@@ -465,8 +465,8 @@ def render_frames(frames: list[tuple[str, dict]], cache_dir, spec: ClusterSpec,
             raise task_error(label, exc) from None
         if not isinstance(req.scene, str):
             raise TypeError(f"{label}: a task carries a scene's name or file, not a Scene object")
-        png = stimuli.cached_png(cache_dir, req.key)
-        if png.is_file():
+        png = stimuli.cached_entry(cache_dir, req.key, (req.height, req.width, 3))  # checked; a bad one re-renders
+        if png is not None:
             cached += 1
             if on_frame:
                 on_frame(i, png)

@@ -199,10 +199,6 @@ def _ground_truths(args, scenes, width: int, height: int) -> None:
     frames = [(f"scene {name}, ground truth sl_gt {n} + {n}",
                gt_frame(name, width, height, gt_lspp=n, gt_rspp=n, seed=args.seed, backend=args.backend))
               for name in scenes]
-    if not spec.in_process:  # a cluster run takes a GT entry that is there: check those first
-        from renderers.stimuli import discard_damaged
-
-        discard_damaged(Path(args.cache), [kw for _, kw in frames])
     bar = Bar("ground truths")
     cluster.render_frames(frames, Path(args.cache), spec, progress=bar)
     bar.close()

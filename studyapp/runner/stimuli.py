@@ -211,10 +211,6 @@ def _build(protocol: Protocol, todo, geometry, scale: float, root, cache: Path, 
                 targets.append(dst)
     if jobs and render is None:
         render = render_function()  # one line if the renderers are not usable here
-    if jobs and not spec.in_process:  # a cluster run takes an entry that is there: check those first
-        from renderers.stimuli import discard_damaged
-
-        discard_damaged(cache, [kw for _, kw in jobs])
     t0 = time.perf_counter()
     count = {"done": total - len(jobs) - sum(len(fr) for _, c, fr in todo if not c.renderer)}
 
