@@ -134,6 +134,9 @@ def row_crc(table: str, values: Sequence) -> str:
     overwritten bytes inside a page of answers pass them and change what is read. Every row carries this
     checksum, and every read verifies it (:func:`verify`), so damaged data is refused instead of analysed.
     """
+    # SQLite stores -0.0 as 0.0 (a REAL zero keeps no sign): the sum is over what is read back, so -0.0 counts
+    # as 0.0, else a row logged with -0.0 (a camera coordinate) would read back as damaged.
+    values = [0.0 if isinstance(v, float) and v == 0.0 else v for v in values]
     text = json.dumps([table, *values], separators=(",", ":"), ensure_ascii=True, allow_nan=True)
     return hashlib.sha256(text.encode("ascii")).hexdigest()[:16]
 

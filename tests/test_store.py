@@ -187,3 +187,18 @@ def test_commit_latency_helper_commits_every_response(tmp_path):
     assert len(lat) == 20 and min(lat) > 0
     with open_store(tmp_path / "b.db") as st:
         assert st.conn.execute("SELECT COUNT(*) FROM responses").fetchone()[0] == 20
+
+
+def test_a_negative_zero_logged_reads_back_undamaged(tmp_path):
+    """SQLite keeps no sign on a REAL zero: a frame logged with -0.0 (a gaze at the window's left edge, a camera
+    coordinate) reads back as 0.0, and its row checksum must still hold, else the whole study is refused."""
+    import math
+
+    from tests.crafted_db import live_db, live_protocol
+
+    db = live_db(live_protocol(tmp_path / "p"), tmp_path / "z.db", frames_per_stimulus=2, gaze=(-0.0, -0.0))
+    with open_store(db) as st:
+        frames = st.frames("P1")
+        rows = st.tidy_rows()
+    assert frames and all(f["gaze_x"] == 0.0 and math.copysign(1.0, f["gaze_x"]) == 1.0 for f in frames)
+    assert len(rows) == len({f["idx"] for f in frames})
