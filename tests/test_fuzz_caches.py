@@ -185,8 +185,9 @@ def test_every_kind_of_damage_is_named(reference):
     assert check_entry(ref_dir / "cache" / entries[0], (36, 65, 3)).startswith(".json: records a float32 image")
 
 
-def test_a_cluster_prepare_checks_the_entries_it_will_take(reference, monkeypatch, tmp_path):
-    """On a cluster, render_frames takes an entry that is there: prepare removes the damaged ones first."""
+def test_a_cluster_prepare_checks_the_entries_it_will_take(reference, tmp_path):
+    """On a cluster, render_frames takes an entry that is there only after check_entry passed it: the damaged
+    one is reported, removed and rendered again (one task: a local cluster of one runs it in this process)."""
     from studyapp import cluster
     from studyapp.runner.protocol import load_protocol
     from studyapp.runner.stimuli import prepare
@@ -195,23 +196,16 @@ def test_a_cluster_prepare_checks_the_entries_it_will_take(reference, monkeypatc
     cache = tmp_path / "cache"
     shutil.copytree(ref_dir / "cache", cache)
     damage(cache / entries[2], "nan", 3, ref_dir / "cache" / entries[0])
-    real = cluster.render_frames
-    seen = {}
-
-    def on_a_cluster(jobs, cache_dir, spec, on_frame=None, progress=None, render=None):
-        seen["entries"] = sorted(p.relative_to(cache_dir) for p in Path(cache_dir).glob("??/*.png"))
-        return real(jobs, cache_dir, cluster.SERIAL, on_frame, progress)
-
-    monkeypatch.setattr(cluster, "render_frames", on_a_cluster)
     p = load_protocol(ref_dir / "tiny.yaml", stimuli_dir=tmp_path / "stim")
     err = io.StringIO()
     with fast_renders(), contextlib.redirect_stderr(err):
-        prepare(p, cache_dir=cache, cluster=cluster.ClusterSpec(workers=2))
-    assert seen["entries"] == [e for e in entries if e != entries[2]]
+        res = prepare(p, cache_dir=cache, cluster=cluster.ClusterSpec(workers=2))
     assert err.getvalue() == (f"cache: re-rendering 1 damaged entry: {cache / entries[2]}: .npy: 1 NaN or "
                               "infinite value(s)\n")
+    assert res["rendered"] == 1
     assert tree(tmp_path / "stim") == ref_stim
-
+    assert (cache / entries[2]).with_suffix(".npy").read_bytes() == \
+        (ref_dir / "cache" / entries[2]).with_suffix(".npy").read_bytes()
 
 def test_a_nan_ground_truth_is_rendered_again_before_it_is_tabulated(tmp_path, capsys):
     """``lightcuts tables`` reads its GT from the cache: a damaged one is rendered again (the real sl_gt)."""

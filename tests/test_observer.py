@@ -158,3 +158,24 @@ def test_foveated_difference_is_a_weighted_rms(seed, k):
     w = E2_DEG / (ecc + E2_DEG)
     assert d == pytest.approx(math.sqrt((w * err**2).sum() / w.sum()), rel=1e-9)
     assert abs(err).min() - 1e-12 <= d <= abs(err).max() + 1e-12  # a weighted mean of |err|^2
+
+
+def test_a_live_condition_too_coarse_for_a_64_pixel_thumbnail_is_still_simulated(tmp_path, monkeypatch, capsys):
+    """LaFR delta 12 passes validation at 320x180 (15 LP rows) but has 3 rows at the observer's 64x36
+    thumbnail (fewer than the 4 a render needs): the observer takes a thumbnail twice as wide, so a run that
+    validate accepted completes instead of dying after its first answer."""
+    from studyapp.cli import main
+    from studyapp.runner.observer import SIM_WIDTH
+    from tests.crafted_db import live_protocol
+
+    protocol = live_protocol(tmp_path, params="{delta: 12}", render_px=(320, 180), repetitions=1)
+    assert main(["validate", str(protocol)]) == 0
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", str(protocol), "--participant", "P1", "--db", "t.db", "--simulate"]) == 0
+    assert "completed, 1/1 trials answered" in capsys.readouterr().out
+    from studyapp.runner.live import live_stimulus
+
+    p = load_protocol(protocol)
+    live = live_stimulus(p, "LaFR", "cornell")
+    obs = SimulatedObserver(p, "P1", 0, {})
+    assert obs._thumbnail_size(live, p.conditions["Ref"]) == (2 * SIM_WIDTH, 72)

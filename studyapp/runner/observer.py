@@ -227,7 +227,7 @@ class SimulatedObserver:
         if gt_cond is None:
             raise UserError("live stimuli need a ground truth to simulate answers: set simulation.ground_truth")
         gt = self.protocol.conditions[gt_cond]
-        w, h = SIM_WIDTH, max(8, round(SIM_WIDTH * live.render_size[1] / live.render_size[0]))
+        w, h = self._thumbnail_size(live, gt)
         luma = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
         samples = self._live_samples(live, scene)
         params = preview_params(live.renderer, live.params)  # a thumbnail: no work it cannot show
@@ -236,7 +236,7 @@ class SimulatedObserver:
         for k, (t, (gx, gy), pose, _) in enumerate(samples):
             gaze = (gx * w / d.width_px, gy * h / d.height_px)
             cam = pose.camera(live.fov_y_deg)
-            ref_key = ("gt-frame", self.protocol.content_hash, scene, k)
+            ref_key = ("gt-frame", self.protocol.content_hash, scene, k, w, h)
             if ref_key not in _SHARED:  # the ground truth's thumbnail too (sl_gt: fewer samples)
                 ref, _ = render(live.scene, gt.renderer, preview_params(gt.renderer, gt.params), w, h, gaze=gaze,
                                 camera=cam)
@@ -248,6 +248,25 @@ class SimulatedObserver:
             ecc = self.protocol.render_geometry().resized(w, h).with_gaze(gaze).eccentricity_map()
             ds.append(foveated_difference(img, _SHARED[ref_key], ecc))
         return float(np.mean(ds)) / float(self.protocol.simulation["jnd"])
+
+    def _thumbnail_size(self, live, gt) -> tuple[int, int]:
+        """The thumbnail size of a live stimulus: :data:`SIM_WIDTH` pixels across, or twice that and so on up to
+        the render size where a renderer cannot render so small (a LaFR buffer of too few rows); the render size
+        passed validation, so a protocol that validates is always simulated."""
+        from renderers.registry import check_geometry, preview_params
+
+        full_w, full_h = live.render_size
+        w = SIM_WIDTH
+        while w < full_w:
+            h = max(8, round(w * full_h / full_w))
+            geometry = self.protocol.render_geometry().resized(w, h)
+            try:
+                for cond in (live, gt):
+                    check_geometry(cond.renderer, preview_params(cond.renderer, cond.params), geometry)
+                return w, h
+            except UserError:
+                w *= 2
+        return full_w, full_h
 
     # -- the image model ----------------------------------------------------------------------------------
     def _eccentricity(self, shape: tuple[int, int]) -> np.ndarray:
