@@ -131,7 +131,7 @@ def test_out_is_checked_before_any_rendering_and_a_users_folder_is_kept(tmp_path
     _no_rendering(monkeypatch)
     mine = tmp_path / "lightcuts_tables.md"
     mine.write_text("my notes")
-    for out, message in ((mine, f"{mine}: exists and is not a folder"),
+    for out, message in ((mine, f"{mine}: is a regular file, not a folder"),
                          (tmp_path, f"{tmp_path}: is a folder with other files in it (no lightcuts_records.json)")):
         assert main(["lightcuts", "tables", *TINY, "--out", str(out)]) == 2
         err = capsys.readouterr().err

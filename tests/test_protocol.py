@@ -253,3 +253,16 @@ def test_schema_describes_every_top_level_field():
     top = schema["properties"]
     assert {"display", "conditions", "design", "analysis", "practice", "breaks", "catch", "timing"} <= set(top)
     assert set(schema["$defs"]["analysis"]["required"]) == {"dv", "unit", "test"}
+
+
+def test_a_pre_rendered_stimulus_over_the_image_limit_is_refused_at_validation(tmp_path):
+    """Stimulus PNGs are read back through data_schema.images (at most 8192 x 8192 pixels): a render size over
+    that would be prepared for hours, then refused at the first trial; validation names the field instead."""
+    text = (PROTOCOLS / "seed001_2afc.yaml").read_text()
+    assert "render_px: [960, 540]" in text
+    with pytest.raises(ProtocolError, match=r"p\.yaml:\d+: stimulus\.render_px: 15360x8640 pixels is over the limit of "
+                                        r"8192x8192 \(67 M pixels\)"):
+        load_protocol(_write(tmp_path, text.replace("render_px: [960, 540]", "render_px: [15360, 8640]", 1)),
+                      check_renderers=False)
+    big_display = text.replace("width_px: 1920, height_px: 1080", "width_px: 16384, height_px: 9216", 1)
+    assert load_protocol(_write(tmp_path, big_display, "ok.yaml"), check_renderers=False).render_size == (960, 540)

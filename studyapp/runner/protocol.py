@@ -234,7 +234,18 @@ def _display(doc: LoadedYAML, data: dict) -> tuple[Display, tuple[int, int]]:
     if abs(w * display.height_px / display.width_px - h) > 1.0:
         raise doc.error(("stimulus", "render_px"), f"{w}x{h} has not the display's aspect ratio "
                         f"({display.width_px}x{display.height_px}): a stimulus covers the whole display")
+    _check_stimulus_pixels(doc, data, ("stimulus", "render_px"), int(w), int(h))
     return display, (int(w), int(h))
+
+
+def _check_stimulus_pixels(doc: LoadedYAML, data: dict, field: tuple, w: int, h: int) -> None:
+    """Pre-rendered stimuli are read back as PNGs: a render size over the image readers' limit
+    (:data:`data_schema.images.MAX_IMAGE_PIXELS`) would be prepared, then refused at the first trial."""
+    from data_schema.images import MAX_IMAGE_PIXELS, limit_text
+
+    if (data.get("stimulus") or {}).get("kind", "image") != "live" and w * h > MAX_IMAGE_PIXELS:
+        raise doc.error(field, f"{w}x{h} pixels is over the limit of {limit_text()} for a pre-rendered stimulus "
+                        "image: render smaller (render_px; it is upscaled to the display when shown)")
 
 
 def _check_live(doc: LoadedYAML, data: dict, conditions: dict, family: str, check_renderers: bool) -> None:
@@ -391,6 +402,7 @@ def _full_size(doc: LoadedYAML, data: dict, check_renderers: bool) -> dict:
     if abs(w * d["height_px"] / d["width_px"] - h) > 1.0:
         raise doc.error(("full", "render_px"), f"{w}x{h} has not the display's aspect ratio "
                         f"({d['width_px']}x{d['height_px']}): a stimulus covers the whole display")
+    _check_stimulus_pixels(doc, data, ("full", "render_px"), w, h)
     out.setdefault("stimulus", {})["render_px"] = [w, h]
     reg = _registry() if check_renderers else None
     for name, over in spec.get("conditions", {}).items():
