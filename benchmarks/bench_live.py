@@ -135,7 +135,7 @@ def summarise(db: Path) -> tuple[list[dict], dict]:
                 continue
             render = [f["render_s"] for f in frames if f["render_s"] is not None]
             s = summary([f["flip_s"] for f in frames], [f["render_s"] for f in frames],
-                        [f["gaze_t"] for f in frames], [f["dropped"] for f in frames])
+                        [f["gaze_t"] for f in frames], [f["dropped"] for f in frames], [f["stimulus"] for f in frames])
             rows.append({"method": planned[idx].conditions[0], "scene": planned[idx].scene, "flips": len(frames), "frames": len(render),
                          "render_ms": 1000 * statistics.median(render) if render else float("nan"), **s})
     return rows, facts

@@ -521,13 +521,14 @@ class Store:
             r.update(timing.get((r["participant"], r["trial"]), {}))
         return rows
 
-    def trial_flips(self) -> dict[tuple[str, int], tuple[list, list, list, list]]:
+    def trial_flips(self) -> dict[tuple[str, int], tuple[list, list, list, list, list]]:
         """(participant, trial) -> the checked flips of a live trial: flip times, render times (None: the last
-        frame shown again), gaze sample times (None: no sample), dropped flags."""
-        out: dict[tuple[str, int], tuple[list, list, list, list]] = {}
+        frame shown again), gaze sample times (None: no sample), dropped flags, stimulus shown (the arguments of
+        :func:`data_schema.timing.summary`)."""
+        out: dict[tuple[str, int], tuple[list, list, list, list, list]] = {}
         for f in self.iter_frames():
-            cols = out.setdefault((f["participant"], f["idx"]), ([], [], [], []))
-            for col, name in zip(cols, ("flip_s", "render_s", "gaze_t", "dropped")):
+            cols = out.setdefault((f["participant"], f["idx"]), ([], [], [], [], []))
+            for col, name in zip(cols, ("flip_s", "render_s", "gaze_t", "dropped", "stimulus")):
                 col.append(f[name])
         return out
 

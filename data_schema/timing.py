@@ -2,7 +2,8 @@
 
 From one row per flip (flip time, render time of a new frame or none, gaze sample time, dropped flag):
 
-- frame rate: new frames per second between consecutive rendered flips, median and 5th percentile;
+- frame rate: new frames per second between consecutive rendered flips of the same stimulus (the pause between
+  a 2AFC trial's A and B is no frame interval), median and 5th percentile;
 - dropped-frame share: dropped flips / flips;
 - latency: gaze age at the flip (flip time - gaze sample time), milliseconds, median and 95th percentile.
 
@@ -17,21 +18,23 @@ import numpy as np
 COLUMNS = ("fps_median", "fps_p5", "dropped_share", "latency_p50_ms", "latency_p95_ms")
 
 
-def summary(flip_s, render_s, gaze_t, dropped) -> dict:
+def summary(flip_s, render_s, gaze_t, dropped, stimulus=None) -> dict:
     """The summary of one trial's flips (sequences of equal length; ``render_s``/``gaze_t`` None or NaN where
-    absent). Returns :data:`COLUMNS` -> float."""
-    return pooled([(flip_s, render_s, gaze_t, dropped)])
+    absent; ``stimulus``: which of the trial's stimuli each flip showed, None: one stimulus). Returns
+    :data:`COLUMNS` -> float."""
+    return pooled([(flip_s, render_s, gaze_t, dropped, stimulus)])
 
 
 def pooled(trials) -> dict:
     """The summary of the flips of several trials together (a session's figures): every trial counts, also one
     with fewer than two rendered frames (no frame rate of its own, but its flips, drops and latencies).
 
-    ``trials`` holds ``(flip_s, render_s, gaze_t, dropped)`` per trial; frame rates are taken between
-    consecutive rendered flips of the same trial, never across trials. Returns :data:`COLUMNS` -> float."""
+    ``trials`` holds ``(flip_s, render_s, gaze_t, dropped[, stimulus])`` per trial; frame rates are taken
+    between consecutive rendered flips of the same stimulus of the same trial, never across stimuli or trials.
+    Returns :data:`COLUMNS` -> float."""
     fps, lat, drops = [], [], []
-    for flip_s, render_s, gaze_t, dropped in trials:
-        fps.append(rates(flip_s, render_s))
+    for flip_s, render_s, gaze_t, dropped, *stimulus in trials:
+        fps.append(rates(flip_s, render_s, stimulus[0] if stimulus else None))
         flip = np.asarray(flip_s, dtype=float)
         g = np.array([np.nan if t is None else t for t in gaze_t], dtype=float)
         lat.append((flip - g)[np.isfinite(g)] * 1000.0)
@@ -47,14 +50,13 @@ def pooled(trials) -> dict:
             "latency_p95_ms": float(np.percentile(lat_all, 95)) if lat_all.size else nan}
 
 
-def rates(flip_s, render_s) -> np.ndarray:
-    """New frames per second between consecutive rendered flips of one trial (empty with fewer than two)."""
+def rates(flip_s, render_s, stimulus=None) -> np.ndarray:
+    """New frames per second between consecutive rendered flips of the same stimulus of one trial (empty where
+    no stimulus has two rendered flips: the trial has no frame rate)."""
     flip = np.asarray(flip_s, dtype=float)
     rendered = np.array([r is not None and r == r for r in render_s], dtype=bool)
     gaps = np.diff(flip[rendered])
+    if stimulus is not None and gaps.size:  # an interval only between two flips of one stimulus
+        shown = np.asarray(stimulus)[rendered]
+        gaps = gaps[shown[1:] == shown[:-1]]
     return 1.0 / gaps[gaps > 0] if gaps.size else np.array([])
-
-
-def rendered_frames(render_s) -> int:
-    """How many flips of a trial showed a newly rendered frame."""
-    return sum(1 for r in render_s if r is not None and r == r)

@@ -243,3 +243,29 @@ def test_sessions_flags_a_trial_with_one_rendered_frame_and_pools_every_trial(tm
     assert "FLAGGED trials 0 (< 2 rendered frames); trials 1, 2 (below min_fps)" in row
     # pooled over the 18 flips of the 3 trials: 6 dropped; latencies 6 x 500 ms and 12 x 52 ms
     assert " 33.3% " in row and " 52ms " in row and " 500ms" in row
+
+
+def test_frame_rates_are_taken_within_a_stimulus_never_across_the_pause_between_a_and_b(tmp_path, capsys):
+    """live_db logs each stimulus of a 2AFC trial as 3 flips 1/30 s apart, B 2 s after A: every frame interval
+    is 1/30 s (the pause between A and B is none; it read as 0.5 fps in fps_p5), and a trial that rendered
+    one frame of each stimulus has no frame rate, so it is flagged although it rendered two frames."""
+    from data_schema.store import open_store
+    from data_schema.timing import rates, summary
+
+    db = live_db(live_protocol(tmp_path / "proto", repetitions=2), tmp_path / "s.db")
+    craft(db, "frames", {"idx": 0}, {"render_s": None})
+    craft(db, "frames", {"idx": 0, "frame": 0}, {"render_s": 0.01})  # A's first flip
+    craft(db, "frames", {"idx": 0, "frame": 3}, {"render_s": 0.01})  # B's first flip
+    with open_store(db) as st:
+        flips = st.trial_flips()
+        rows = {r["trial"]: r for r in st.tidy_rows()}
+    assert flips[("P1", 1)][4] == [0, 0, 0, 1, 1, 1]
+    t1 = summary(*flips[("P1", 1)])
+    assert t1["fps_median"] == pytest.approx(30.0) and t1["fps_p5"] == pytest.approx(30.0)
+    assert rows[1]["fps_p5"] == pytest.approx(30.0)
+    assert rates(*flips[("P1", 1)][:2]).min() < 1.0  # without the stimulus column the pause counts
+    assert rates(flips[("P1", 0)][0], flips[("P1", 0)][1], flips[("P1", 0)][4]).size == 0
+    code, out, _ = _run(capsys, "sessions", "--db", db)
+    row = [line for line in out.splitlines() if line.startswith("P1-s1 ") and "ms" in line][0]
+    assert code == 0 and "FLAGGED trials 0 (< 2 rendered frames); trials 1 (below min_fps)" in row
+    assert "    30.0    30.0 " in row

@@ -236,13 +236,13 @@ def _recorded_number(db: Path, proto: dict, section: str, key: str, default):
 
 def _print_timing_qa(sessions, flips, trial_session, min_fps) -> None:
     """Live trials: frame rate and gaze-to-flip latency per session, pooled over the flips of every trial;
-    flagged: trials with fewer than two rendered frames (no frame rate) and trials below the protocol's
+    flagged: trials with no frame rate (no stimulus with two rendered frames) and trials below the protocol's
     min_fps."""
-    from data_schema.timing import pooled, rendered_frames, summary
+    from data_schema.timing import pooled, rates, summary
 
     floor = f"; trials below min_fps {min_fps:g} flagged" if min_fps else ""
     print(f"timing (live trials, pooled over their flips{floor}; trials with fewer than two rendered frames "
-          "flagged)")
+          "of a stimulus flagged)")
     print(f"{'session':<16} {'trials':>6} {'fps p50':>8} {'fps p5':>7} {'dropped':>8} {'lat p50':>8} {'lat p95':>8}"
           "  flagged")
     for s in sessions:
@@ -250,7 +250,7 @@ def _print_timing_qa(sessions, flips, trial_session, min_fps) -> None:
         if not keys:
             continue
         t = pooled([flips[k] for k in keys])
-        few = [str(k[1]) for k in keys if rendered_frames(flips[k][1]) < 2]
+        few = [str(k[1]) for k in keys if not rates(flips[k][0], flips[k][1], flips[k][4]).size]
         slow = [str(k[1]) for k in keys if min_fps and str(k[1]) not in few
                 and not summary(*flips[k])["fps_median"] >= min_fps]
         flagged = "; ".join(([f"trials {', '.join(few)} (< 2 rendered frames)"] if few else [])

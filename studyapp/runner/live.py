@@ -223,7 +223,7 @@ def timing_summary(frames: list[FrameRecord]) -> dict:
     from data_schema.timing import summary
 
     return summary([f.flip_s for f in frames], [f.render_s for f in frames], [f.gaze_t for f in frames],
-                   [f.dropped for f in frames])
+                   [f.dropped for f in frames], [f.stimulus for f in frames])
 
 
 def scene_record(protocol) -> dict:
