@@ -83,7 +83,9 @@ def read_log(path: Any) -> pd.DataFrame:
         checked before practice and catch trials are dropped; the message names the file, the column, the first bad line
         (CSV; header = line 1) or row (other formats, 1-based) and its value.
     """
-    path = Path(path)
+    from data_schema.atomic import input_file
+
+    path = input_file(Path(path), "log file", LogError)  # a FIFO would block the reader
     if not path.exists():
         raise LogError(f"{path}: no such file")
     suffix = path.suffix.lower()

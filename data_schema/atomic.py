@@ -229,6 +229,28 @@ def real_folder(path, option: str | None = None) -> Path:
     return _real(path, option, folder=True)
 
 
+def input_file(path, what: str = "file", error: type[UserError] = UserError) -> Path:
+    """``path`` if it is missing (the reader says so in its own words) or a regular file, or a symlink to one;
+    anything else is refused in one line *without being opened*: a folder, and a FIFO (opening one blocks until
+    a writer comes), device or socket, or a symlink to one. For every reader of a user's file (protocols,
+    scenes, plans, study databases, logs, images, gaze CSVs); ``what`` names it in the message, ``error`` is the
+    reader's :class:`UserError` subclass.
+    """
+    path = Path(path)
+    try:
+        st = os.stat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        return path
+    except ValueError:  # a NUL in the name
+        raise error(f"{printable(path)}: holds a NUL character: not a {what}") from None
+    except OSError as exc:
+        raise error(f"{printable(path)}: cannot read the {what}: {(exc.strerror or str(exc)).lower()}") from None
+    if not stat.S_ISREG(st.st_mode):
+        link = "a symlink to " if path.is_symlink() else ""
+        raise error(f"{printable(path)}: is {link}{_kind(st.st_mode)}, not a {what}: refusing to read it")
+    return path
+
+
 def _take_mode_and_owner(tmp: Path, target: Path, new_mode: int) -> None:
     """Give ``tmp`` the permission bits and, where allowed (as root), the owner of the ``target`` it replaces;
     ``new_mode`` less the umask when there is no target."""

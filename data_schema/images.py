@@ -76,6 +76,9 @@ def open_image(path, *, load: bool = False):
     """
     from PIL import Image
 
+    from .atomic import input_file
+
+    input_file(path, "image file")  # a FIFO would block Pillow's open
     try:
         with warnings.catch_warnings():  # over 89 M pixels: over our limit too, refused below in one line
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)
@@ -124,6 +127,9 @@ def read_npy_header(path, *, dtypes: tuple[str, ...] | None = None,
     """
     from numpy.lib import format as npy_format
 
+    from .atomic import input_file
+
+    input_file(path, ".npy file")
     try:
         with open(path, "rb") as fh:
             version = npy_format.read_magic(fh)

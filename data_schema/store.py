@@ -53,7 +53,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from . import families
-from .atomic import atomic_path, current_umask, write_text
+from .atomic import atomic_path, current_umask, input_file, write_text
 from .errors import UserError
 from .trial_log import ALL_COLUMNS, TIMING_COLUMNS
 
@@ -680,6 +680,8 @@ def _damaged(path: Path, detail: str) -> StoreError:
 
 def _header(path: Path) -> bytes:
     """The first 100 bytes of ``path``, checked to be a SQLite file that carries our marker."""
+    if not path.is_dir():  # a folder is named below; a FIFO or device is refused unopened
+        input_file(path, "study database", StoreError)
     try:
         with open(path, "rb") as fh:
             head = fh.read(100)

@@ -217,11 +217,14 @@ def load_yaml(path, what: str = "YAML", error_class: type = YAMLFileError) -> Lo
     error_class : type
         The :class:`~data_schema.errors.UserError` subclass raised (and used by :meth:`LoadedYAML.error`).
     """
+    from .atomic import input_file
+
     path = Path(path)
     try:
         size = path.stat().st_size
         if path.is_dir():
             raise error_class(f"{path}: is a folder, not a {what} file")
+        input_file(path, f"{what} file", error_class)  # a FIFO would block read_text
         if size > MAX_BYTES:
             raise error_class(f"{path}: {what} file is {size / 1e6:.1f} MB, more than the {MAX_BYTES >> 20} MB "
                               "allowed: refusing to read it")

@@ -243,3 +243,45 @@ def test_replaced_report_folder_keeps_mode(tmp_path):
         write_text(tmp / "analysis.json", "[]\n")
     assert stat.S_IMODE(os.stat(out).st_mode) == 0o550
     assert (out / "analysis.json").read_text() == "[]\n"
+
+
+#: Readers of a user's file, given the special file as the input (argv given it, the inputs and an out folder).
+READERS = {
+    "export_db": lambda f, i, o: ["export", "--db", f, "--out", o / "t.csv"],
+    "sessions_db": lambda f, i, o: ["sessions", "--db", f],
+    "replay_db": lambda f, i, o: ["replay", "--db", f, "--participant", "P1", "--trial", "0", "--out", o / "r"],
+    "analyze_db": lambda f, i, o: ["analyze", f.with_name(f.name), "--out", o / "a"],
+    "analyze_log": lambda f, i, o: ["analyze", f, "--out", o / "a"],
+    "validate": lambda f, i, o: ["validate", f],
+    "render_scene": lambda f, i, o: ["render", "--scene", f, "--renderer", "gt", "--width", "8", "--height", "8",
+                                     "--out", o / "t.png"],
+    "quality_gt": lambda f, i, o: ["quality", "--gt", f, i["img"], "--fov-y", "90", "--out", o / "q"],
+    "quality_image": lambda f, i, o: ["quality", "--gt", i["gt"], f, "--fov-y", "90", "--out", o / "q"],
+}
+#: The file name each reader needs (its suffix picks the format).
+READER_NAMES = {"export_db": "s.db", "sessions_db": "s.db", "replay_db": "s.db", "analyze_db": "s.db",
+                "analyze_log": "log.csv", "validate": "p.yaml", "render_scene": "box.yaml", "quality_gt": "g.png",
+                "quality_image": "i.png"}
+
+
+@pytest.mark.parametrize("kind", ("fifo", "link_fifo", "link_devnull"))
+@pytest.mark.parametrize("reader", sorted(READERS))
+def test_every_reader_refuses_a_special_input_unopened(reader, kind, tmp_path, monkeypatch, capsys, hang_guard):
+    """An input that is a FIFO (or a link to one, or to /dev/null) is refused in one line naming it and its
+    kind, without being opened: opening a FIFO blocks until a writer comes (export --db, sessions, replay,
+    validate, render --scene, analyze and quality all hung)."""
+    monkeypatch.chdir(tmp_path)
+    inputs = _inputs(tmp_path)
+    keep: list = []
+    special = _make(kind, tmp_path, READER_NAMES[reader], keep)
+    out = tmp_path / "out"
+    tree = _tree(tmp_path)
+    capsys.readouterr()
+    with hang_guard(60):
+        code = main([str(a) for a in READERS[reader](special, inputs, out)])
+    _, err = capsys.readouterr()
+    assert code == 2, err
+    shown = {"fifo": "a FIFO (named pipe)", "link_fifo": "a symlink to a FIFO (named pipe)",
+             "link_devnull": "a symlink to a character device"}[kind]
+    assert err.count("\n") == 1 and f"{special}: is {shown}, not a " in err and "refusing to read it" in err, err
+    assert _tree(tmp_path) == tree, "something was created"

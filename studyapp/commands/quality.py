@@ -85,9 +85,11 @@ def load_image(path: Path):
     """
     import numpy as np
 
+    from data_schema.atomic import input_file
     from data_schema.images import load_npy, open_image
 
-    if not path.is_file():
+    input_file(path, "image file", CLIError)  # a folder, a FIFO (it would block) or a device: one line
+    if not path.exists():
         raise CLIError(f"cannot read image {path}: no such file")
     suffix = path.suffix.lower()
     if suffix == ".npy":
@@ -286,6 +288,9 @@ def read_gaze_csv(path: Path, folder: Path) -> dict[Path, tuple[float, float]]:
     """``file,gaze_x,gaze_y`` rows (files relative to ``folder``) -> {path: (x, y)}."""
     import csv
 
+    from data_schema.atomic import input_file
+
+    input_file(path, "gaze CSV file")
     try:
         with open(path, encoding="utf-8", newline="") as fh:
             rows = list(csv.DictReader(fh))
