@@ -149,22 +149,19 @@ def _presenter_factory(args, protocol):
     return make_window
 
 
-def cmd_run(args) -> int:
-    from studyapp.presentation.base import PresentationError
-    from studyapp.runner.session import check_admission, run_session
+def _stimuli_for_run(args, p, db: Path) -> list[str]:
+    """``run``'s stimulus policy: never render unasked.
+
+    The missing sets a run needs (:func:`~studyapp.runner.stimuli.split_missing`: ``--simulate`` needs none of a
+    condition that declares a quality) are refused in one line naming them and the ``prepare`` command, or with
+    ``--prepare`` rendered first; a folder condition's are refused either way, naming the folder and its files.
+    Before either, the database's refusals (:func:`~studyapp.runner.session.check_admission`). Returns the notes
+    to print once the session has started.
+    """
+    from studyapp.runner.session import check_admission
     from studyapp.runner.stimuli import (missing_line, missing_stimuli, prepare, prepare_command, render_function,
                                          split_missing, stimulus_root)
 
-    from data_schema.atomic import check_target, real_file, real_folder
-
-    notes: list[str] = []  # printed once the session has started (errors stay one line)
-    p, _ = checked_protocol(args, args.stimuli)  # validate's checks, before anything is created or rendered
-    db = Path(args.db) if args.db else Path(f"{p.name}.db")
-    real_file(db, "--db")  # a FIFO would block SQLite's open, a device node is no database: refuse before
-    if args.gaze_log:
-        check_target(args.gaze_log, inputs=[db], option="--gaze-log")
-    if args.screenshot_dir:
-        real_folder(args.screenshot_dir, "--screenshot-dir")
     missing = missing_stimuli(p, args.scale)
     blocking, declared = split_missing(p, missing, args.simulate)
     if blocking or (missing and args.prepare) or (args.resume and args.seed is None):
@@ -193,8 +190,25 @@ def cmd_run(args) -> int:
         args.interrupted_hint = RUN_INTERRUPTED
         _report_prepared(p, res, spec, stimulus_root(p, args.scale), sys.stderr)
     elif declared:
-        notes.append(f"note: {len(declared)} stimulus set(s) missing: the simulated observer uses the declared "
-                     "qualities for them (add --prepare to simulate from images)")
+        return [f"note: {len(declared)} stimulus set(s) missing: the simulated observer uses the declared "
+                "qualities for them (add --prepare to simulate from images)"]
+    return []
+
+
+def cmd_run(args) -> int:
+    from studyapp.presentation.base import PresentationError
+    from studyapp.runner.session import run_session
+
+    from data_schema.atomic import check_target, real_file, real_folder
+
+    p, _ = checked_protocol(args, args.stimuli)  # validate's checks, before anything is created or rendered
+    db = Path(args.db) if args.db else Path(f"{p.name}.db")
+    real_file(db, "--db")  # a FIFO would block SQLite's open, a device node is no database: refuse before
+    if args.gaze_log:
+        check_target(args.gaze_log, inputs=[db], option="--gaze-log")
+    if args.screenshot_dir:
+        real_folder(args.screenshot_dir, "--screenshot-dir")
+    notes = _stimuli_for_run(args, p, db)  # printed once the session has started (errors stay one line)
 
     session_started = False
 
