@@ -204,7 +204,10 @@ def test_missing_stimulus_file_of_a_folder_condition(tmp_path, capsys):
     assert main(["run", str(f), "--participant", "P1", "--simulate", "--db", str(db),
                  "--stimuli", str(tmp_path / "none")]) == 2
     err = capsys.readouterr().err
-    assert f"missing stimulus file {folder / p.scenes[-1]}.png (condition CC3, scene sponza_vpl)" in err
+    # the folder and the files it lacks (not `prepare`, which renders no folder condition)
+    assert (f"1 stimulus set(s) of folder conditions missing (CC3/sponza_vpl): condition CC3 reads a lab's own "
+            f"images from {folder}: put sponza_vpl/frame_00000.png ... sponza_vpl/frame_{p.n_frames - 1:05d}.png "
+            f"({p.n_frames} PNG frames per scene, read in name order) there") in err
     assert err.count("\n") == 1
     assert not db.exists()  # a refused first run leaves no database behind
     # Fixing the protocol (a new content hash) then works with the same --db.

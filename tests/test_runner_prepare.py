@@ -91,8 +91,11 @@ def test_prepare_refuses_missing_folder_stimuli(tmp_path):
                       (PROTOCOLS / "seed003_task2.yaml").read_text())
     assert n == 1
     p = _load_text(tmp_path, text)
-    with pytest.raises(ValueError, match=r"missing stimulus file .*lab/study\.png \(condition CC3, scene study\)"):
-        prepare(p, 0.05, render=FakeRenderer(tmp_path))
+    fake = FakeRenderer(tmp_path)
+    with pytest.raises(ValueError, match=r"\(CC3/study, CC3/interior, CC3/cornell_many and 2 more\): condition CC3 "
+                                         r"reads a lab's own images from .*/lab: put study/frame_00000\.png \.\.\. "):
+        prepare(p, 0.05, render=fake)
+    assert fake.calls == [] and not (tmp_path / "stim").exists()  # refused before anything is rendered
     with pytest.raises(ValueError, match=r"--scale=1\.5 is out of range"):
         prepare(p, 1.5)
 

@@ -14,6 +14,11 @@ from pathlib import Path
 from data_schema.errors import CLIError
 from studyapp.progress import Bar
 
+#: What a stopped ``prepare`` (or the prepare of ``run --prepare``) and a stopped ``run`` leave
+#: (``studyapp: interrupted (...)``, studyapp.cli).
+PREPARE_INTERRUPTED = "frames rendered so far are kept in the cache: run the same prepare again to continue"
+RUN_INTERRUPTED = "committed answers are kept: continue a session with --resume"
+
 #: The shipped replications (package data: a wheel install has them too).
 SHIPPED = Path(__file__).resolve().parents[1] / "protocols"
 
@@ -61,9 +66,9 @@ def checked_protocol(args, stimuli: str | None = None):
 # -- handlers ------------------------------------------------------------------------------------------------
 def cmd_validate(args) -> int:
     from studyapp.runner.protocol import renderer_names
-    from studyapp.runner.stimuli import missing_stimuli
+    from studyapp.runner.stimuli import missing_line, missing_stimuli, prepare_command, stimulus_root
 
-    p, sched = checked_protocol(args)
+    p, sched = checked_protocol(args, args.stimuli)
     print(f"{p.path}: valid")
     print(p.describe())
     kinds = {k: sum(t.kind == k for t in sched) for k in ("practice", "reference", "trial", "catch")}
@@ -72,33 +77,50 @@ def cmd_validate(args) -> int:
         print("renderer names not checked: renderers.registry is not importable here")
     if p.live:
         backends = sorted({p.backend_of(c) for c, cond in p.conditions.items() if cond.renderer})
-        print(f"stimuli: rendered during the trials ({', '.join(backends)} backend), nothing to prepare")
+        g = p.render_geometry(args.scale)
+        print(f"stimuli: rendered during the trials at {g.width}x{g.height} ({', '.join(backends)} backend), "
+              "nothing to prepare")
         return 0
-    missing = missing_stimuli(p)
-    print(f"stimuli: {'complete' if not missing else f'{len(missing)} stimulus set(s) missing'} in {p.stimuli_dir}")
+    root = stimulus_root(p, args.scale)
+    missing = missing_stimuli(p, args.scale)
+    print(f"stimuli: complete in {root}" if not missing else "stimuli: " + missing_line(
+        p, missing, root, prepare_command(args.protocol, args.scale, args.stimuli, args.full)))
     return 0
 
 
 def cmd_prepare(args) -> int:
-    from studyapp import cluster
     from studyapp.runner.stimuli import prepare, stimulus_root
 
-    spec = cluster.from_args(args)
     p = _protocol(args.protocol, args.stimuli, full=args.full)
+    spec = _cluster_for(args, p)
+    bar = Bar("frames")
+    res = prepare(p, scale=args.scale, progress=bar, cache_dir=Path(args.cache) if args.cache else None,
+                  cluster=spec)
+    bar.close()
+    _report_prepared(p, res, spec, stimulus_root(p, args.scale))
+    return 0
+
+
+def _report_prepared(p, res: dict, spec, root: Path, stream=None) -> None:
+    """What :func:`~studyapp.runner.stimuli.prepare` did (``prepare``, and ``run --prepare`` on stderr)."""
+    if res["removed"]:
+        print(f"removed {res['removed']} temporary file(s) that a stopped prepare had left", file=stream)
+    print(f"{p.name}: {res['frames']} frame(s) built ({res['rendered']} rendered, {res['cached']} from the cache) "
+          f"on {spec.describe()} in {_fmt_seconds(res['seconds'])} -> {root}", file=stream)
+
+
+def _cluster_for(args, p):
+    """Where ``prepare`` (or ``run --prepare``) renders: the cluster options; ``--full`` on one machine only with
+    ``--yes-on-one-machine``."""
+    from studyapp import cluster
+
+    spec = cluster.from_args(args)
     if args.full and spec.scheduler is None and not args.yes_on_one_machine:
         w, h = p.render_size
         raise CLIError(f"--full renders {p.name} at {w}x{h} with its full-size parameters, a cluster's work (its "
                        "render_budget states the hours): give a running cluster with --scheduler tcp://HOST:PORT "
                        "(docs/distributed.md), or add --yes-on-one-machine to render it on this machine anyway")
-    bar = Bar("frames")
-    res = prepare(p, scale=args.scale, progress=bar, cache_dir=Path(args.cache) if args.cache else None,
-                  cluster=spec)
-    bar.close()
-    if res["removed"]:
-        print(f"removed {res['removed']} temporary file(s) that a stopped prepare had left")
-    print(f"{p.name}: {res['frames']} frame(s) built ({res['rendered']} rendered, {res['cached']} from the cache) "
-          f"on {spec.describe()} in {_fmt_seconds(res['seconds'])} -> {stimulus_root(p, args.scale)}")
-    return 0
+    return spec
 
 
 def _presenter_factory(args, protocol):
@@ -127,14 +149,58 @@ def _presenter_factory(args, protocol):
     return make_window
 
 
+def _stimuli_for_run(args, p, db: Path) -> list[str]:
+    """``run``'s stimulus policy: never render unasked.
+
+    The missing sets a run needs (:func:`~studyapp.runner.stimuli.split_missing`: ``--simulate`` needs none of a
+    condition that declares a quality) are refused in one line naming them and the ``prepare`` command, or with
+    ``--prepare`` rendered first; a folder condition's are refused either way, naming the folder and its files.
+    Before either, the database's refusals (:func:`~studyapp.runner.session.check_admission`). Returns the notes
+    to print once the session has started.
+    """
+    from studyapp.runner.session import check_admission
+    from studyapp.runner.stimuli import (missing_line, missing_stimuli, prepare, prepare_command, render_function,
+                                         split_missing, stimulus_root)
+
+    missing = missing_stimuli(p, args.scale)
+    blocking, declared = split_missing(p, missing, args.simulate)
+    if blocking or (missing and args.prepare) or (args.resume and args.seed is None):
+        # The database's refusals (another protocol, the participant's state) come before any rendering.
+        adm = check_admission(p, args.participant, db, args.seed, args.resume)
+        if adm is not None:
+            args.seed = adm.seed  # the simulated observer answers with the participant's stored seed
+        if adm is not None and adm.unclosed:  # every trial answered: run_session only closes the session
+            missing = blocking = []
+    if (blocking and not args.prepare) or any(p.conditions[n.condition].folder for n, _ in blocking):
+        folder_only = [(n, f) for n, f in blocking if p.conditions[n.condition].folder]
+        then = ", then run again" if folder_only else ", or add --prepare to render them first" + (
+            " (or declare a quality for each of their conditions)" if args.simulate else "")
+        raise CLIError(missing_line(p, blocking, stimulus_root(p, args.scale),
+                                    prepare_command(args.protocol, args.scale, args.stimuli, args.full), then))
+    if missing and args.prepare:
+        spec = _cluster_for(args, p)
+        if any(p.conditions[n.condition].renderer for n, _ in missing):
+            render_function()  # one line if the renderers are not usable here, before the note below
+        print(f"{len(missing)} stimulus set(s) missing: preparing them first (--prepare)", file=sys.stderr)
+        args.interrupted_hint = PREPARE_INTERRUPTED  # a stop now stops the prepare: no session exists yet
+        bar = Bar("frames") if not args.quiet else None
+        res = prepare(p, scale=args.scale, progress=bar, cluster=spec)
+        if bar:
+            bar.close()
+        args.interrupted_hint = RUN_INTERRUPTED
+        _report_prepared(p, res, spec, stimulus_root(p, args.scale), sys.stderr)
+    elif declared:
+        return [f"note: {len(declared)} stimulus set(s) missing: the simulated observer uses the declared "
+                "qualities for them (add --prepare to simulate from images)"]
+    return []
+
+
 def cmd_run(args) -> int:
     from studyapp.presentation.base import PresentationError
     from studyapp.runner.session import run_session
-    from studyapp.runner.stimuli import missing_stimuli, prepare
 
     from data_schema.atomic import check_target, real_file, real_folder
 
-    notes: list[str] = []  # printed once the session has started (errors stay one line)
     p, _ = checked_protocol(args, args.stimuli)  # validate's checks, before anything is created or rendered
     db = Path(args.db) if args.db else Path(f"{p.name}.db")
     real_file(db, "--db")  # a FIFO would block SQLite's open, a device node is no database: refuse before
@@ -142,27 +208,7 @@ def cmd_run(args) -> int:
         check_target(args.gaze_log, inputs=[db], option="--gaze-log")
     if args.screenshot_dir:
         real_folder(args.screenshot_dir, "--screenshot-dir")
-    missing = missing_stimuli(p, args.scale)
-    if missing and args.simulate:
-        notes.append(f"note: {len(missing)} stimulus set(s) missing: the simulated observer uses the declared "
-                     "qualities for them (run `studyapp prepare` to simulate from images)")
-    elif missing:
-        renderable = all(p.conditions[n.condition].folder is None for n, _ in missing)
-        usable = True
-        try:
-            from studyapp.runner.stimuli import render_function
-            render_function()
-        except ValueError:
-            usable = False
-        if renderable and usable:
-            print(f"{len(missing)} stimulus set(s) missing: preparing them first", file=sys.stderr)
-            prepare(p, scale=args.scale, progress=Bar("frames"))
-    if args.seed is None and args.resume and db.exists():
-        from data_schema.store import open_store
-        with open_store(db) as st:
-            row = st.participant(args.participant)
-        if row:
-            args.seed = row["seed"]
+    notes = _stimuli_for_run(args, p, db)  # printed once the session has started (errors stay one line)
 
     session_started = False
 
@@ -279,13 +325,31 @@ def _full_option(parser) -> None:
                              "the seed's ground-truth samples; stimuli in STIMULI_DIR/full)")
 
 
+def _set_options(parser, scale_help: str) -> None:
+    """``--scale`` and ``--stimuli``: which stimulus set (``validate``, ``prepare`` and ``run`` alike)."""
+    from data_schema.ranges import SCALE, argtype
+
+    parser.add_argument("--scale", type=argtype("--scale", SCALE), default=1.0, metavar="F", help=scale_help)
+    parser.add_argument("--stimuli", metavar="DIR", help="stimulus folder (default: the protocol's stimuli_dir)")
+
+
+def _render_options(parser, one_machine_help: str) -> None:
+    """Where ``prepare`` and ``run --prepare`` render: the cluster options and ``--yes-on-one-machine``."""
+    from studyapp.cluster import add_arguments
+
+    parser.add_argument("--yes-on-one-machine", action="store_true", help=one_machine_help)
+    add_arguments(parser)
+
+
 def register(subparsers, parser_class) -> None:
-    from data_schema.ranges import SCALE, SEED, argtype
+    from data_schema.ranges import SEED, argtype
 
     v = subparsers.add_parser("validate", help="check a study protocol (schema, references, schedule)",
                               description="Check a protocol YAML file against data_schema/protocol.schema.json "
                                           "and its cross-references; print its design and schedule size.")
     v.add_argument("protocol", metavar="PROTOCOL", help="protocol YAML file (or the name of a shipped one)")
+    _set_options(v, "report the stimulus set prepared with --scale F as missing or complete (a live protocol: "
+                    "the size rendered during its trials)")
     _full_option(v)
     v.set_defaults(func=cmd_validate)
 
@@ -297,33 +361,41 @@ def register(subparsers, parser_class) -> None:
                                            "already in the cache are not rendered again, so a stopped prepare "
                                            "resumes where it stopped.")
     pr.add_argument("protocol", metavar="PROTOCOL")
-    pr.add_argument("--scale", type=argtype("--scale", SCALE), default=1.0, metavar="F",
-                    help="shrink the resolution by F in (0, 1] for dry runs (default: 1)")
-    pr.add_argument("--stimuli", metavar="DIR", help="stimulus folder (default: the protocol's stimuli_dir)")
+    _set_options(pr, "shrink the resolution by F in (0, 1] for dry runs (stimuli in STIMULI_DIR/scaleF)")
     pr.add_argument("--cache", metavar="DIR", help="renderer cache folder (default: next to the stimuli)")
     _full_option(pr)
-    pr.add_argument("--yes-on-one-machine", action="store_true",
-                    help="with --full and no --scheduler: render the full-size set on this machine anyway")
-    from studyapp.cluster import add_arguments
+    _render_options(pr, "with --full and no --scheduler: render the full-size set on this machine anyway")
+    pr.set_defaults(func=cmd_prepare, interrupted_hint=PREPARE_INTERRUPTED)
 
-    add_arguments(pr)
-    pr.set_defaults(func=cmd_prepare, interrupted_hint="frames rendered so far are kept in the cache: run the same "
-                                                       "prepare again to continue")
+    from studyapp.presentation.psychopy_window import END_KEY, ESCAPE, RESUME_KEY
 
-    r = subparsers.add_parser("run", help="run (or resume) a participant's session",
-                              description="Run a participant's session of a protocol in a PsychoPy window, or "
-                                          "with the simulated observer (--simulate). Every answer is committed "
-                                          "to the study database before the next trial.")
+    r = subparsers.add_parser(
+        "run", help="run (or resume) a participant's session",
+        description="Run a participant's session of a protocol in a PsychoPy window, or with the simulated "
+                    "observer (--simulate). Every answer is committed to the study database before the next trial. "
+                    f"In the window, {ESCAPE.capitalize()} pauses the session at once (the trial is shown again): "
+                    f"then {RESUME_KEY.upper()} resumes, {END_KEY.upper()} ends it (continue later with --resume). "
+                    "Stimuli: a pre-rendered protocol's stimulus set must be prepared first; a missing set is "
+                    "refused in one line naming it and the `studyapp prepare` command, unless --prepare is given "
+                    "(then it is rendered first, with a progress bar and the time left). The database and the "
+                    "participant (another protocol's database, an unknown or finished participant, a session still "
+                    "running) are checked before anything is rendered. A live protocol renders during its trials, "
+                    "at its render size times --scale.")
     r.add_argument("protocol", metavar="PROTOCOL")
     r.add_argument("--participant", required=True, metavar="ID", help="pseudonymous participant id")
     r.add_argument("--db", metavar="FILE", help="study database (default: <protocol name>.db)")
-    r.add_argument("--simulate", action="store_true", help="simulated observer, no window")
+    r.add_argument("--simulate", action="store_true",
+                   help="simulated observer, no window; it needs no images of a condition that declares a quality "
+                        "(it uses the declared quality), so only the other missing sets are refused")
     r.add_argument("--resume", action="store_true", help="continue at the participant's first unanswered trial")
     r.add_argument("--seed", type=argtype("--seed", SEED), metavar="N",
                    help="schedule seed (default: 0; stored per participant)")
-    r.add_argument("--scale", type=argtype("--scale", SCALE), default=1.0, metavar="F",
-                   help="use the stimulus set prepared with --scale F (default: 1)")
-    r.add_argument("--stimuli", metavar="DIR", help="stimulus folder (default: the protocol's stimuli_dir)")
+    _set_options(r, "use the stimulus set prepared with --scale F (default: 1); a live protocol renders its "
+                    "trials at its render size times F (the window stays the display's size)")
+    r.add_argument("--prepare", action="store_true",
+                   help="render the missing stimulus sets first (as `studyapp prepare` with the same PROTOCOL, "
+                        "--scale, --stimuli, --full and cluster options), then run; without it a missing set is "
+                        "refused")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     _full_option(r)
     r.add_argument("--eyetracker", choices=("mousegaze",),
@@ -332,7 +404,8 @@ def register(subparsers, parser_class) -> None:
     r.add_argument("--gaze-log", metavar="FILE", help="with --eyetracker: write gaze samples to this CSV")
     r.add_argument("--sim-delay", type=float, default=0.0, help=__import__("argparse").SUPPRESS)
     r.add_argument("--screenshot-dir", help=__import__("argparse").SUPPRESS)  # tests: back-buffer shots
-    r.set_defaults(func=cmd_run, interrupted_hint="committed answers are kept: continue a session with --resume")
+    _render_options(r, "with --prepare --full and no --scheduler: render the full-size set on this machine")
+    r.set_defaults(func=cmd_run, interrupted_hint=RUN_INTERRUPTED)
 
     s = subparsers.add_parser("sessions", help="list the sessions of a study database",
                               description="List sessions (status, answers, resumes) and per-participant progress.")

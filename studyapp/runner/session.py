@@ -2,9 +2,12 @@
 
 Order of events (what survives a crash at any point):
 
-1. the protocol is checked against the study database (a different protocol version is refused);
+1. the protocol and the participant's state are checked against the study database (:func:`admit`: a
+   different protocol version, an existing participant without ``resume``, ``resume`` without one, a session
+   still running, a participant who answered everything are refused); ``studyapp run`` asks the same, read-only
+   (:func:`check_admission`), before it prepares any stimulus;
 2. the schedule is built (pure function of protocol, participant, seed) and every stimulus it needs is located
-   (missing files are an error before anything is written);
+   (missing files are an error before anything is written: :func:`~studyapp.runner.stimuli.split_missing`);
 3. the presenter is opened (a window checks its keyboard backend here);
 4. a new participant's whole schedule is written in one transaction; a returning one (``resume``) must have
    the same seed and the identical schedule (hash), and continues at the first unanswered trial;
@@ -34,7 +37,7 @@ from studyapp.presentation.base import Stimulus, TrialDisplay, TrialResult
 from .live import scene_record
 from .protocol import Protocol
 from .schedule import PlannedTrial, build_schedule, counterbalance_index, schedule_hash
-from .stimuli import frame_paths, missing_stimuli
+from .stimuli import frame_paths, missing_line, missing_stimuli, prepare_command, split_missing, stimulus_root
 
 
 @dataclass
@@ -66,17 +69,10 @@ class StimulusSet:
     def __init__(self, protocol: Protocol, scale: float = 1.0, root: Path | None = None,
                  allow_declared: bool = False) -> None:
         self.protocol, self.scale, self.root = protocol, scale, root
-        missing = missing_stimuli(protocol, scale, root)
-        self.declared: set[tuple[str, str]] = set()
-        for need, path in missing:
-            cond = protocol.conditions[need.condition]
-            if allow_declared and cond.quality is not None and cond.folder is None:  # a lab's folder must be complete
-                self.declared.add((need.condition, need.scene))
-                continue
-            hint = ("declare a quality for --simulate, or " if allow_declared else "") + \
-                f"run `studyapp prepare {protocol.path}`"
-            raise UserError(f"missing stimulus file {path} (condition {need.condition}, scene {need.scene}): "
-                             f"{hint}")
+        blocking, self.declared = split_missing(protocol, missing_stimuli(protocol, scale, root), allow_declared)
+        if blocking:  # `run` refuses this before any rendering; a library caller (or a vanished set) lands here
+            raise UserError(missing_line(protocol, blocking, stimulus_root(protocol, scale, root),
+                                         prepare_command(str(protocol.path), scale, full=protocol.full)))
 
     def stimulus(self, condition: str, scene: str) -> Stimulus:
         if self.protocol.live:
@@ -133,6 +129,88 @@ def _correct(store: Store, pid: str, t: PlannedRow, answers: list[str], derived:
     return answers[:1] == [t.expected]
 
 
+@dataclass
+class Admission:
+    """What the store says about a participant about to run (:func:`admit`)."""
+
+    existing: dict | None  # the participant's row, None for a new participant
+    seed: int
+    schedule: list[PlannedTrial]
+    schedule_hash: str
+    unclosed: list[str]  # every trial is answered: sessions left running, to close as completed (nothing to show)
+
+
+def check_participant_id(participant: str) -> None:
+    """Refuse a participant id that is not a pseudonymous name (it becomes file names: replay, exports)."""
+    if not re.fullmatch(r"[A-Za-z0-9_.-]{1,64}", participant or ""):
+        raise UserError(f"--participant={participant!r} is invalid: a pseudonymous id of 1-64 letters, digits, "
+                         "'_', '.' or '-' (no names or e-mail addresses)")
+    check_name("participant", participant)  # '..', '.x', 'CON': not a file name (replay, exports)
+
+
+def admit(store: Store, protocol: Protocol, pid: str, seed: int | None, resume: bool) -> Admission:
+    """Every refusal of a run that the study database decides, asked of the store without writing to it.
+
+    The database must have been written by this protocol (:meth:`Store.bind_protocol`); a participant who
+    exists needs ``resume``, one who does not cannot resume; a session of the participant still running in
+    another process is refused (:meth:`Store.check_not_running`); a resumed participant keeps the stored seed
+    and schedule; a participant who answered everything has nothing to resume unless a session was left open.
+    :func:`run_session` asks this before it shows anything, and ``studyapp run`` before it prepares stimuli
+    (:func:`check_admission`).
+
+    Raises
+    ------
+    StoreError
+        One line naming the database, the participant and the way out.
+    """
+    store.bind_protocol(protocol.name, protocol.version, protocol.content_hash, protocol.data, record=False)
+    existing = store.participant(pid)
+    if existing and not resume:
+        done = len(store.answered(pid))
+        raise StoreError(f"{store.path}: participant {pid!r} already exists ({done} of {existing['n_planned']} "
+                         "planned trials answered): use --resume to continue, or another --participant")
+    if resume and not existing:
+        raise StoreError(f"{store.path}: participant {pid!r} has no session to resume")
+    if existing:
+        store.check_not_running(pid)  # a second --resume while the first still runs (checked again at start)
+        if seed is not None and seed != existing["seed"]:
+            raise StoreError(f"{store.path}: participant {pid!r} was scheduled with --seed {existing['seed']}, "
+                             f"not {seed}")
+        seed = existing["seed"]
+    seed = 0 if seed is None else seed
+    schedule = build_schedule(protocol, pid, seed)
+    s_hash = schedule_hash(schedule)
+    if existing and existing["schedule_hash"] != s_hash:
+        raise StoreError(f"{store.path}: the schedule of participant {pid!r} differs from the stored one "
+                         "(protocol or scheduler changed): cannot resume")
+    unclosed = []
+    if existing and store.first_unanswered(pid) is None:
+        # Every answer is recorded. A session stopped after its last answer but before it was closed (crash,
+        # kill) is closed as completed; otherwise there is nothing to resume.
+        unclosed = store.running_sessions(pid)
+        if not unclosed:
+            raise StoreError(f"{store.path}: participant {pid!r} has already answered every trial")
+    return Admission(existing, seed, schedule, s_hash, unclosed)
+
+
+def _check_database(db_path: Path, resume: bool) -> None:
+    if resume and not db_path.exists():
+        raise StoreError(f"{db_path}: no such study database: nothing to resume")
+
+
+def check_admission(protocol: Protocol, participant: str, db_path, seed: int | None = None,
+                    resume: bool = False) -> Admission | None:
+    """:func:`run_session`'s refusals that do not depend on stimuli (participant id, database, :func:`admit`),
+    made read-only before any work that precedes the session (``run --prepare``); None for a new database."""
+    check_participant_id(participant)
+    db_path = Path(db_path)
+    _check_database(db_path, resume)
+    if not db_path.exists():
+        return None
+    with open_store(db_path) as store:
+        return admit(store, protocol, participant, seed, resume)
+
+
 def run_session(protocol: Protocol, participant: str, db_path, presenter_factory: Callable, seed: int | None = None,
                 resume: bool = False, scale: float = 1.0, stimuli_root: Path | None = None,
                 allow_declared: bool = False, on_started: Callable[[str], None] | None = None,
@@ -142,14 +220,10 @@ def run_session(protocol: Protocol, participant: str, db_path, presenter_factory
     ``presenter_factory(stimuli, display)`` returns the Presenter (a window or the simulated observer); it is
     called after every check has passed, so a refused run opens no window.
     """
-    if not re.fullmatch(r"[A-Za-z0-9_.-]{1,64}", participant or ""):
-        raise UserError(f"--participant={participant!r} is invalid: a pseudonymous id of 1-64 letters, digits, "
-                         "'_', '.' or '-' (no names or e-mail addresses)")
-    check_name("participant", participant)  # '..', '.x', 'CON': not a file name (replay, exports)
+    check_participant_id(participant)
     db_path = Path(db_path)
     created = not db_path.exists()
-    if created and resume:
-        raise StoreError(f"{db_path}: no such study database: nothing to resume")
+    _check_database(db_path, resume)
     store = open_store(db_path, "create" if created else "write")
     try:
         return _run(store, protocol, participant, presenter_factory, seed, resume, scale, stimuli_root,
@@ -163,37 +237,13 @@ def run_session(protocol: Protocol, participant: str, db_path, presenter_factory
 
 def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_root, allow_declared, on_started,
          progress) -> SessionSummary:
-    store.bind_protocol(protocol.name, protocol.version, protocol.content_hash, protocol.data, record=False)
-    existing = store.participant(pid)
-    if existing and not resume:
-        done = len(store.answered(pid))
-        raise StoreError(f"{store.path}: participant {pid!r} already exists ({done} of {existing['n_planned']} "
-                         "planned trials answered): use --resume to continue, or another --participant")
-    if resume and not existing:
-        raise StoreError(f"{store.path}: participant {pid!r} has no session to resume")
-    if existing:
-        store.check_not_running(pid)  # a second --resume while the first still runs (checked again at start)
-    if existing:
-        if seed is not None and seed != existing["seed"]:
-            raise StoreError(f"{store.path}: participant {pid!r} was scheduled with --seed {existing['seed']}, "
-                             f"not {seed}")
-        seed = existing["seed"]
-    seed = 0 if seed is None else seed
-    schedule = build_schedule(protocol, pid, seed)
-    s_hash = schedule_hash(schedule)
-    if existing and existing["schedule_hash"] != s_hash:
-        raise StoreError(f"{store.path}: the schedule of participant {pid!r} differs from the stored one "
-                         "(protocol or scheduler changed): cannot resume")
-    if existing and store.first_unanswered(pid) is None:
-        # Every answer is recorded. A session stopped after its last answer but before it was closed (crash,
-        # kill) is closed now as completed; otherwise there is nothing to resume.
-        open_ids = store.running_sessions(pid)
-        if not open_ids:
-            raise StoreError(f"{store.path}: participant {pid!r} has already answered every trial")
-        for sid in open_ids:
+    adm = admit(store, protocol, pid, seed, resume)
+    existing, seed, schedule, s_hash = adm.existing, adm.seed, adm.schedule, adm.schedule_hash
+    if adm.unclosed:
+        for sid in adm.unclosed:
             store.event(sid, "closed", "all trials were answered before the session stopped")
             store.end_session(sid, "completed")
-        return _summary(store, protocol, pid, open_ids[-1], "completed")
+        return _summary(store, protocol, pid, adm.unclosed[-1], "completed")
     stimuli = StimulusSet(protocol, scale, stimuli_root, allow_declared)
     # The window is the participant's display at any --scale: a smaller render is shown upscaled over it.
     display = protocol.display

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import shlex
 import shutil
 import time
 from collections.abc import Callable
@@ -24,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from data_schema.atomic import STALE_TEMPORARY_S, atomic_path, real_folder, remove_stale_temporaries, sole_writer
-from data_schema.names import inside
+from data_schema.names import inside, printable
 from data_schema.errors import UserError
 from data_schema.ranges import SCALE
 
@@ -105,6 +106,76 @@ def missing_stimuli(protocol: Protocol, scale: float = 1.0, root: Path | None = 
     return out
 
 
+def split_missing(protocol: Protocol, missing: list[tuple[Needed, Path]],
+                  allow_declared: bool) -> tuple[list[tuple[Needed, Path]], set[tuple[str, str]]]:
+    """The missing sets a run cannot do without, and the (condition, scene) pairs it can.
+
+    With ``allow_declared`` (``run --simulate``) the simulated observer needs no images of a condition that
+    declares a ``quality`` (:mod:`studyapp.runner.observer`), except a folder condition: a lab's folder must be
+    complete. Without it every missing set is needed.
+    """
+    blocking, declared = [], set()
+    for need, path in missing:
+        cond = protocol.conditions[need.condition]
+        if allow_declared and cond.quality is not None and cond.folder is None:
+            declared.add((need.condition, need.scene))
+        else:
+            blocking.append((need, path))
+    return blocking, declared
+
+
+def prepare_command(protocol: str, scale: float = 1.0, stimuli: str | None = None, full: bool = False) -> str:
+    """The ``studyapp prepare`` command line that builds the stimulus set that ``validate``/``run`` with these
+    options read (``protocol``: the argument as given, a file or a shipped protocol's name)."""
+    parts = ["studyapp", "prepare", str(protocol)]
+    if scale != 1.0:
+        parts += ["--scale", repr(float(scale))]  # repr: the shortest text that reads back as the same float
+    if stimuli:
+        parts += ["--stimuli", str(stimuli)]
+    return printable(shlex.join(parts + (["--full"] if full else [])))
+
+
+def _names(missing: list[tuple[Needed, Path]], shown: int = 3) -> str:
+    """``CONDITION/SCENE`` of the first ``shown`` sets, then how many more."""
+    names = [f"{n.condition}/{n.scene}" for n, _ in missing]
+    more = f" and {len(names) - shown} more" if len(names) > shown else ""
+    return ", ".join(names[:shown]) + more
+
+
+def _folder_files(protocol: Protocol, scenes: list[str]) -> str:
+    """The file names a folder condition must hold for ``scenes`` (the first one or two, then how many)."""
+    if protocol.n_frames == 1:
+        names = [f"{s}.png" for s in scenes]
+        shown = ", ".join(names[:2]) + (f" and {len(names) - 2} more" if len(names) > 2 else "")
+        return f"{shown} (one PNG per scene)"
+    last = f"frame_{protocol.n_frames - 1:05d}.png"
+    more = f", and the same for {', '.join(scenes[1:3])}{' ...' if len(scenes) > 3 else ''}" if scenes[1:] else ""
+    return (f"{scenes[0]}/frame_00000.png ... {scenes[0]}/{last} ({protocol.n_frames} PNG frames per scene, "
+            f"read in name order{more})")
+
+
+def missing_line(protocol: Protocol, missing: list[tuple[Needed, Path]], root: Path, command: str | None,
+                 then: str = "") -> str:
+    """One line about ``missing`` (from :func:`missing_stimuli`): for folder conditions, the folder their images
+    must be put in and the expected file names; for the others, ``command`` that renders them (``then``: what
+    else the user may do). ``root``: where the rendered sets live (:func:`stimulus_root`)."""
+    folder = [(n, f) for n, f in missing if protocol.conditions[n.condition].folder is not None]
+    rendered = [(n, f) for n, f in missing if protocol.conditions[n.condition].folder is None]
+    parts = []
+    if folder:
+        scenes: dict[str, list[str]] = {}
+        for n, _ in folder:
+            scenes.setdefault(n.condition, []).append(n.scene)
+        where = "; ".join(f"condition {c} reads a lab's own images from {printable(protocol.conditions[c].folder)}:"
+                          f" put {_folder_files(protocol, s)} there" for c, s in scenes.items())
+        parts.append(f"{len(folder)} stimulus set(s) of folder conditions missing ({_names(folder)}): {where} "
+                     "(prepare renders only renderer and derived conditions)")
+    if rendered:
+        how = f": render them with `{command}`{then}" if command else ""
+        parts.append(f"{len(rendered)} stimulus set(s) missing in {printable(root)} ({_names(rendered)}){how}")
+    return "; ".join(parts)
+
+
 def _seed_of(*parts) -> int:
     return int.from_bytes(hashlib.sha256("|".join(map(str, parts)).encode()).digest()[:8], "little")
 
@@ -171,17 +242,15 @@ def prepare(protocol: Protocol, scale: float = 1.0, root: Path | None = None, ca
     cache = Path(cache_dir) if cache_dir is not None else root_dir.parent / ".cache"
     real_folder(root_dir, "--stimuli")  # /dev/null, a FIFO, a file: refused before anything is rendered
     real_folder(cache, "--cache")
+    folder = [(n, f) for n, f in missing_stimuli(protocol, scale, root) if protocol.conditions[n.condition].folder]
+    if folder:  # a lab's own images: where to put them, before anything is rendered
+        raise UserError(missing_line(protocol, folder, root_dir, None))
     todo = []
     for need in needed_stimuli(protocol):
         cond = protocol.conditions[need.condition]
         frames = frame_paths(protocol, need.condition, need.scene, scale, root)
-        if all(f.is_file() for f in frames):
-            continue
-        if cond.folder is not None:
-            missing = next(f for f in frames if not f.is_file())
-            raise UserError(f"missing stimulus file {missing} (condition {need.condition}, scene {need.scene}): "
-                             "folder conditions are rendered elsewhere")
-        todo.append((need, cond, frames))
+        if not all(f.is_file() for f in frames):
+            todo.append((need, cond, frames))
     if not todo:
         return {"frames": 0, "rendered": 0, "cached": 0, "removed": 0, "seconds": 0.0}
     with sole_writer(root_dir, "prepare") as alone:  # a second prepare of this set is refused in one line
