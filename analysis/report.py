@@ -190,13 +190,10 @@ def group_suffixes(res: StudyAnalysis) -> dict[tuple[str, str], str]:
     """The file-name suffix of every (block, scene) group of ``res``'s tables: ``""`` for all trials, else
     ``_<slug>`` of the scene (or of the block, for a block's group).
 
-    The mapping is injective, ignoring case as macOS and Windows do: labels whose slugs coincide (scenes
-    ``hall.v2`` and ``hall_v2``, a block and a scene both named ``hall``, ``Hall`` and ``hall``) each get the
-    first 8 hex digits of the SHA-256 of their kind and label appended (``_hall_v2-1f0c3a9e``), the same for the
-    same log. A suffix that still collides is refused, naming both labels.
+    Every group gets its own files: labels whose suffixes would coincide, ignoring case as macOS and Windows do
+    (scenes ``hall.v2`` and ``hall_v2``, ``Hall`` and ``hall``, a block and a scene both named ``hall``), are
+    refused before anything is written, naming both (one table would silently replace the other).
     """
-    import hashlib
-
     from data_schema.errors import UserError
     from data_schema.names import name_key
 
@@ -206,15 +203,9 @@ def group_suffixes(res: StudyAnalysis) -> dict[tuple[str, str], str]:
             groups.update(dict.fromkeys(zip(df["block"].astype(str), df["scene"].astype(str))))
     groups.pop((ALL, ALL), None)
     label = {g: ("block", g[0]) if g[1] == ALL else ("scene", g[1]) for g in groups}
-    items = sorted(set(label.values()))
-    by_slug: dict[str, list] = {}
-    for item in items:
-        by_slug.setdefault(name_key(_slug(item[1])), []).append(item)
     suffix, owner = {}, {}
-    for item in items:
+    for item in sorted(set(label.values())):
         name = _slug(item[1])
-        if len(by_slug[name_key(name)]) > 1:
-            name += "-" + hashlib.sha256(f"{item[0]}:{item[1]}".encode()).hexdigest()[:8]
         if name_key(name) in owner:
             other = owner[name_key(name)]
             raise UserError(f"{other[0]} {other[1]!r} and {item[0]} {item[1]!r} would both be written as tables "

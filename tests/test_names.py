@@ -132,21 +132,33 @@ def test_run_refuses_a_dot_participant(tmp_path, monkeypatch, capsys):
     assert sorted(os.listdir(tmp_path)) == ["p.yaml"]
 
 
-def test_analyze_per_scene_files_are_unique(tmp_path, capsys):
+def test_analyze_refuses_per_scene_files_that_would_collide_naming_both(tmp_path, capsys):
+    """Scenes hall.v2 and hall_v2 (or Hall_V2) share a table name once slugged, ignoring case: refused before
+    anything is written, naming both (before, one table replaced the other: "wrote 13 files", 9 existed)."""
     from analysis.synthetic import seed001_2afc_log
     from analysis.tables import to_csv
 
     log = seed001_2afc_log(seed=0)
     log = log[log["block"] == log["block"].iloc[0]]
-    log["scene"] = log["scene"].map({"street_night": "hall.v2", "interior": "hall_v2", "temple": "Hall_V2"})
+    for other in ("hall_v2", "Hall_V2"):
+        log["scene"] = log["scene"].map({"street_night": "hall.v2", "interior": other, "temple": "temple",
+                                         "hall.v2": "hall.v2", "hall_v2": other, "Hall_V2": other})
+        (tmp_path / "log.csv").write_text(to_csv(log), encoding="utf-8")
+        out = tmp_path / "out"
+        assert main(["analyze", str(tmp_path / "log.csv"), "--out", str(out), "--no-figures", "--n-boot", "0",
+                     "--test", "summary_table"]) == 2
+        err = capsys.readouterr().err
+        first, second = sorted(["hall.v2", other], key=str)
+        assert err == (f"studyapp: error: scene {first!r} and scene {second!r} would both be written as tables "
+                       "named ..._hall_v2: rename one in the log\n"), err
+        assert not out.exists()
+    log["scene"] = log["scene"].map({"hall.v2": "hall.v2", "Hall_V2": "hall-v2", "temple": "temple"})
     (tmp_path / "log.csv").write_text(to_csv(log), encoding="utf-8")
-    out = tmp_path / "out"
     assert main(["analyze", str(tmp_path / "log.csv"), "--out", str(out), "--no-figures", "--n-boot", "0",
                  "--test", "summary_table"]) == 0
     printed = int(re.search(r"wrote (\d+) files", capsys.readouterr().out).group(1))
-    files = [p for p in out.rglob("*") if p.is_file()]
-    assert printed == len(files)
+    assert printed == len([p for p in out.rglob("*") if p.is_file()])
     tables = sorted(p.name for p in (out / "tables").glob("2afc_summary_table_*.md"))
-    assert len(tables) == 3 and len({t.lower() for t in tables}) == 3, tables
-    captions = {(out / "tables" / t).read_text(encoding="utf-8").split("scene ")[1].split(")")[0] for t in tables}
-    assert captions == {"hall.v2", "hall_v2", "Hall_V2"}
+    assert tables == ["2afc_summary_table_hall-v2.md", "2afc_summary_table_hall_v2.md",
+                      "2afc_summary_table_temple.md"], tables
+
