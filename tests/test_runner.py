@@ -313,3 +313,55 @@ def test_resume_after_a_stop_behind_the_last_answer_closes_the_session(tmp_path,
         assert [r[0] for r in st.conn.execute("SELECT kind FROM events")] == ["closed"]
     with pytest.raises(Exception, match="already answered every trial"):
         run_session(p, "P1", db, _sim(p, "P1"), resume=True, allow_declared=True)
+
+
+def test_a_schedule_stored_before_scene_change_breaks_resumes_with_its_breaks(tmp_path, monkeypatch):
+    """seed001_2afc's breaks moved from answers 31/62/93 to the scene changes (34, 66): a participant enrolled
+    under the old rule resumes with the stored breaks, each saying only that it is a break."""
+    from studyapp.runner import session as sess
+    from studyapp.runner.schedule import BREAK_TEXT
+
+    p = load_protocol(PROTOCOLS / "seed001_2afc.yaml", check_renderers=False)
+    texts = []
+
+    class Recording:
+        def __init__(self, obs, stop_at=None):
+            self.obs, self.stop_at = obs, stop_at
+
+        def __getattr__(self, name):
+            return getattr(self.obs, name)
+
+        def message(self, text, seconds):
+            texts.append(text)
+
+        def present(self, trial):
+            if trial.index == self.stop_at:
+                from studyapp.presentation.base import TrialResult
+                return TrialResult([], float("nan"), 0.0, escaped=True)
+            return self.obs.present(trial)
+
+        def pause(self):
+            return "end"
+
+    db = tmp_path / "old.db"
+    legacy = lambda *a, **k: build_schedule(*a, **k, legacy_breaks=True)  # noqa: E731
+    monkeypatch.setattr(sess, "build_schedule", legacy)
+    assert run_session(p, "P1", db, _sim(p, "P1", script=lambda o: Recording(o, 40)),
+                       allow_declared=True).status == "ended"
+    monkeypatch.undo()
+    s = run_session(p, "P1", db, _sim(p, "P1", script=Recording), resume=True, allow_declared=True)
+    assert s.status == "completed" and s.answered == s.planned == 98
+    with open_store(db) as st:
+        assert [t.idx for t in st.planned("P1") if t.break_before] == [31, 62, 93]
+        assert [r[0] for r in st.conn.execute("SELECT detail FROM events WHERE kind = 'break' ORDER BY id")] == [
+            "before trial 31", "before trial 62", "before trial 93"]
+    assert texts[:3] == [BREAK_TEXT] * 3
+    # a new participant of the same study gets the breaks at the scene changes
+    texts.clear()
+    run_session(p, "P2", db, _sim(p, "P2", script=Recording), allow_declared=True)
+    with open_store(db) as st:
+        planned = st.planned("P2")
+    starts = [t.idx for t in planned[1:] if planned[t.idx - 1].kind != "practice"
+              and t.scene != planned[t.idx - 1].scene]
+    assert [t.idx for t in planned if t.break_before] == starts and len(starts) == 2
+    assert texts[:2] == ["Take a short break. The next scene starts in 30 s."] * 2

@@ -8,15 +8,18 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from studyapp.runner.protocol import load_protocol
+from studyapp.runner.protocol import load_protocol, protocol_from_data
 from studyapp.runner.schedule import (
+    BREAK_TEXT,
     _Stream,
     balanced_latin_square_row,
+    break_text,
     build_schedule,
     constrained_shuffle,
     counterbalance_index,
     schedule_bytes,
     schedule_hash,
+    scene_starts,
 )
 
 PROTOCOLS = Path(__file__).resolve().parents[1] / "protocols"
@@ -151,6 +154,64 @@ def test_task2_interleaved_with_constraints_and_breaks(task2):
         pos[key] = i
     answered = [t for t in sched if t.kind != "reference"]
     assert [i for i, t in enumerate(answered) if t.break_before] == [20, 40]
+
+
+SHIPPED = sorted(PROTOCOLS.glob("seed*.yaml"))
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
+def test_breaks_fall_at_scene_changes_or_say_break_only(path):
+    p = load_protocol(path, check_renderers=False)
+    for pid in ("P1", "P2", "P3", "P4", "P5", "P6"):
+        sched = build_schedule(p, pid, 0)
+        starts = scene_starts(sched)
+        for t in sched:
+            if not t.break_before:
+                continue
+            text = break_text(p, sched, t.index)
+            assert "break" in text.lower()
+            if "scene" in text.lower():  # says a scene starts only where one does
+                assert t.index in starts and sched[t.index - 1].scene != t.scene
+            else:
+                assert text == BREAK_TEXT or p.trial_order == "interleaved"
+        if p.trial_order == "blocked" and p.breaks:
+            # seed001_2afc: blocks of 30 pairs (+ catch) and every: 31 -> a break at each scene change only
+            assert {t.index for t in sched if t.break_before} == starts and len(starts) == len(p.scenes) - 1
+            assert all("next scene starts" in break_text(p, sched, i) for i in starts)
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
+def test_schedules_whose_breaks_fell_right_are_unchanged(path):
+    """Interleaved designs and blocked designs without breaks keep the stored-schedule rule byte for byte."""
+    p = load_protocol(path, check_renderers=False)
+    same = schedule_bytes(build_schedule(p, "P3", 1)) == schedule_bytes(build_schedule(p, "P3", 1, legacy_breaks=True))
+    assert same == (p.trial_order == "interleaved" or not p.breaks)
+
+
+def test_legacy_breaks_are_the_stored_rule(afc):
+    """The rule of schedules stored before scene-change breaks: every 31 answered trials, practice counted."""
+    sched = build_schedule(afc, "P1", 0, legacy_breaks=True)
+    assert [t.index for t in sched if t.break_before] == [31, 62, 93]
+    assert all(break_text(afc, sched, i) == BREAK_TEXT for i in (31, 62, 93))  # no scene starts there
+    assert sorted(scene_starts(sched)) == [34, 66]
+
+
+def test_breaks_every_n_within_a_long_block_say_break_only(afc):
+    data = {**afc.data, "breaks": {"every": 12, "seconds": 5, "text": "Rest. The next scene starts soon."}}
+    p = protocol_from_data(data, "every12", check_renderers=False)
+    sched = build_schedule(p, "P2", 3)
+    assert schedule_bytes(sched) == schedule_bytes(build_schedule(p, "P2", 3))  # reproducible
+    starts = scene_starts(sched)
+    inside = [t.index for t in sched if t.break_before and t.index not in starts]
+    assert {t.index for t in sched if t.break_before} >= starts
+    assert len(inside) == 2 * len(p.scenes)  # 30 design trials per block: after the 12th and the 24th
+    first_main = next(t.index for t in sched if t.kind != "practice")
+    for i in inside:
+        block = sched[max(s for s in starts | {first_main} if s <= i):i]
+        design = [t for t in block if t.kind == "trial"]
+        assert len(design) in (12, 24) and block[-1].kind == "trial"  # right after the 12th / 24th
+        assert break_text(p, sched, i) == BREAK_TEXT
+    assert all(break_text(p, sched, i) == "Rest. The next scene starts soon." for i in starts)
 
 
 def test_constrained_shuffle_reports_impossible_constraints():

@@ -33,7 +33,7 @@ from studyapp.presentation.base import Stimulus, TrialDisplay, TrialResult
 
 from .live import scene_record
 from .protocol import Protocol
-from .schedule import PlannedTrial, build_schedule, counterbalance_index, schedule_hash
+from .schedule import PlannedTrial, break_text, build_schedule, counterbalance_index, schedule_hash
 from .stimuli import frame_paths, missing_stimuli
 
 
@@ -181,7 +181,9 @@ def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_r
     seed = 0 if seed is None else seed
     schedule = build_schedule(protocol, pid, seed)
     s_hash = schedule_hash(schedule)
-    if existing and existing["schedule_hash"] != s_hash:
+    if existing and existing["schedule_hash"] != s_hash \
+            and existing["schedule_hash"] != schedule_hash(build_schedule(protocol, pid, seed, legacy_breaks=True)):
+        # (A participant enrolled before breaks fell at scene changes resumes with the stored breaks.)
         raise StoreError(f"{store.path}: the schedule of participant {pid!r} differs from the stored one "
                          "(protocol or scheduler changed): cannot resume")
     if existing and store.first_unanswered(pid) is None:
@@ -270,7 +272,7 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
             br = protocol.breaks
             store.event(sid, "break", f"before trial {t.idx}")
             store.checkpoint()
-            presenter.message(br.get("text", "Take a short break."), float(br.get("seconds", 30.0)))
+            presenter.message(break_text(protocol, planned, t.idx), float(br.get("seconds", 30.0)))
         first = False
         d = display_of(t)
         prefetch = getattr(presenter, "prefetch", None)  # optional: decode the next trial during this one
