@@ -11,7 +11,7 @@ from data_schema.store import open_store
 from data_schema.trial_log import ALL_COLUMNS
 from studyapp.commands.study import demo_step, main
 from studyapp.runner.observer import SimulatedObserver
-from studyapp.runner.protocol import load_protocol
+from studyapp.runner.protocol import load_protocol, protocol_from_data
 from studyapp.runner.schedule import build_schedule
 from studyapp.runner.session import ground_truth_stimuli, run_session
 from studyapp.runner.stimuli import write_synthetic_stimuli
@@ -331,7 +331,7 @@ def test_a_schedule_stored_before_scene_change_breaks_resumes_with_its_breaks(tm
         def __getattr__(self, name):
             return getattr(self.obs, name)
 
-        def message(self, text, seconds):
+        def rest(self, text, seconds):
             texts.append(text)
 
         def present(self, trial):
@@ -365,3 +365,35 @@ def test_a_schedule_stored_before_scene_change_breaks_resumes_with_its_breaks(tm
               and t.scene != planned[t.idx - 1].scene]
     assert [t.idx for t in planned if t.break_before] == starts and len(starts) == 2
     assert texts[:2] == ["Take a short break. The next scene starts in 30 s."] * 2
+
+
+def test_practice_is_marked_and_not_counted_in_the_progress(tmp_path):
+    """The participant's "k / n" counts the answered trials of the design and catch trials only; a practice
+    trial carries kind "practice" (the window says "practice" there) and no number; every trial screen gets
+    the protocol's key reminder place (default bottom)."""
+    p = load_protocol(PROTOCOLS / "seed003_task1.yaml", check_renderers=False)
+    seen = []
+
+    class Recording:
+        def __init__(self, obs):
+            self.obs = obs
+
+        def __getattr__(self, name):
+            return getattr(self.obs, name)
+
+        def present(self, trial):
+            seen.append((trial.kind, trial.progress, trial.key_reminder))
+            return self.obs.present(trial)
+
+    run_session(p, "P1", tmp_path / "s.db", _sim(p, "P1", script=Recording), allow_declared=True)
+    plan = build_schedule(p, "P1", 0)
+    counted = [t for t in plan if t.kind not in ("practice", "reference")]
+    assert [k for k, _, _ in seen] == [t.kind for t in plan]
+    assert all(prog is None for k, prog, _ in seen if k in ("practice", "reference"))
+    assert [prog for k, prog, _ in seen if k not in ("practice", "reference")] == [
+        (i + 1, len(counted)) for i in range(len(counted))]
+    assert {r for _, _, r in seen} == {"bottom"}
+    off = protocol_from_data({**p.data, "presentation": {"key_reminder": "off"}}, "off", check_renderers=False)
+    assert off.key_reminder == "off"
+    with pytest.raises(ValueError, match="presentation.key_reminder: 'left' is not one of bottom, top, off"):
+        protocol_from_data({**p.data, "presentation": {"key_reminder": "left"}}, "left", check_renderers=False)
