@@ -334,7 +334,8 @@ def test_gui_question_text_is_laid_out_for_a_small_window_and_never_clipped(tmp_
 
 
 def _band_ink(shot: np.ndarray, y0: int, y1: int) -> int:
-    """Bright text pixels in rows ``y0:y1`` (light grey: the stimulus stays below 200, the practice tag is yellow)."""
+    """Bright text pixels in rows ``y0:y1`` (light grey: the stimulus stays below 200, the practice tag is
+    yellow)."""
     return int((shot[y0:y1].min(axis=2) > 205).sum())
 
 
@@ -349,15 +350,17 @@ def test_gui_break_countdown_practice_label_and_key_reminders(tmp_path):
     shots = tmp_path / "shots"
     practice = yes_no_still(0, tmp_path / "a.png", fix, 0.1) | {"kind": "practice"}
     reference = {"index": 1, "family": "yes_no", "kind": "reference", "label": "This is the ground truth",
-                 "stimuli": [stim("GT", *(tmp_path / f"s{i}.png" for i in range(3)), fps=5.0)], "question": "",
-                 "answer_keys": {}, "fixation_px": fix, "duration_s": 0.6, "black_before_s": 0.1}
-    top = {"index": 2, "family": "2afc", "stimuli": [stim("GT", tmp_path / "a.png"), stim("X", tmp_path / "b.png")],
-           "question": "Which?", "answer_keys": {"1": "A", "2": "B"}, "switch_keys": {"left": 0, "right": 1},
+                 "stimuli": [stim("GT", *(tmp_path / f"s{i}.png" for i in range(3)), fps=5.0)],
+                 "question": "", "answer_keys": {}, "fixation_px": fix, "duration_s": 0.6,
+                 "black_before_s": 0.1}
+    top = {"index": 2, "family": "2afc",
+           "stimuli": [stim("GT", tmp_path / "a.png"), stim("X", tmp_path / "b.png")], "question": "Which?",
+           "answer_keys": {"1": "A", "2": "B"}, "switch_keys": {"left": 0, "right": 1},
            "fixation_px": fix, "black_before_s": 0.1, "progress": [1, 2], "key_reminder": "top"}
     off = yes_no_still(3, tmp_path / "b.png", fix, 0.1) | {"key_reminder": "off", "progress": [2, 2]}
     spec = {"display": DISPLAY, "presenter": {"screenshot_dir": str(shots)},
-            "steps": [{"rest": "Take a short break.", "seconds": 2}, {"trial": practice}, {"trial": reference},
-                      {"trial": top}, {"trial": off}]}
+            "steps": [{"rest": "Take a short break.", "seconds": 2}, {"trial": practice},
+                      {"trial": reference}, {"trial": top}, {"trial": off}]}
     with Xvfb() as x:
         d = Driver(x, spec, tmp_path)
         try:

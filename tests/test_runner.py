@@ -344,7 +344,7 @@ def test_a_schedule_stored_before_scene_change_breaks_resumes_with_its_breaks(tm
             return "end"
 
     db = tmp_path / "old.db"
-    legacy = lambda *a, **k: build_schedule(*a, **k, legacy_breaks=True)  # noqa: E731
+    legacy = lambda *a, **k: build_schedule(*a, **k, legacy=True)  # noqa: E731
     monkeypatch.setattr(sess, "build_schedule", legacy)
     assert run_session(p, "P1", db, _sim(p, "P1", script=lambda o: Recording(o, 40)),
                        allow_declared=True).status == "ended"
@@ -353,8 +353,8 @@ def test_a_schedule_stored_before_scene_change_breaks_resumes_with_its_breaks(tm
     assert s.status == "completed" and s.answered == s.planned == 98
     with open_store(db) as st:
         assert [t.idx for t in st.planned("P1") if t.break_before] == [31, 62, 93]
-        assert [r[0] for r in st.conn.execute("SELECT detail FROM events WHERE kind = 'break' ORDER BY id")] == [
-            "before trial 31", "before trial 62", "before trial 93"]
+        breaks = st.conn.execute("SELECT detail FROM events WHERE kind = 'break' ORDER BY id")
+        assert [r[0] for r in breaks] == ["before trial 31", "before trial 62", "before trial 93"]
     assert texts[:3] == [BREAK_TEXT] * 3
     # a new participant of the same study gets the breaks at the scene changes
     texts.clear()
@@ -393,7 +393,42 @@ def test_practice_is_marked_and_not_counted_in_the_progress(tmp_path):
     assert [prog for k, prog, _ in seen if k not in ("practice", "reference")] == [
         (i + 1, len(counted)) for i in range(len(counted))]
     assert {r for _, _, r in seen} == {"bottom"}
-    off = protocol_from_data({**p.data, "presentation": {"key_reminder": "off"}}, "off", check_renderers=False)
+    off = protocol_from_data({**p.data, "presentation": {"key_reminder": "off"}}, "off",
+                             check_renderers=False)
     assert off.key_reminder == "off"
     with pytest.raises(ValueError, match="presentation.key_reminder: 'left' is not one of bottom, top, off"):
-        protocol_from_data({**p.data, "presentation": {"key_reminder": "left"}}, "left", check_renderers=False)
+        protocol_from_data({**p.data, "presentation": {"key_reminder": "left"}}, "left",
+                           check_renderers=False)
+
+
+def test_a_task1_participant_enrolled_before_the_practice_reference_resumes_without_it(tmp_path, monkeypatch):
+    from studyapp.runner import session as sess
+
+    p = load_protocol(PROTOCOLS / "seed003_task1.yaml", check_renderers=False)
+
+    class StopAt:
+        def __init__(self, obs):
+            self.obs = obs
+
+        def __getattr__(self, name):
+            return getattr(self.obs, name)
+
+        def present(self, trial):
+            if trial.index == 10:
+                from studyapp.presentation.base import TrialResult
+                return TrialResult([], float("nan"), 0.0, escaped=True)
+            return self.obs.present(trial)
+
+        def pause(self):
+            return "end"
+
+    db = tmp_path / "old.db"
+    monkeypatch.setattr(sess, "build_schedule", lambda *a, **k: build_schedule(*a, **k, legacy=True))
+    assert run_session(p, "P1", db, _sim(p, "P1", script=StopAt), allow_declared=True).status == "ended"
+    monkeypatch.undo()
+    s = run_session(p, "P1", db, _sim(p, "P1"), resume=True, allow_declared=True)
+    assert s.status == "completed" and s.answered == s.planned
+    run_session(p, "P2", db, _sim(p, "P2"), allow_declared=True)
+    with open_store(db) as st:
+        assert st.planned("P1")[0].kind == "practice"  # as stored
+        assert [t.kind for t in st.planned("P2")[:2]] == ["reference", "practice"]  # the GT first now

@@ -125,8 +125,9 @@ def test_2afc_no_pair_twice_in_a_row_and_catch_trials(afc):
 
 def test_task1_reference_first_per_scene_in_seed_order(task1):
     sched = build_schedule(task1, "P2", 0)
-    assert [t.kind for t in sched[:3]] == ["practice"] * 3
-    assert [t.conditions[0] for t in sched[:3]] == ["CC1", "CC4", "CC2"]  # best to worst
+    assert [t.kind for t in sched[:4]] == ["reference"] + ["practice"] * 3  # the practice scene's GT first
+    assert [t.conditions[0] for t in sched[1:4]] == ["CC1", "CC4", "CC2"]  # best to worst
+    sched = sched[4:]
     refs = [t for t in sched if t.kind == "reference"]
     assert [t.scene for t in refs] == list(task1.scenes)  # Study ... Sponza, in the seed's order
     for ref in refs:
@@ -182,15 +183,31 @@ def test_breaks_fall_at_scene_changes_or_say_break_only(path):
 
 @pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
 def test_schedules_whose_breaks_fell_right_are_unchanged(path):
-    """Interleaved designs and blocked designs without breaks keep the stored-schedule rule byte for byte."""
+    """Interleaved designs and blocked designs without breaks keep the stored-schedule rule byte for byte,
+    unless the design has a labelled reference (then shown before the practice too)."""
     p = load_protocol(path, check_renderers=False)
-    same = schedule_bytes(build_schedule(p, "P3", 1)) == schedule_bytes(build_schedule(p, "P3", 1, legacy_breaks=True))
-    assert same == (p.trial_order == "interleaved" or not p.breaks)
+    now, before = build_schedule(p, "P3", 1), build_schedule(p, "P3", 1, legacy=True)
+    same = schedule_bytes(now) == schedule_bytes(before)
+    assert same == ((p.trial_order == "interleaved" or not p.breaks) and not (p.reference and p.practice))
 
 
-def test_legacy_breaks_are_the_stored_rule(afc):
+@pytest.mark.parametrize("name", ["seed003_task1", "seed003_task1_live"])
+def test_yes_no_practice_of_is_this_the_ground_truth_shows_the_ground_truth_first(name):
+    p = load_protocol(PROTOCOLS / f"{name}.yaml", check_renderers=False)
+    assert "ground truth" in p.question and p.reference_label == "This is the ground truth"
+    sched = build_schedule(p, "P1", 0)
+    first = next(t.index for t in sched if t.kind == "practice")
+    assert first == 1 and sched[0].kind == "reference" and sched[0].conditions == (p.reference,)
+    assert sched[0].scene == p.practice["scene"] and not sched[0].break_before
+    old = build_schedule(p, "P1", 0, legacy=True)  # as stored before: the practice came first
+    assert old[0].kind == "practice" and schedule_bytes(sched[1:]) != schedule_bytes(old)
+    assert [(t.kind, t.scene, t.conditions) for t in sched[1:]] == [
+        (t.kind, t.scene, t.conditions) for t in old]
+
+
+def test_legacy_are_the_stored_rule(afc):
     """The rule of schedules stored before scene-change breaks: every 31 answered trials, practice counted."""
-    sched = build_schedule(afc, "P1", 0, legacy_breaks=True)
+    sched = build_schedule(afc, "P1", 0, legacy=True)
     assert [t.index for t in sched if t.break_before] == [31, 62, 93]
     assert all(break_text(afc, sched, i) == BREAK_TEXT for i in (31, 62, 93))  # no scene starts there
     assert sorted(scene_starts(sched)) == [34, 66]

@@ -112,13 +112,15 @@ KEY_REMINDER_PLACES = ("bottom", "top", "off")
 
 
 def key_text(key: str) -> str:
-    """A key name as the participant reads it: ``y`` -> ``Y``, ``left`` -> ``Left``, ``space`` -> ``SPACE``."""
+    """A key name as the participant reads it: ``y`` -> ``Y``, ``left`` -> ``Left``, ``space`` -> ``SPACE``.
+    """
     return key.upper() if len(key) == 1 or key == "space" else key.capitalize()
 
 
 def key_reminder_text(trial: TrialDisplay) -> str:
-    """The one-line reminder of a trial's keys, e.g. ``"1: A   2: B   Left / Right: switch"`` (answers by their
-    meaning: a preference pick by the stimulus label, ``""`` as "done"); empty for a trial without keys."""
+    """The one-line reminder of a trial's keys, e.g. ``"1: A   2: B   Left / Right: switch"`` (answers by
+    their meaning: a preference pick by the stimulus label, ``""`` as "done"); empty for a trial without
+    keys."""
     from data_schema import families
 
     labels = families.get(trial.family).labels(len(trial.stimuli))

@@ -521,8 +521,8 @@ class PsychoPyPresenter:
                                     pos=(ww / 2 - 8, wh / 2 - 8))
         self._reminder = visual.TextStim(win, text="", height=h, color=(0.8, 0.8, 0.8), units="pix",
                                          wrapWidth=ww * 0.95)
-        self._reminder_band = visual.Rect(win, width=ww, height=round(h * 1.6), units="pix", fillColor=(-1, -1, -1),
-                                          lineColor=None, lineWidth=0, opacity=0.7)
+        self._reminder_band = visual.Rect(win, width=ww, height=round(h * 1.6), units="pix",
+                                          fillColor=(-1, -1, -1), lineColor=None, lineWidth=0, opacity=0.7)
         self._fix = []
         if self.fixation_rgb is not None:
             arm, line = self.fixation_size_px, self.fixation_line_px
@@ -747,14 +747,14 @@ class PsychoPyPresenter:
             self._dim.pos = (0, -wh / 2 + 0.5 * self._dim.boundingBox[1] + 4)
             self._dim.draw()
 
-    def _draw_question_in_margin(self, question: str, placement: Placement) -> None:
-        """Draw ``question`` centred in the margin below the stimulus if that margin is at least 2 lines high
-        (never over the stimulus; the question also shows in the black interval before each trial and after a
-        sequence)."""
-        margin = placement.win_h - (placement.top + placement.size[1])
+    def _draw_question_in_margin(self, question: str, placement: Placement, below: float = 0.0) -> None:
+        """Draw ``question`` centred in the margin below the stimulus, above ``below`` pixels at the bottom
+        of the window (the key reminder's band), if that margin is at least 2 lines high (never over the
+        stimulus; the question also shows in the black interval before each trial and after a sequence)."""
+        margin = placement.win_h - (placement.top + placement.size[1]) - below
         if question and margin >= 2 * self._text_h:
             self._fit_text(self._question, question, margin)
-            self._question.pos = (0, -placement.win_h / 2.0 + margin / 2.0)
+            self._question.pos = (0, -placement.win_h / 2.0 + below + margin / 2.0)
             self._question.draw()
 
     def _progress_text(self, trial: TrialDisplay) -> str:
@@ -952,7 +952,9 @@ class PsychoPyPresenter:
         seq, placement = loaded.frames[current], loaded.placements[current]
         seq[sequence_frame(elapsed_s, trial.stimuli[current].fps, len(seq), families.get(trial.family).loops)].draw()
         self._draw_overlay(trial, state, placement)
-        self._draw_question_in_margin(trial.question, placement)
+        bottom_band = trial.key_reminder == "bottom" and key_reminder_text(trial)
+        band = float(self._reminder_band.height) if bottom_band else 0.0
+        self._draw_question_in_margin(trial.question, placement, band)
 
     def _draw_overlay(self, trial: TrialDisplay, state: AnswerState, placement: Placement | None) -> None:
         """The fixation mark (at ``trial.fixation_px`` of the stimulus image) and the stimulus label with the

@@ -6,7 +6,9 @@ Python's generators, whose streams may change between releases.
 
 What a schedule holds, in order:
 
-1. practice trials (``practice``), stimuli spanning the quality range as listed in the protocol;
+1. practice trials (``practice``), stimuli spanning the quality range as listed in the protocol, after the
+   labelled reference of the practice scene where the design has references (the practice question, "is this
+   the ground truth?", is then asked only once the ground truth was shown);
 2. per scene block (``trial_order: blocked``; scene order fixed, random or a balanced Latin square across
    participants), an optional labelled reference (``reference``, not answered) and the block's trials in a
    constrained shuffle; or all trials in one constrained shuffle (``interleaved``);
@@ -190,12 +192,16 @@ def _main_items(protocol: Protocol, scene: str, scene_idx: int, cb: int, stream:
         flip_seed=cb + scene_idx, stream=stream)
 
 
-def _practice(protocol: Protocol) -> list[dict]:
+def _practice(protocol: Protocol, legacy: bool = False) -> list[dict]:
+    """The practice trials, after the practice scene's labelled reference if the design has references
+    (not in ``legacy`` schedules, stored before that reference was added)."""
     p = protocol.practice
     if not p:
         return []
     groups = families.get(protocol.family).practice_groups(list(p["conditions"]))
-    return [{"kind": "practice", "scene": p["scene"], "conditions": g} for g in groups]
+    ref = [{"kind": "reference", "scene": p["scene"], "conditions": (protocol.reference,)}] \
+        if protocol.reference and not legacy else []
+    return ref + [{"kind": "practice", "scene": p["scene"], "conditions": g} for g in groups]
 
 
 def _insert_catch(protocol: Protocol, main: list[dict], stream: _Stream) -> list[dict]:
@@ -226,12 +232,13 @@ def _insert_catch(protocol: Protocol, main: list[dict], stream: _Stream) -> list
 
 def scene_starts(trials: list) -> set[int]:
     """Positions in ``trials`` (objects with ``kind`` and ``scene``) where a new scene block starts: the first
-    non-practice trial of each scene after the first scene. A catch trial that repeats an earlier scene's pair
-    further on starts nothing (its scene has been seen)."""
+    trial after the practice (and its reference) of each scene after the first scene. A catch trial that
+    repeats an earlier scene's pair further on starts nothing (its scene has been seen)."""
+    practice_end = max((i + 1 for i, t in enumerate(trials) if t.kind == "practice"), default=0)
     seen: set[str] = set()
     out: set[int] = set()
     for i, t in enumerate(trials):
-        if t.kind == "practice" or t.scene in seen:
+        if i < practice_end or t.scene in seen:
             continue
         if seen:
             out.add(i)
@@ -295,7 +302,7 @@ def break_text(protocol: Protocol, trials: list, i: int) -> str:
     return BREAK_TEXT
 
 
-def build_schedule(protocol: Protocol, participant: str, seed: int, legacy_breaks: bool = False
+def build_schedule(protocol: Protocol, participant: str, seed: int, legacy: bool = False
                    ) -> list[PlannedTrial]:
     """The participant's whole schedule (practice, references, trials, catch trials, breaks).
 
@@ -306,9 +313,9 @@ def build_schedule(protocol: Protocol, participant: str, seed: int, legacy_break
         Pseudonymous participant id; gives the counterbalancing index (see module docstring).
     seed : int
         Study seed (>= 0).
-    legacy_breaks : bool
-        Place breaks by the rule of schedules stored before scene-change breaks (see :func:`place_breaks`):
-        how a participant enrolled then is recognised on ``--resume``.
+    legacy : bool
+        The rules of schedules stored before scene-change breaks (:func:`place_breaks`) and the practice
+        scene's reference (:func:`_practice`): how a participant enrolled then is recognised on ``--resume``.
 
     Returns
     -------
@@ -348,7 +355,7 @@ def build_schedule(protocol: Protocol, participant: str, seed: int, legacy_break
                 merged.append({"kind": "reference", "scene": t["scene"], "conditions": (protocol.reference,)})
             merged.append(t)
         with_catch = merged
-    sequence = _practice(protocol) + refs + with_catch
+    sequence = _practice(protocol, legacy) + refs + with_catch
     # Indices, the repeat-catch answers, then the breaks.
     out, index_of = [], {}
     for i, t in enumerate(sequence):
@@ -357,10 +364,10 @@ def build_schedule(protocol: Protocol, participant: str, seed: int, legacy_break
         expected = t.get("expected", "")
         if isinstance(expected, dict):
             expected = f"same:{index_of[id(expected)]}"
-        out.append(PlannedTrial(index=i, kind=t.get("kind", "trial"), family=protocol.family, scene=t["scene"],
-                                block=protocol.block, conditions=tuple(t["conditions"]), expected=expected,
-                                item=t.get("item", "")))
-    for t, brk in zip(out, place_breaks(protocol, out, legacy_breaks)):
+        out.append(PlannedTrial(index=i, kind=t.get("kind", "trial"), family=protocol.family,
+                                scene=t["scene"], block=protocol.block, conditions=tuple(t["conditions"]),
+                                expected=expected, item=t.get("item", "")))
+    for t, brk in zip(out, place_breaks(protocol, out, legacy)):
         t.break_before = brk
     return out
 

@@ -188,7 +188,7 @@ def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_r
     schedule = build_schedule(protocol, pid, seed)
     s_hash = schedule_hash(schedule)
     if existing and existing["schedule_hash"] != s_hash \
-            and existing["schedule_hash"] != schedule_hash(build_schedule(protocol, pid, seed, legacy_breaks=True)):
+            and existing["schedule_hash"] != schedule_hash(build_schedule(protocol, pid, seed, legacy=True)):
         # (A participant enrolled before breaks fell at scene changes resumes with the stored breaks.)
         raise StoreError(f"{store.path}: the schedule of participant {pid!r} differs from the stored one "
                          "(protocol or scheduler changed): cannot resume")
@@ -255,8 +255,9 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
     planned = store.planned(pid)
     answered = store.answered(pid)
     total = sum(t.kind != "reference" for t in planned)
-    number = sum(1 for t in planned if t.kind != "reference" and t.idx in answered)  # the experimenter's count
-    shown_total = sum(counted(t) for t in planned)  # the participant's: practice and references not counted
+    # the experimenter's count (progress callback), then the participant's (practice not counted)
+    number = sum(1 for t in planned if t.kind != "reference" and t.idx in answered)
+    shown_total = sum(counted(t) for t in planned)
     shown = sum(1 for t in planned if counted(t) and t.idx in answered)
     gaze = protocol.render_geometry(scale).gaze if protocol.fixation_mark else None
     text = protocol.instructions or protocol.question
