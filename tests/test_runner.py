@@ -315,56 +315,71 @@ def test_resume_after_a_stop_behind_the_last_answer_closes_the_session(tmp_path,
         run_session(p, "P1", db, _sim(p, "P1"), resume=True, allow_declared=True)
 
 
+class Watching:
+    """The simulated observer, watched: records every trial shown (``seen``) and break text (``rests``);
+    with ``stop_at`` Escape on that trial, then "end"."""
+
+    def __init__(self, obs, stop_at=None, seen=None, rests=None):
+        self.obs, self.stop_at = obs, stop_at
+        self.seen = [] if seen is None else seen
+        self.rests = [] if rests is None else rests
+
+    def __getattr__(self, name):
+        return getattr(self.obs, name)
+
+    def rest(self, text, seconds):
+        self.rests.append(text)
+
+    def present(self, trial):
+        self.seen.append(trial)
+        if trial.index == self.stop_at:
+            from studyapp.presentation.base import TrialResult
+            return TrialResult([], float("nan"), 0.0, escaped=True)
+        return self.obs.present(trial)
+
+    def pause(self):
+        return "end"
+
+
+def _enrol_before_issue_26(monkeypatch, p, db, stop_at):
+    """Run participant P1 under the schedule rules of before (``legacy``) until Escape + end at ``stop_at``."""
+    from studyapp.runner import session as sess
+
+    monkeypatch.setattr(sess, "build_schedule", lambda *a, **k: build_schedule(*a, **k, legacy=True))
+    s = run_session(p, "P1", db, _sim(p, "P1", script=lambda o: Watching(o, stop_at)), allow_declared=True)
+    monkeypatch.undo()
+    assert s.status == "ended"
+
+
 def test_a_schedule_stored_before_scene_change_breaks_resumes_with_its_breaks(tmp_path, monkeypatch):
     """seed001_2afc's breaks moved from answers 31/62/93 to the scene changes (34, 66): a participant enrolled
     under the old rule resumes with the stored breaks, each saying only that it is a break."""
-    from studyapp.runner import session as sess
     from studyapp.runner.schedule import BREAK_TEXT
 
     p = load_protocol(PROTOCOLS / "seed001_2afc.yaml", check_renderers=False)
     texts = []
 
-    class Recording:
-        def __init__(self, obs, stop_at=None):
-            self.obs, self.stop_at = obs, stop_at
-
-        def __getattr__(self, name):
-            return getattr(self.obs, name)
-
-        def rest(self, text, seconds):
-            texts.append(text)
-
-        def present(self, trial):
-            if trial.index == self.stop_at:
-                from studyapp.presentation.base import TrialResult
-                return TrialResult([], float("nan"), 0.0, escaped=True)
-            return self.obs.present(trial)
-
-        def pause(self):
-            return "end"
+    def watch(o):
+        return Watching(o, rests=texts)
 
     db = tmp_path / "old.db"
-    legacy = lambda *a, **k: build_schedule(*a, **k, legacy=True)  # noqa: E731
-    monkeypatch.setattr(sess, "build_schedule", legacy)
-    assert run_session(p, "P1", db, _sim(p, "P1", script=lambda o: Recording(o, 40)),
-                       allow_declared=True).status == "ended"
-    monkeypatch.undo()
-    s = run_session(p, "P1", db, _sim(p, "P1", script=Recording), resume=True, allow_declared=True)
+    _enrol_before_issue_26(monkeypatch, p, db, 40)
+    s = run_session(p, "P1", db, _sim(p, "P1", script=watch), resume=True, allow_declared=True)
     assert s.status == "completed" and s.answered == s.planned == 98
     with open_store(db) as st:
         assert [t.idx for t in st.planned("P1") if t.break_before] == [31, 62, 93]
         breaks = st.conn.execute("SELECT detail FROM events WHERE kind = 'break' ORDER BY id")
         assert [r[0] for r in breaks] == ["before trial 31", "before trial 62", "before trial 93"]
-    assert texts[:3] == [BREAK_TEXT] * 3
+    assert texts == [BREAK_TEXT] * 2  # the resumed session's breaks (62, 93): no scene starts there
     # a new participant of the same study gets the breaks at the scene changes
     texts.clear()
-    run_session(p, "P2", db, _sim(p, "P2", script=Recording), allow_declared=True)
+    run_session(p, "P2", db, _sim(p, "P2", script=watch), allow_declared=True)
     with open_store(db) as st:
         planned = st.planned("P2")
     starts = [t.idx for t in planned[1:] if planned[t.idx - 1].kind != "practice"
               and t.scene != planned[t.idx - 1].scene]
     assert [t.idx for t in planned if t.break_before] == starts and len(starts) == 2
-    assert texts[:2] == ["Take a short break. The next scene starts in 30 s."] * 2
+    assert texts == ["Take a short break. The next scene starts in 30 s."] * 2
 
 
 def test_practice_is_marked_and_not_counted_in_the_progress(tmp_path):
@@ -372,20 +387,10 @@ def test_practice_is_marked_and_not_counted_in_the_progress(tmp_path):
     trial carries kind "practice" (the window says "practice" there) and no number; every trial screen gets
     the protocol's key reminder place (default bottom)."""
     p = load_protocol(PROTOCOLS / "seed003_task1.yaml", check_renderers=False)
-    seen = []
-
-    class Recording:
-        def __init__(self, obs):
-            self.obs = obs
-
-        def __getattr__(self, name):
-            return getattr(self.obs, name)
-
-        def present(self, trial):
-            seen.append((trial.kind, trial.progress, trial.key_reminder))
-            return self.obs.present(trial)
-
-    run_session(p, "P1", tmp_path / "s.db", _sim(p, "P1", script=Recording), allow_declared=True)
+    shown = []
+    run_session(p, "P1", tmp_path / "s.db", _sim(p, "P1", script=lambda o: Watching(o, seen=shown)),
+                allow_declared=True)
+    seen = [(t.kind, t.progress, t.key_reminder) for t in shown]
     plan = build_schedule(p, "P1", 0)
     counted = [t for t in plan if t.kind not in ("practice", "reference")]
     assert [k for k, _, _ in seen] == [t.kind for t in plan]
@@ -402,30 +407,9 @@ def test_practice_is_marked_and_not_counted_in_the_progress(tmp_path):
 
 
 def test_a_task1_participant_enrolled_before_the_practice_reference_resumes_without_it(tmp_path, monkeypatch):
-    from studyapp.runner import session as sess
-
     p = load_protocol(PROTOCOLS / "seed003_task1.yaml", check_renderers=False)
-
-    class StopAt:
-        def __init__(self, obs):
-            self.obs = obs
-
-        def __getattr__(self, name):
-            return getattr(self.obs, name)
-
-        def present(self, trial):
-            if trial.index == 10:
-                from studyapp.presentation.base import TrialResult
-                return TrialResult([], float("nan"), 0.0, escaped=True)
-            return self.obs.present(trial)
-
-        def pause(self):
-            return "end"
-
     db = tmp_path / "old.db"
-    monkeypatch.setattr(sess, "build_schedule", lambda *a, **k: build_schedule(*a, **k, legacy=True))
-    assert run_session(p, "P1", db, _sim(p, "P1", script=StopAt), allow_declared=True).status == "ended"
-    monkeypatch.undo()
+    _enrol_before_issue_26(monkeypatch, p, db, 10)
     s = run_session(p, "P1", db, _sim(p, "P1"), resume=True, allow_declared=True)
     assert s.status == "completed" and s.answered == s.planned
     run_session(p, "P2", db, _sim(p, "P2"), allow_declared=True)
