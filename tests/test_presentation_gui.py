@@ -52,6 +52,8 @@ def shot_of(shots: Path, trial: int, stim: int) -> np.ndarray:
 
 
 SCALE = WIN_W / IMG_W  # the stimulus covers the window (the display), here upscaled 2x from the render
+TEXT_H = 14  # the presenter's text height in a 480-pixel-high window (max(14, 480 / 36))
+BAND = round(1.6 * TEXT_H)  # the key reminder's band
 
 
 def assert_shows(shot: np.ndarray, img: np.ndarray, fixation: tuple[int, int], rng_seed: int = 0) -> None:
@@ -64,7 +66,8 @@ def assert_shows(shot: np.ndarray, img: np.ndarray, fixation: tuple[int, int], r
     fx, fy = fixation
     checked = 0
     for x, y in zip(rng.integers(0, IMG_W, 2000), rng.integers(0, IMG_H, 2000)):
-        if not (2 <= x % 16 <= 13 and 2 <= y % 16 <= 13) or max(abs(x - fx), abs(y - fy)) <= 10 or y < 24:
+        if not (2 <= x % 16 <= 13 and 2 <= y % 16 <= 13) or max(abs(x - fx), abs(y - fy)) <= 10 or y < 24 \
+                or SCALE * y > WIN_H - BAND - 2:  # the key reminder's band
             continue
         wx, wy = int(SCALE * x + 1), int(SCALE * y + 1)
         np.testing.assert_array_equal(shot[wy, wx], img[y, x], err_msg=f"image pixel ({x}, {y})")
@@ -76,7 +79,9 @@ def assert_shows(shot: np.ndarray, img: np.ndarray, fixation: tuple[int, int], r
     for dx, dy in ((-1, -1), (0, 0), (-6, 0), (5, -1), (0, 5), (-1, -7)):
         np.testing.assert_array_equal(shot[wfy + dy, wfx + dx], RED, err_msg=f"fixation pixel offset ({dx}, {dy})")
     for wx, wy, x, y in ((WIN_W - 3, WIN_H - 3, IMG_W - 2, IMG_H - 2), (2, WIN_H - 3, 1, IMG_H - 2)):
-        np.testing.assert_array_equal(shot[wy, wx], img[y, x], err_msg="the stimulus does not cover the window")
+        # under the key reminder's dark band (70 % opaque) at the bottom edge
+        np.testing.assert_allclose(shot[wy, wx], 0.3 * img[y, x], atol=2, err_msg="the stimulus does not "
+                                   "cover the window under the key reminder")
 
 
 def stim(cond: str, *frames: Path, fps: float = 0.0) -> dict:
@@ -322,7 +327,79 @@ def test_gui_question_text_is_laid_out_for_a_small_window_and_never_clipped(tmp_
     assert xs.min() > 0 and xs.max() < 319 and ys.min() > 0 and ys.max() < 179  # and nowhere cut by the edges
     stim = np.asarray(Image.open(sorted(shots.glob("trial0000_stim0_*.png"))[0]).convert("RGB"))
     s = 320 / 256  # the stimulus covers the 320x180 window
-    for x0, y0 in ((40, 40), (200, 100), (250, 140)):
+    for x0, y0 in ((40, 40), (200, 100), (250, 120)):  # (above the key reminder's band)
         if 2 <= x0 % 16 <= 13 and 2 <= y0 % 16 <= 13:
             np.testing.assert_array_equal(stim[int(s * y0 + 1), int(s * x0 + 1)], img[y0, x0])
     assert result["trials"][0]["answers"] == ["yes"]
+
+
+def _band_ink(shot: np.ndarray, y0: int, y1: int) -> int:
+    """Bright text pixels in rows ``y0:y1`` (light grey: the stimulus stays below 200, the practice tag is
+    yellow)."""
+    return int((shot[y0:y1].min(axis=2) > 205).sum())
+
+
+def test_gui_break_countdown_practice_label_and_key_reminders(tmp_path):
+    """What a participant sees (issue 26, item 6): a break counts its seconds down, a key pressed meanwhile
+    does not end it, then SPACE does; a practice trial says "practice"; a reference shows its label over the
+    stimulus for its whole duration; the key reminder band sits at the bottom, at the top, or is off."""
+    a = blocks_image(tmp_path / "a.png", 1)
+    b = blocks_image(tmp_path / "b.png", 2)
+    seq = [blocks_image(tmp_path / f"s{i}.png", 10 + i) for i in range(3)]
+    fix = (100, 80)
+    shots = tmp_path / "shots"
+    practice = yes_no_still(0, tmp_path / "a.png", fix, 0.1) | {"kind": "practice"}
+    reference = {"index": 1, "family": "yes_no", "kind": "reference", "label": "This is the ground truth",
+                 "stimuli": [stim("GT", *(tmp_path / f"s{i}.png" for i in range(3)), fps=5.0)],
+                 "question": "", "answer_keys": {}, "fixation_px": fix, "duration_s": 0.6,
+                 "black_before_s": 0.1}
+    top = {"index": 2, "family": "2afc",
+           "stimuli": [stim("GT", tmp_path / "a.png"), stim("X", tmp_path / "b.png")], "question": "Which?",
+           "answer_keys": {"1": "A", "2": "B"}, "switch_keys": {"left": 0, "right": 1},
+           "fixation_px": fix, "black_before_s": 0.1, "progress": [1, 2], "key_reminder": "top"}
+    off = yes_no_still(3, tmp_path / "b.png", fix, 0.1) | {"key_reminder": "off", "progress": [2, 2]}
+    spec = {"display": DISPLAY, "presenter": {"screenshot_dir": str(shots)},
+            "steps": [{"rest": "Take a short break.", "seconds": 2}, {"trial": practice},
+                      {"trial": reference}, {"trial": top}, {"trial": off}]}
+    with Xvfb() as x:
+        d = Driver(x, spec, tmp_path)
+        try:
+            assert d.wait_for("rest")["left_s"] == 2
+            x.key("space")  # during the countdown: ignored
+            assert d.wait_for("rest")["left_s"] == 1
+            assert d.wait_for("rest")["left_s"] == 0
+            x.key("space")
+            for event, match, key in [("onset", {"trial": 0}, "y"), ("onset", {"trial": 2}, "2"),
+                                      ("onset", {"trial": 3}, "n")]:
+                d.wait_for(event, **match)
+                x.key(key)
+            result = d.finish()
+        finally:
+            d.kill()
+    assert [t["answers"] for t in result["trials"]] == [["yes"], [], ["B"], ["no"]]
+    # the break: "2 s", "1 s", then "press SPACE to continue" (each screen differs from the one before)
+    rest = [np.asarray(Image.open(f).convert("RGB")).astype(int) for f in
+            sorted(shots.glob("break_*.png"), key=lambda f: int(f.stem.rsplit("_", 1)[1]))]
+    assert [f.stem.split("_")[1] for f in sorted(shots.glob("break_*.png"),
+                                                 key=lambda f: int(f.stem.rsplit("_", 1)[1]))] == \
+        ["2s", "1s", "continue"]
+    assert all(np.abs(rest[i] - rest[i + 1]).sum() > 1000 for i in range(2))
+    # practice: the tag at the top right, the reminder band at the bottom (dimmed stimulus, bright text)
+    shot = shot_of(shots, 0, 0).astype(int)
+    tag = shot[:3 * TEXT_H, WIN_W // 2:]
+    assert ((tag[..., 0] > 240) & (tag[..., 1] > 200) & (tag[..., 2] < 180)).sum() > 30  # yellow "practice"
+    assert _band_ink(shot, WIN_H - BAND, WIN_H) > 50 and _band_ink(shot, 0, BAND) == 0
+    np.testing.assert_allclose(shot[WIN_H - 3, 2], 0.3 * a[IMG_H - 2, 1], atol=2)
+    # the reference: its label over the stimulus (white: the stimulus has no value over 200), no keys, no band
+    shot = shot_of(shots, 1, 0).astype(int)
+    assert (shot[:3 * TEXT_H, WIN_W // 4:3 * WIN_W // 4].min(axis=2) > 230).sum() > 50
+    assert _band_ink(shot, WIN_H - BAND, WIN_H) == 0
+    np.testing.assert_array_equal(shot[WIN_H - 3, 2], seq[0][IMG_H - 2, 1])
+    # key_reminder top: the band at the top, the bottom edge is the stimulus itself
+    shot = shot_of(shots, 2, 0).astype(int)
+    assert _band_ink(shot, 0, BAND) > 50 and _band_ink(shot, WIN_H - BAND, WIN_H) == 0
+    np.testing.assert_array_equal(shot[WIN_H - 3, WIN_W - 3], a[IMG_H - 2, IMG_W - 2])
+    # key_reminder off: no band anywhere
+    shot = shot_of(shots, 3, 0).astype(int)
+    assert _band_ink(shot, WIN_H - BAND, WIN_H) == 0
+    np.testing.assert_array_equal(shot[WIN_H - 3, 2], b[IMG_H - 2, 1])

@@ -11,7 +11,7 @@ from data_schema.store import open_store
 from data_schema.trial_log import ALL_COLUMNS
 from studyapp.commands.study import demo_step, main
 from studyapp.runner.observer import SimulatedObserver
-from studyapp.runner.protocol import load_protocol
+from studyapp.runner.protocol import load_protocol, protocol_from_data
 from studyapp.runner.schedule import build_schedule
 from studyapp.runner.session import ground_truth_stimuli, run_session
 from studyapp.runner.stimuli import write_synthetic_stimuli
@@ -316,3 +316,106 @@ def test_resume_after_a_stop_behind_the_last_answer_closes_the_session(tmp_path,
         assert [r[0] for r in st.conn.execute("SELECT kind FROM events")] == ["closed"]
     with pytest.raises(Exception, match="already answered every trial"):
         run_session(p, "P1", db, _sim(p, "P1"), resume=True, allow_declared=True)
+
+
+class Watching:
+    """The simulated observer, watched: records every trial shown (``seen``) and break text (``rests``);
+    with ``stop_at`` Escape on that trial, then "end"."""
+
+    def __init__(self, obs, stop_at=None, seen=None, rests=None):
+        self.obs, self.stop_at = obs, stop_at
+        self.seen = [] if seen is None else seen
+        self.rests = [] if rests is None else rests
+
+    def __getattr__(self, name):
+        return getattr(self.obs, name)
+
+    def rest(self, text, seconds):
+        self.rests.append(text)
+
+    def present(self, trial):
+        self.seen.append(trial)
+        if trial.index == self.stop_at:
+            from studyapp.presentation.base import TrialResult
+            return TrialResult([], float("nan"), 0.0, escaped=True)
+        return self.obs.present(trial)
+
+    def pause(self):
+        return "end"
+
+
+def _enrol_before_issue_26(monkeypatch, p, db, stop_at):
+    """Run participant P1 under the schedule rules of before (``legacy``) until Escape + end at ``stop_at``."""
+    from studyapp.runner import session as sess
+
+    monkeypatch.setattr(sess, "build_schedule", lambda *a, **k: build_schedule(*a, **k, legacy=True))
+    s = run_session(p, "P1", db, _sim(p, "P1", script=lambda o: Watching(o, stop_at)), allow_declared=True)
+    monkeypatch.undo()
+    assert s.status == "ended"
+
+
+def test_a_schedule_stored_before_scene_change_breaks_resumes_with_its_breaks(tmp_path, monkeypatch):
+    """seed001_2afc's breaks moved from answers 31/62/93 to the scene changes (34, 66): a participant enrolled
+    under the old rule resumes with the stored breaks, each saying only that it is a break."""
+    from studyapp.runner.schedule import BREAK_TEXT
+
+    p = load_protocol(PROTOCOLS / "seed001_2afc.yaml", check_renderers=False)
+    texts = []
+
+    def watch(o):
+        return Watching(o, rests=texts)
+
+    db = tmp_path / "old.db"
+    _enrol_before_issue_26(monkeypatch, p, db, 40)
+    s = run_session(p, "P1", db, _sim(p, "P1", script=watch), resume=True, allow_declared=True)
+    assert s.status == "completed" and s.answered == s.planned == 98
+    with open_store(db) as st:
+        assert [t.idx for t in st.planned("P1") if t.break_before] == [31, 62, 93]
+        breaks = st.conn.execute("SELECT detail FROM events WHERE kind = 'break' ORDER BY id")
+        assert [r[0] for r in breaks] == ["before trial 31", "before trial 62", "before trial 93"]
+    assert texts == [BREAK_TEXT] * 2  # the resumed session's breaks (62, 93): no scene starts there
+    # a new participant of the same study gets the breaks at the scene changes
+    texts.clear()
+    run_session(p, "P2", db, _sim(p, "P2", script=watch), allow_declared=True)
+    with open_store(db) as st:
+        planned = st.planned("P2")
+    starts = [t.idx for t in planned[1:] if planned[t.idx - 1].kind != "practice"
+              and t.scene != planned[t.idx - 1].scene]
+    assert [t.idx for t in planned if t.break_before] == starts and len(starts) == 2
+    assert texts == ["Take a short break. The next scene starts in 30 s."] * 2
+
+
+def test_practice_is_marked_and_not_counted_in_the_progress(tmp_path):
+    """The participant's "k / n" counts the answered trials of the design and catch trials only; a practice
+    trial carries kind "practice" (the window says "practice" there) and no number; every trial screen gets
+    the protocol's key reminder place (default bottom)."""
+    p = load_protocol(PROTOCOLS / "seed003_task1.yaml", check_renderers=False)
+    shown = []
+    run_session(p, "P1", tmp_path / "s.db", _sim(p, "P1", script=lambda o: Watching(o, seen=shown)),
+                allow_declared=True)
+    seen = [(t.kind, t.progress, t.key_reminder) for t in shown]
+    plan = build_schedule(p, "P1", 0)
+    counted = [t for t in plan if t.kind not in ("practice", "reference")]
+    assert [k for k, _, _ in seen] == [t.kind for t in plan]
+    assert all(prog is None for k, prog, _ in seen if k in ("practice", "reference"))
+    assert [prog for k, prog, _ in seen if k not in ("practice", "reference")] == [
+        (i + 1, len(counted)) for i in range(len(counted))]
+    assert {r for _, _, r in seen} == {"bottom"}
+    off = protocol_from_data({**p.data, "presentation": {"key_reminder": "off"}}, "off",
+                             check_renderers=False)
+    assert off.key_reminder == "off"
+    with pytest.raises(ValueError, match="presentation.key_reminder: 'left' is not one of bottom, top, off"):
+        protocol_from_data({**p.data, "presentation": {"key_reminder": "left"}}, "left",
+                           check_renderers=False)
+
+
+def test_a_task1_participant_enrolled_before_the_practice_reference_resumes_without_it(tmp_path, monkeypatch):
+    p = load_protocol(PROTOCOLS / "seed003_task1.yaml", check_renderers=False)
+    db = tmp_path / "old.db"
+    _enrol_before_issue_26(monkeypatch, p, db, 10)
+    s = run_session(p, "P1", db, _sim(p, "P1"), resume=True, allow_declared=True)
+    assert s.status == "completed" and s.answered == s.planned
+    run_session(p, "P2", db, _sim(p, "P2"), allow_declared=True)
+    with open_store(db) as st:
+        assert st.planned("P1")[0].kind == "practice"  # as stored
+        assert [t.kind for t in st.planned("P2")[:2]] == ["reference", "practice"]  # the GT first now

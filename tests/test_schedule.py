@@ -8,15 +8,18 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from studyapp.runner.protocol import load_protocol
+from studyapp.runner.protocol import load_protocol, protocol_from_data
 from studyapp.runner.schedule import (
+    BREAK_TEXT,
     _Stream,
     balanced_latin_square_row,
+    break_text,
     build_schedule,
     constrained_shuffle,
     counterbalance_index,
     schedule_bytes,
     schedule_hash,
+    scene_starts,
 )
 
 PROTOCOLS = Path(__file__).resolve().parents[1] / "protocols"
@@ -122,8 +125,9 @@ def test_2afc_no_pair_twice_in_a_row_and_catch_trials(afc):
 
 def test_task1_reference_first_per_scene_in_seed_order(task1):
     sched = build_schedule(task1, "P2", 0)
-    assert [t.kind for t in sched[:3]] == ["practice"] * 3
-    assert [t.conditions[0] for t in sched[:3]] == ["CC1", "CC4", "CC2"]  # best to worst
+    assert [t.kind for t in sched[:4]] == ["reference"] + ["practice"] * 3  # the practice scene's GT first
+    assert [t.conditions[0] for t in sched[1:4]] == ["CC1", "CC4", "CC2"]  # best to worst
+    sched = sched[4:]
     refs = [t for t in sched if t.kind == "reference"]
     assert [t.scene for t in refs] == list(task1.scenes)  # Study ... Sponza, in the seed's order
     for ref in refs:
@@ -151,6 +155,80 @@ def test_task2_interleaved_with_constraints_and_breaks(task2):
         pos[key] = i
     answered = [t for t in sched if t.kind != "reference"]
     assert [i for i, t in enumerate(answered) if t.break_before] == [20, 40]
+
+
+SHIPPED = sorted(PROTOCOLS.glob("seed*.yaml"))
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
+def test_breaks_fall_at_scene_changes_or_say_break_only(path):
+    p = load_protocol(path, check_renderers=False)
+    for pid in ("P1", "P2", "P3", "P4", "P5", "P6"):
+        sched = build_schedule(p, pid, 0)
+        starts = scene_starts(sched)
+        for t in sched:
+            if not t.break_before:
+                continue
+            text = break_text(p, sched, t.index)
+            assert "break" in text.lower()
+            if "scene" in text.lower():  # says a scene starts only where one does
+                assert t.index in starts and sched[t.index - 1].scene != t.scene
+            else:
+                assert text == BREAK_TEXT or p.trial_order == "interleaved"
+        if p.trial_order == "blocked" and p.breaks:
+            # seed001_2afc: blocks of 30 pairs (+ catch) and every: 31 -> a break at each scene change only
+            assert {t.index for t in sched if t.break_before} == starts and len(starts) == len(p.scenes) - 1
+            assert all("next scene starts" in break_text(p, sched, i) for i in starts)
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
+def test_schedules_whose_breaks_fell_right_are_unchanged(path):
+    """Interleaved designs and blocked designs without breaks keep the stored-schedule rule byte for byte,
+    unless the design has a labelled reference (then shown before the practice too)."""
+    p = load_protocol(path, check_renderers=False)
+    now, before = build_schedule(p, "P3", 1), build_schedule(p, "P3", 1, legacy=True)
+    same = schedule_bytes(now) == schedule_bytes(before)
+    assert same == ((p.trial_order == "interleaved" or not p.breaks) and not (p.reference and p.practice))
+
+
+@pytest.mark.parametrize("name", ["seed003_task1", "seed003_task1_live"])
+def test_yes_no_practice_of_is_this_the_ground_truth_shows_the_ground_truth_first(name):
+    p = load_protocol(PROTOCOLS / f"{name}.yaml", check_renderers=False)
+    assert "ground truth" in p.question and p.reference_label == "This is the ground truth"
+    sched = build_schedule(p, "P1", 0)
+    first = next(t.index for t in sched if t.kind == "practice")
+    assert first == 1 and sched[0].kind == "reference" and sched[0].conditions == (p.reference,)
+    assert sched[0].scene == p.practice["scene"] and not sched[0].break_before
+    old = build_schedule(p, "P1", 0, legacy=True)  # as stored before: the practice came first
+    assert old[0].kind == "practice" and schedule_bytes(sched[1:]) != schedule_bytes(old)
+    assert [(t.kind, t.scene, t.conditions) for t in sched[1:]] == [
+        (t.kind, t.scene, t.conditions) for t in old]
+
+
+def test_legacy_are_the_stored_rule(afc):
+    """The rule of schedules stored before scene-change breaks: every 31 answered trials, practice counted."""
+    sched = build_schedule(afc, "P1", 0, legacy=True)
+    assert [t.index for t in sched if t.break_before] == [31, 62, 93]
+    assert all(break_text(afc, sched, i) == BREAK_TEXT for i in (31, 62, 93))  # no scene starts there
+    assert sorted(scene_starts(sched)) == [34, 66]
+
+
+def test_breaks_every_n_within_a_long_block_say_break_only(afc):
+    data = {**afc.data, "breaks": {"every": 12, "seconds": 5, "text": "Rest. The next scene starts soon."}}
+    p = protocol_from_data(data, "every12", check_renderers=False)
+    sched = build_schedule(p, "P2", 3)
+    assert schedule_bytes(sched) == schedule_bytes(build_schedule(p, "P2", 3))  # reproducible
+    starts = scene_starts(sched)
+    inside = [t.index for t in sched if t.break_before and t.index not in starts]
+    assert {t.index for t in sched if t.break_before} >= starts
+    assert len(inside) == 2 * len(p.scenes)  # 30 design trials per block: after the 12th and the 24th
+    first_main = next(t.index for t in sched if t.kind != "practice")
+    for i in inside:
+        block = sched[max(s for s in starts | {first_main} if s <= i):i]
+        design = [t for t in block if t.kind == "trial"]
+        assert len(design) in (12, 24) and block[-1].kind == "trial"  # right after the 12th / 24th
+        assert break_text(p, sched, i) == BREAK_TEXT
+    assert all(break_text(p, sched, i) == "Rest. The next scene starts soon." for i in starts)
 
 
 def test_constrained_shuffle_reports_impossible_constraints():

@@ -62,6 +62,7 @@ class TrialDisplay:
     progress: tuple[int, int] | None = None  # (trial number, of how many), shown to the participant
     scene: str = ""  # scene the stimuli show (the simulated observer compares against this scene's GT)
     kind: str = "trial"  # "trial", "practice", "catch" or "reference" (shown, answered with any key)
+    key_reminder: str = "bottom"  # where the answer keys are recalled on the stimulus: "bottom", "top", "off"
 
 
 @dataclass
@@ -100,8 +101,41 @@ class Presenter(Protocol):
     def message(self, text: str, seconds: float) -> None:
         """Show a message (break, end of session) for ``seconds``."""
 
+    def rest(self, text: str, seconds: float) -> None:
+        """A break: ``text`` with the seconds left counting down, then wait for the continue key."""
+
     def close(self) -> None:
         """Close the window."""
+
+
+KEY_REMINDER_PLACES = ("bottom", "top", "off")
+
+
+def key_text(key: str) -> str:
+    """A key name as the participant reads it: ``y`` -> ``Y``, ``left`` -> ``Left``, ``space`` -> ``SPACE``.
+    """
+    return key.upper() if len(key) == 1 or key == "space" else key.capitalize()
+
+
+def key_reminder_text(trial: TrialDisplay) -> str:
+    """The one-line reminder of a trial's keys, e.g. ``"1: A   2: B   Left / Right: switch"`` (answers by
+    their meaning: a preference pick by the stimulus label, ``""`` as "done"); empty for a trial without
+    keys."""
+    from data_schema import families
+
+    labels = families.get(trial.family).labels(len(trial.stimuli))
+
+    def meaning(answer: str) -> str:
+        if answer == "":
+            return "done"
+        if answer.isdigit() and families.get(trial.family).has_picks and int(answer) < len(labels):
+            return labels[int(answer)]
+        return answer
+
+    parts = [f"{key_text(k)}: {meaning(a)}" for k, a in trial.answer_keys.items()]
+    if trial.switch_keys:
+        parts.append(" / ".join(key_text(k) for k in trial.switch_keys) + ": switch")
+    return "   ".join(parts)
 
 
 def stimulus_paths(stimuli: Sequence[Stimulus]) -> list[Path]:

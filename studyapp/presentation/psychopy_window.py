@@ -18,7 +18,11 @@ What a trial looks like (:meth:`PsychoPyPresenter.present`)
    stays up until answered); in ``2afc``/``preference`` trials sequences loop and the participant switches
    among the stimuli with ``trial.switch_keys`` (a switch restarts the sequence) before committing.
 3. **Fixation mark** at ``trial.fixation_px`` (stimulus pixel coordinates: x right, y down, origin at the
-   image's top-left corner, as the foveation mappings use), drawn over every stimulus frame.
+   image's top-left corner, as the foveation mappings use), drawn over every stimulus frame, with the
+   overlays: the reference's label (top centre, for the whole reference), "practice" (top right) on a
+   practice trial and the key reminder (``trial.key_reminder``: a line at the bottom or top on a dark band,
+   or none). A practice trial says "practice" where the others show their number ("3 / 96", practice and
+   references not counted).
 4. **Answers**: ``trial.answer_keys`` maps key names (psychtoolbox names: ``left``, ``a``, ``1``,
    ``space``...) to the recorded answer. ``preference`` trials collect ``trial.n_picks`` distinct picks; a key
    whose answer is ``""`` ends the picking early ("only one"). ``rt_s`` runs from the onset flip of the first
@@ -51,9 +55,10 @@ from data_schema.errors import UserError
 from data_schema.geometry import Display
 
 from ._texture import TextureRef
-from .base import PresentationError, TrialDisplay, TrialResult
+from .base import PresentationError, TrialDisplay, TrialResult, key_reminder_text, key_text
 
 ESCAPE = "escape"
+CONTINUE_KEY = "space"  # ends a break once its countdown is over
 RESUME_KEY, END_KEY = "r", "e"
 EventHook = Callable[[str, dict], None]
 
@@ -507,6 +512,17 @@ class PsychoPyPresenter:
             anchorVert="top",
             pos=(-ww / 2 + 8, wh / 2 - 8),
         )
+        # Overlays over the stimulus: the reference's label (top centre), "practice" (top right) and the key
+        # reminder on a dark band (bottom or top), readable over any stimulus.
+        self._label = visual.TextStim(win, text="", height=h, color=(1, 1, 1), units="pix", anchorVert="top",
+                                      pos=(0, wh / 2 - 8), wrapWidth=ww * 0.6)
+        self._tag = visual.TextStim(win, text="practice", height=h, color=(1, 0.8, 0.2), units="pix",
+                                    anchorHoriz="right", alignText="right", anchorVert="top",
+                                    pos=(ww / 2 - 8, wh / 2 - 8))
+        self._reminder = visual.TextStim(win, text="", height=h, color=(0.8, 0.8, 0.8), units="pix",
+                                         wrapWidth=ww * 0.95)
+        self._reminder_band = visual.Rect(win, width=ww, height=round(h * 1.6), units="pix",
+                                          fillColor=(-1, -1, -1), lineColor=None, lineWidth=0, opacity=0.7)
         self._fix = []
         if self.fixation_rgb is not None:
             arm, line = self.fixation_size_px, self.fixation_line_px
@@ -731,17 +747,19 @@ class PsychoPyPresenter:
             self._dim.pos = (0, -wh / 2 + 0.5 * self._dim.boundingBox[1] + 4)
             self._dim.draw()
 
-    def _draw_question_in_margin(self, question: str, placement: Placement) -> None:
-        """Draw ``question`` centred in the margin below the stimulus if that margin is at least 2 lines high
-        (never over the stimulus; the question also shows in the black interval before each trial and after a
-        sequence)."""
-        margin = placement.win_h - (placement.top + placement.size[1])
+    def _draw_question_in_margin(self, question: str, placement: Placement, below: float = 0.0) -> None:
+        """Draw ``question`` centred in the margin below the stimulus, above ``below`` pixels at the bottom
+        of the window (the key reminder's band), if that margin is at least 2 lines high (never over the
+        stimulus; the question also shows in the black interval before each trial and after a sequence)."""
+        margin = placement.win_h - (placement.top + placement.size[1]) - below
         if question and margin >= 2 * self._text_h:
             self._fit_text(self._question, question, margin)
-            self._question.pos = (0, -placement.win_h / 2.0 + margin / 2.0)
+            self._question.pos = (0, -placement.win_h / 2.0 + below + margin / 2.0)
             self._question.draw()
 
     def _progress_text(self, trial: TrialDisplay) -> str:
+        if trial.kind == "practice":
+            return "practice"
         if trial.progress is None:
             return ""
         k, n = trial.progress
@@ -754,14 +772,16 @@ class PsychoPyPresenter:
         self.win.movieFrames.clear()
         return np.asarray(im.convert("RGB"))
 
-    def _save_shot(self, trial: TrialDisplay, stim: int | str) -> None:
+    def _save_shot(self, trial: TrialDisplay | None, stim: int | str) -> None:
+        """Save the back buffer as ``trialNNNN_WHAT_K.png`` (``breakNNNN_WHAT_K.png`` without a trial)."""
         from PIL import Image
 
         from data_schema.atomic import atomic_path
 
         self.screenshot_dir.mkdir(parents=True, exist_ok=True)
         what = stim if isinstance(stim, str) else f"stim{stim}"
-        path = self.screenshot_dir / f"trial{trial.index:04d}_{what}_{self._n_shots}.png"
+        who = "break" if trial is None else f"trial{trial.index:04d}"
+        path = self.screenshot_dir / f"{who}_{what}_{self._n_shots}.png"
         self._n_shots += 1
         with atomic_path(path) as tmp:
             Image.fromarray(self.screenshot()).save(tmp, format="PNG")
@@ -932,7 +952,9 @@ class PsychoPyPresenter:
         seq, placement = loaded.frames[current], loaded.placements[current]
         seq[sequence_frame(elapsed_s, trial.stimuli[current].fps, len(seq), families.get(trial.family).loops)].draw()
         self._draw_overlay(trial, state, placement)
-        self._draw_question_in_margin(trial.question, placement)
+        bottom_band = trial.key_reminder == "bottom" and key_reminder_text(trial)
+        band = float(self._reminder_band.height) if bottom_band else 0.0
+        self._draw_question_in_margin(trial.question, placement, band)
 
     def _draw_overlay(self, trial: TrialDisplay, state: AnswerState, placement: Placement | None) -> None:
         """The fixation mark (at ``trial.fixation_px`` of the stimulus image) and the stimulus label with the
@@ -946,11 +968,30 @@ class PsychoPyPresenter:
             for r in self._fix:
                 r.pos = (fx, fy)
                 r.draw()
+        self._draw_reminder(trial)  # first: a top band must not cover the corner label or the practice tag
         labels = _stim_labels(trial)
         if self.show_labels and len(labels) > 1:
             picked = ("  picked: " + ", ".join(labels[int(p)] for p in state.picks)) if state.picks else ""
             _set_text(self._corner, labels[state.current] + picked)
             self._corner.draw()
+        if trial.kind == "practice":
+            self._tag.draw()
+
+    def _draw_reminder(self, trial: TrialDisplay) -> None:
+        """The key reminder band (``trial.key_reminder``) and, below a top band, the reference's label."""
+        wh = int(self.win.size[1])
+        text = key_reminder_text(trial) if trial.key_reminder != "off" else ""
+        band_h = float(self._reminder_band.height)
+        if text:
+            _set_text(self._reminder, text)
+            y = -wh / 2 + band_h / 2 if trial.key_reminder == "bottom" else wh / 2 - band_h / 2
+            self._reminder_band.pos = self._reminder.pos = (0, y)
+            self._reminder_band.draw()
+            self._reminder.draw()
+        if trial.label:
+            _set_text(self._label, trial.label)
+            self._label.pos = (0, wh / 2 - 8 - (band_h if text and trial.key_reminder == "top" else 0))
+            self._label.draw()
 
     def _exposure(self, scene: str) -> float:
         from renderers.catalog import resolve
@@ -1150,6 +1191,31 @@ class PsychoPyPresenter:
         key = self._wait_keys([RESUME_KEY, END_KEY])
         self._black_since = None
         return "resume" if key == RESUME_KEY else "end"
+
+    def rest(self, text: str, seconds: float) -> None:
+        """A break: ``text`` with the seconds left (updated once a second) for ``seconds``, then "press SPACE
+        to continue" until it is pressed (keys pressed during the countdown do not end it)."""
+        self._require_open()
+        if not (math.isfinite(seconds) and seconds >= 0):
+            raise UserError(f"seconds={seconds!r} is out of range: must be >= 0")
+        end = self._now() + seconds
+        shown = None
+        while (left := math.ceil(end - self._now())) > 0:
+            if left != shown:
+                self._draw_text(f"{text}\n\n{left} s")
+                if self.screenshot_dir is not None:
+                    self._save_shot(None, f"{left}s")
+                self.win.flip()
+                self._emit("rest", text=text, left_s=left)
+                shown = left
+            self._core.wait(min(0.05, max(0.0, end - self._now())), hogCPUperiod=0)
+        self._draw_text(f"{text}\n\npress {key_text(CONTINUE_KEY)} to continue")
+        if self.screenshot_dir is not None:
+            self._save_shot(None, "continue")
+        self.win.flip()
+        self._emit("rest", text=text, left_s=0)
+        self._wait_keys([CONTINUE_KEY])  # (clears the keys pressed during the countdown first)
+        self._black_since = None
 
     def message(self, text: str, seconds: float) -> None:
         """Show ``text`` for ``seconds`` (breaks, end of session)."""

@@ -150,6 +150,9 @@ class SimulatedObserver:
     def message(self, text: str, seconds: float) -> None:
         self._clock += float(seconds)
 
+    def rest(self, text: str, seconds: float) -> None:
+        self._clock += float(seconds)
+
     def close(self) -> None:
         pass
 

@@ -114,6 +114,7 @@ class Protocol:
     explore: dict = field(default_factory=dict)
     eyetracker: dict | None = None
     full: bool = False  # the full-size variant (the protocol's full block in place)
+    key_reminder: str = "bottom"  # presentation.key_reminder: where trials recall their keys (bottom|top|off)
 
     @property
     def live(self) -> bool:
@@ -663,7 +664,8 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
         practice=practice, breaks=data.get("breaks"), catch=catch, simulation=simulation, analysis=analysis,
         stimuli_dir=sdir, content_hash=content_hash(data), motion=stim.get("motion", "path"),
         gaze_source=stim.get("gaze", "fixation"), min_fps=stim.get("min_fps"), explore=dict(stim.get("explore", {})),
-        eyetracker=data.get("eyetracker"), full=full)
+        eyetracker=data.get("eyetracker"), full=full,
+        key_reminder=data.get("presentation", {}).get("key_reminder", "bottom"))
     if kind == "live" and check_renderers and _registry() is not None:  # the poses need the scenes' cameras
         _check_live_poses(doc, protocol)
     return protocol

@@ -6,12 +6,16 @@ Python's generators, whose streams may change between releases.
 
 What a schedule holds, in order:
 
-1. practice trials (``practice``), stimuli spanning the quality range as listed in the protocol;
+1. practice trials (``practice``), stimuli spanning the quality range as listed in the protocol, after the
+   labelled reference of the practice scene where the design has references (the practice question, "is this
+   the ground truth?", is then asked only once the ground truth was shown);
 2. per scene block (``trial_order: blocked``; scene order fixed, random or a balanced Latin square across
    participants), an optional labelled reference (``reference``, not answered) and the block's trials in a
    constrained shuffle; or all trials in one constrained shuffle (``interleaved``);
 3. catch trials (``catch``) with a known answer, spread over the main trials;
-4. ``break_before`` flags every ``breaks.every`` answered trials.
+4. ``break_before`` flags (:func:`place_breaks`): in a blocked design at each scene change (before the new
+   scene's reference or first trial) and after every ``breaks.every`` design trials within a block; in an
+   interleaved design every ``breaks.every`` answered trials.
 
 Counterbalancing index
 ----------------------
@@ -188,12 +192,16 @@ def _main_items(protocol: Protocol, scene: str, scene_idx: int, cb: int, stream:
         flip_seed=cb + scene_idx, stream=stream)
 
 
-def _practice(protocol: Protocol) -> list[dict]:
+def _practice(protocol: Protocol, legacy: bool = False) -> list[dict]:
+    """The practice trials, after the practice scene's labelled reference if the design has references
+    (not in ``legacy`` schedules, stored before that reference was added)."""
     p = protocol.practice
     if not p:
         return []
     groups = families.get(protocol.family).practice_groups(list(p["conditions"]))
-    return [{"kind": "practice", "scene": p["scene"], "conditions": g} for g in groups]
+    ref = [{"kind": "reference", "scene": p["scene"], "conditions": (protocol.reference,)}] \
+        if protocol.reference and not legacy else []
+    return ref + [{"kind": "practice", "scene": p["scene"], "conditions": g} for g in groups]
 
 
 def _insert_catch(protocol: Protocol, main: list[dict], stream: _Stream) -> list[dict]:
@@ -222,7 +230,80 @@ def _insert_catch(protocol: Protocol, main: list[dict], stream: _Stream) -> list
     return out
 
 
-def build_schedule(protocol: Protocol, participant: str, seed: int) -> list[PlannedTrial]:
+def scene_starts(trials: list) -> set[int]:
+    """Positions in ``trials`` (objects with ``kind`` and ``scene``) where a new scene block starts: the first
+    trial after the practice (and its reference) of each scene after the first scene. A catch trial that
+    repeats an earlier scene's pair further on starts nothing (its scene has been seen)."""
+    practice_end = max((i + 1 for i, t in enumerate(trials) if t.kind == "practice"), default=0)
+    seen: set[str] = set()
+    out: set[int] = set()
+    for i, t in enumerate(trials):
+        if i < practice_end or t.scene in seen:
+            continue
+        if seen:
+            out.add(i)
+        seen.add(t.scene)
+    return out
+
+
+def place_breaks(protocol: Protocol, trials: list, legacy: bool = False) -> list[bool]:
+    """``break_before`` of each of ``trials`` (in presentation order).
+
+    Blocked design: a break before each scene change (:func:`scene_starts`), and within a scene block after
+    every ``breaks.every`` of the block's design trials (catch trials and the reference not counted, so a
+    block of 30 pairs with ``every: 31`` has no break inside it). Interleaved design, or ``legacy`` (the rule
+    of schedules stored before scene-change breaks, kept so that their participants can resume): a break
+    before every ``breaks.every``-th answered trial, practice included. No ``breaks``: none.
+    """
+    if not protocol.breaks:
+        return [False] * len(trials)
+    every = protocol.breaks.get("every", 0)
+    out: list[bool] = []
+    if legacy or protocol.trial_order != "blocked":
+        answered = 0
+        for t in trials:
+            brk = False
+            if t.kind != "reference":
+                brk = bool(every) and answered > 0 and answered % every == 0
+                answered += 1
+            out.append(brk)
+        return out
+    starts = scene_starts(trials)
+    in_block, pending = 0, False
+    for i, t in enumerate(trials):
+        if i in starts:
+            out.append(True)
+            in_block, pending = 0, False
+        elif pending and t.kind != "reference":
+            out.append(True)
+            pending = False
+        else:
+            out.append(False)
+        if t.kind == "trial":
+            in_block += 1
+            pending = bool(every) and in_block % every == 0
+    return out
+
+
+BREAK_TEXT = "Take a short break."
+SCENE_BREAK_TEXT = "Take a short break. The next scene starts after it."
+
+
+def break_text(protocol: Protocol, trials: list, i: int) -> str:
+    """What the break before ``trials[i]`` says: the protocol's ``breaks.text`` (default: that it is a break,
+    and that the next scene starts after it where one does) where a scene starts or in an interleaved design;
+    inside a scene block (or at a break of a schedule stored before scene-change breaks) only that it is a
+    break, whatever the protocol's text says of scenes."""
+    text = (protocol.breaks or {}).get("text")
+    if protocol.trial_order != "blocked":
+        return text or BREAK_TEXT
+    if i in scene_starts(trials):
+        return text or SCENE_BREAK_TEXT
+    return BREAK_TEXT
+
+
+def build_schedule(protocol: Protocol, participant: str, seed: int, legacy: bool = False
+                   ) -> list[PlannedTrial]:
     """The participant's whole schedule (practice, references, trials, catch trials, breaks).
 
     Parameters
@@ -232,6 +313,9 @@ def build_schedule(protocol: Protocol, participant: str, seed: int) -> list[Plan
         Pseudonymous participant id; gives the counterbalancing index (see module docstring).
     seed : int
         Study seed (>= 0).
+    legacy : bool
+        The rules of schedules stored before scene-change breaks (:func:`place_breaks`) and the practice
+        scene's reference (:func:`_practice`): how a participant enrolled then is recognised on ``--resume``.
 
     Returns
     -------
@@ -271,24 +355,20 @@ def build_schedule(protocol: Protocol, participant: str, seed: int) -> list[Plan
                 merged.append({"kind": "reference", "scene": t["scene"], "conditions": (protocol.reference,)})
             merged.append(t)
         with_catch = merged
-    sequence = _practice(protocol) + refs + with_catch
-    # Indices, breaks and the repeat-catch answers.
-    every = (protocol.breaks or {}).get("every", 0)
-    out, index_of, answered_count = [], {}, 0
+    sequence = _practice(protocol, legacy) + refs + with_catch
+    # Indices, the repeat-catch answers, then the breaks.
+    out, index_of = [], {}
     for i, t in enumerate(sequence):
         index_of[id(t)] = i
     for i, t in enumerate(sequence):
-        kind = t.get("kind", "trial")
         expected = t.get("expected", "")
         if isinstance(expected, dict):
             expected = f"same:{index_of[id(expected)]}"
-        brk = False
-        if kind != "reference":
-            brk = bool(every) and answered_count > 0 and answered_count % every == 0
-            answered_count += 1
-        out.append(PlannedTrial(index=i, kind=kind, family=protocol.family, scene=t["scene"], block=protocol.block,
-                                conditions=tuple(t["conditions"]), expected=expected, break_before=brk,
-                                item=t.get("item", "")))
+        out.append(PlannedTrial(index=i, kind=t.get("kind", "trial"), family=protocol.family,
+                                scene=t["scene"], block=protocol.block, conditions=tuple(t["conditions"]),
+                                expected=expected, item=t.get("item", "")))
+    for t, brk in zip(out, place_breaks(protocol, out, legacy)):
+        t.break_before = brk
     return out
 
 

@@ -36,7 +36,7 @@ from studyapp.presentation.base import Stimulus, TrialDisplay, TrialResult
 
 from .live import scene_record
 from .protocol import Protocol
-from .schedule import PlannedTrial, build_schedule, counterbalance_index, schedule_hash
+from .schedule import PlannedTrial, break_text, build_schedule, counterbalance_index, schedule_hash
 from .stimuli import frame_paths, missing_line, missing_stimuli, prepare_command, split_missing, stimulus_root
 
 
@@ -102,7 +102,13 @@ def trial_display(protocol: Protocol, t: PlannedTrial | PlannedRow, stimuli: Sti
         duration_s=protocol.duration_s if protocol.stimulus_kind in ("sequence", "live") else None,
         black_before_s=protocol.black_s, label=protocol.reference_label if ref else "",
         n_picks=protocol.n_picks if families.get(protocol.family).has_picks else 1,
-        progress=None if ref else (number, total), scene=t.scene, kind=kind)
+        progress=(number, total) if counted(t) else None, scene=t.scene, kind=kind,
+        key_reminder=protocol.key_reminder)
+
+
+def counted(t: PlannedTrial | PlannedRow) -> bool:
+    """Whether ``t`` counts in the participant's progress ("3 / 96"): not practice, not a reference."""
+    return t.kind not in ("reference", "practice")
 
 
 def interpret(protocol: Protocol, t: PlannedRow, result: TrialResult) -> dict:
@@ -180,6 +186,12 @@ def admit(store: Store, protocol: Protocol, pid: str, seed: int | None, resume: 
     seed = 0 if seed is None else seed
     schedule = build_schedule(protocol, pid, seed)
     s_hash = schedule_hash(schedule)
+    if existing and existing["schedule_hash"] != s_hash:
+        # A participant enrolled before breaks fell at scene changes (and before the practice reference) resumes
+        # with the schedule stored then.
+        legacy = build_schedule(protocol, pid, seed, legacy=True)
+        if existing["schedule_hash"] == schedule_hash(legacy):
+            schedule, s_hash = legacy, existing["schedule_hash"]
     if existing and existing["schedule_hash"] != s_hash:
         raise StoreError(f"{store.path}: the schedule of participant {pid!r} differs from the stored one "
                          "(protocol or scheduler changed): cannot resume")
@@ -297,7 +309,10 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
     planned = store.planned(pid)
     answered = store.answered(pid)
     total = sum(t.kind != "reference" for t in planned)
+    # the experimenter's count (progress callback), then the participant's (practice not counted)
     number = sum(1 for t in planned if t.kind != "reference" and t.idx in answered)
+    shown_total = sum(counted(t) for t in planned)
+    shown = sum(1 for t in planned if counted(t) and t.idx in answered)
     gaze = protocol.render_geometry(scale).gaze if protocol.fixation_mark else None
     text = protocol.instructions or protocol.question
     presenter.instructions(("Welcome back. " if resume else "") + text)
@@ -306,11 +321,10 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
     displays = {}
 
     def display_of(t, done=None):
-        """The trial's display; ``done`` = non-reference trials answered before it (default: so far)."""
+        """The trial's display; ``done`` = counted trials answered before it (default: so far)."""
         if t.idx not in displays:
-            done = number if done is None else done
-            n = done + 1 if t.kind != "reference" else done
-            displays[t.idx] = trial_display(protocol, t, stimuli, n, total, gaze)
+            done = shown if done is None else done
+            displays[t.idx] = trial_display(protocol, t, stimuli, done + counted(t), shown_total, gaze)
         return displays[t.idx]
 
     if todo:
@@ -320,12 +334,12 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
             br = protocol.breaks
             store.event(sid, "break", f"before trial {t.idx}")
             store.checkpoint()
-            presenter.message(br.get("text", "Take a short break."), float(br.get("seconds", 30.0)))
+            presenter.rest(break_text(protocol, planned, t.idx), float(br.get("seconds", 30.0)))
         first = False
         d = display_of(t)
         prefetch = getattr(presenter, "prefetch", None)  # optional: decode the next trial during this one
         if prefetch is not None and k + 1 < len(todo):
-            prefetch(display_of(todo[k + 1], number + (t.kind != "reference")))
+            prefetch(display_of(todo[k + 1], shown + counted(t)))
         while True:
             result = presenter.present(d)
             if not result.escaped:
@@ -344,6 +358,7 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
                               correct=_correct(store, pid, t, result.answers, derived), frames=result.frames)
         if t.kind != "reference":
             number += 1
+        shown += counted(t)
         displays.pop(t.idx, None)
         if progress:
             progress(number, total)

@@ -72,6 +72,8 @@ def needed_stimuli(protocol: Protocol) -> list[Needed]:
     if protocol.practice:
         for cond in protocol.practice["conditions"]:
             add(cond, protocol.practice["scene"])
+        if protocol.reference:  # shown before the practice (runner.schedule._practice)
+            add(protocol.reference, protocol.practice["scene"])
     if protocol.ground_truth:  # what the simulated observer compares against
         for scene in protocol.scenes + ((protocol.practice["scene"],) if protocol.practice else ()):
             add(protocol.ground_truth, scene)

@@ -2,7 +2,8 @@
 
 Spec: ``{"display": {...Display}, "presenter": {...kwargs}, "steps": [...], "result": path}``; a step
 is ``{"instructions": text}``, ``{"trial": {...TrialDisplay}}`` (stimuli as ``{"condition", "frames",
-"fps"}``), ``{"preload": {...}}``, ``{"prefetch": {...}}`` or ``{"message": text, "seconds": s}``. A trial
+"fps"}``), ``{"preload": {...}}``, ``{"prefetch": {...}}``, ``{"message": text, "seconds": s}`` or ``{"rest":
+text, "seconds": s}`` (a break). A trial
 that comes back escaped is followed by ``pause()`` and, on "resume", shown again. Every presenter event is
 printed as ``EVENT {json}`` (flushed), so the test knows when to press keys; the results are written as JSON
 to ``result``.
@@ -55,6 +56,8 @@ def main(spec_path: str) -> int:
                 pres.instructions(step["instructions"])
             elif "message" in step:
                 pres.message(step["message"], step["seconds"])
+            elif "rest" in step:
+                pres.rest(step["rest"], step["seconds"])
             elif "preload" in step:
                 pres.preload(make_trial(step["preload"]))
             elif "prefetch" in step:
