@@ -67,10 +67,10 @@ def test_a_stereo_display_shows_binocular_renderers_side_by_side_and_the_named_e
 
 @pytest.mark.parametrize("replace,expected", [
     ((("renderer: gt, quality", "renderer: gt, params: {eye: right}, quality"),),
-     "pilot.yaml:32: conditions.GT.params.eye: eye: right means nothing for a one-view renderer (stereo: mono): "
+     "pilot.yaml:33: conditions.GT.params.eye: eye: right means nothing for a one-view renderer (stereo: mono): "
      "remove it, or render both eyes (stereo: dup or rep)"),
     ((("stereo: rep}", "stereo: rep, eye: right}"), ("refresh_hz: 60}", "refresh_hz: 60, stereo: true}")),
-     "pilot.yaml:28: conditions.VaFR_Rep.params.eye: the display is stereo (display.stereo: true) and shows both "
+     "pilot.yaml:29: conditions.VaFR_Rep.params.eye: the display is stereo (display.stereo: true) and shows both "
      "eyes side by side: remove eye, or set display.stereo: false to show this one eye"),
     ((("stereo: rep}", "stereo: rep, eye: centre}"),), "conditions.VaFR_Rep.params.eye"),
     ((("refresh_hz: 60}", "refresh_hz: 60, stereo: 1}"),), "display.stereo"),
