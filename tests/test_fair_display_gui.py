@@ -7,6 +7,7 @@ The placement without a window is tested in tests/test_fair_display.py."""
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -24,7 +25,7 @@ PROTOCOLS = sorted((Path(__file__).resolve().parents[1] / "studyapp" / "protocol
 WIN = (384, 216)  # the protocols' 1920x1080 display, a fifth a side
 SCALE = 0.05  # 96 x 54 renders, upscaled 4x
 SCENE = "interior"  # a scene of every shipped live protocol that fills the view (no black background)
-BACKEND = "cpu"
+BACKEND = os.environ.get("STUDYAPP_LIVE_TEST_BACKEND", "gpu")  # the protocols' live backend; cpu also works
 
 
 @pytest.fixture(autouse=True)
