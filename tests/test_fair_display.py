@@ -137,3 +137,38 @@ def test_the_live_window_shows_the_named_eye_over_the_window_and_times_both(monk
         seconds, _ = trial._render(0, 0.0, (240.0, 45.0), set(), (0.0, 0.0))
         assert seen == {"size": (32, 18), "gaze": (24.0, 4.5), "eye": eye}  # the full-window view's mapping
         assert shown == [value] and seconds == 0.125
+
+
+STILL = """
+schema_version: 1
+name: still_pair
+version: "1"
+family: preference
+question: "Which ones?"
+display: {width_px: 64, height_px: 36, width_cm: 53.0, distance_cm: 40.95, fov_y_deg: 40}
+scenes: [cornell]
+conditions:
+  GT: {renderer: gt}
+  DUP: {renderer: lafr, params: {delta: 2.0, stereo: dup}}
+  DUP_L: {renderer: lafr, params: {delta: 2.0, stereo: dup, eye: left}}
+  DUP_R: {renderer: lafr, params: {delta: 2.0, stereo: dup, eye: right}}
+design: {repetitions: 1}
+simulation: {ground_truth: GT}
+analysis: {dv: votes, unit: participant, test: summary_table}
+"""
+
+
+def test_prepare_writes_one_eye_of_a_binocular_renderer_at_the_display_size(tmp_path):
+    """A prepared stimulus is one view, like a monoscopic display's live one: the named eye, not a pair."""
+    from PIL import Image
+
+    from studyapp.commands.study import main as study_main
+    from studyapp.runner.stimuli import frame_paths
+
+    f = tmp_path / "still.yaml"
+    f.write_text(STILL)
+    assert study_main(["prepare", str(f), "--cache", str(tmp_path / "cache"), "--serial"]) == 0
+    p = load_protocol(f)
+    img = {c: np.asarray(Image.open(frame_paths(p, c, "cornell")[0]).convert("RGB")) for c in p.conditions}
+    assert {a.shape[:2] for a in img.values()} == {(36, 64)}
+    assert np.array_equal(img["DUP"], img["DUP_L"]) and not np.array_equal(img["DUP_L"], img["DUP_R"])
