@@ -51,7 +51,8 @@ name: bench_live
 version: "1"
 family: yes_no
 question: "Y"
-display: {{width_px: {w}, height_px: {h}, width_cm: {width_cm}, distance_cm: 45.0, refresh_hz: {refresh}}}
+display: {{width_px: {w}, height_px: {h}, width_cm: {width_cm}, distance_cm: 45.0, refresh_hz: {refresh},
+  stereo: {stereo}}}
 fixation: {{x: 0.5, y: 0.5, mark: false}}
 scenes: [{scenes}]
 conditions:
@@ -144,7 +145,7 @@ def summarise(db: Path) -> tuple[list[dict], dict]:
 def table(rows: list[dict], facts: dict, window: tuple[int, int], seconds: float, backend: str,
           binocular: bool) -> list[str]:
     gl = (facts.get("gpu") or {}).get("gl_renderer") or facts.get("gl_renderer", "?")
-    out = [f"Window {window[0]}x{window[1]} ({'every method binocular, both eyes side by side' if binocular else 'one view; VaFR dup/rep: both eyes side by side'}), "
+    out = [f"Window {window[0]}x{window[1]} ({'every method binocular, both eyes side by side' if binocular else 'one view; VaFR dup/rep: both eyes rendered, the left one shown'}), "
            f"{backend} backend on {gl}; {seconds:g}-s trials, `motion: path`, the mouse as the gaze jumping every "
            f"250 ms. {os.cpu_count()} cores. Frames: new frames rendered in the trial; fps: new frames per second; "
            "dropped flips: flips PsychoPy counted as late (a render outlasted the refresh interval); latency: "
@@ -188,6 +189,7 @@ def main(argv=None) -> int:
     conditions = "\n".join(f"  {m}: {condition(m, args.binocular or args.seed_size, args.backend)}" for m in methods)
     protocol = PROTOCOL.format(w=window[0], h=window[1], width_cm=round(53.0 * window[0] / 1920, 2),
                                refresh=args.refresh, scenes=args.scenes, conditions=conditions,
+                               stereo=str(bool(args.binocular or args.seed_size)).lower(),
                                seconds=args.seconds)
     n_trials = len(methods) * len(args.scenes.split(","))
     with tempfile.TemporaryDirectory(prefix="bench_live_") as tmp:

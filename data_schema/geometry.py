@@ -162,7 +162,9 @@ class ViewingGeometry:
 @dataclass(frozen=True)
 class Display:
     """The participant's physical display: ``width_px`` x ``height_px`` pixels, ``width_cm`` wide, seen from
-    ``distance_cm``; the window covers it (``fullscreen``, or a window of its size on ``screen``).
+    ``distance_cm``; the window covers it (``fullscreen``, or a window of its size on ``screen``). ``stereo``:
+    the display shows a binocular condition's two eyes side by side (a stereoscope, a side-by-side 3D mode); a
+    monoscopic display (the default) shows one eye of it over the whole window, as it shows any condition.
 
     The vertical visual angle it subtends, ``fov_y_deg = 2 atan(height_cm / 2 / distance_cm)`` with
     ``height_cm = width_cm * height_px / width_px`` (square pixels), is the angle every stimulus of the study
@@ -176,6 +178,7 @@ class Display:
     refresh_hz: float = 60.0
     fullscreen: bool = False
     screen: int = 0
+    stereo: bool = False
 
     def __post_init__(self):
         # The ranges of the protocol schema's display block, for displays made in code too.
@@ -184,8 +187,9 @@ class Display:
                           ("distance_cm", Range(0.0, 10000.0, low_open=True)), ("refresh_hz", Range(20.0, 1000.0)),
                           ("screen", Range(0, 16, integer=True))):
             object.__setattr__(self, name, rng.check(f"display.{name}", getattr(self, name)))
-        if not isinstance(self.fullscreen, bool):
-            raise UserError(f"display.fullscreen={self.fullscreen!r} is invalid: must be true or false")
+        for name in ("fullscreen", "stereo"):
+            if not isinstance(getattr(self, name), bool):
+                raise UserError(f"display.{name}={getattr(self, name)!r} is invalid: must be true or false")
 
     @property
     def height_cm(self) -> float:
@@ -208,8 +212,9 @@ class Display:
 @dataclass(frozen=True)
 class EyeView:
     """Where one eye's image goes: its viewport in the window (pixels from the top-left) and the size it is
-    rendered at. The one place that knows the per-eye projection of a binocular condition (a desktop window
-    shows the eyes side by side; an HMD presenter would map each to its own display)."""
+    rendered at. The one place that knows the per-eye projection of a condition (:func:`eye_views`: a stereo
+    display shows a binocular condition's eyes side by side, a monoscopic one shows one eye over the window; an
+    HMD presenter would map each eye to its own display)."""
 
     eye: str  # "mono", "left" or "right"
     x0: int
@@ -226,12 +231,25 @@ class EyeView:
         return (min(max(u, 0.0), float(self.render_width)), min(max(v, 0.0), float(self.render_height)))
 
 
-def eye_views(window: tuple[int, int], render: tuple[int, int], eyes: int) -> list[EyeView]:
-    """The views of a mono (``eyes=1``) or binocular (``eyes=2``: left and right halves, each eye rendered at
-    half the width with the same vertical visual angle) stimulus covering a ``window``."""
+EYES = ("left", "right")
+
+
+def eye_views(window: tuple[int, int], render: tuple[int, int], eyes: int, stereo: bool = False,
+              eye: str = "left") -> list[EyeView]:
+    """The views of a stimulus covering a ``window``, rendered at ``render`` pixels.
+
+    A one-view condition (``eyes=1``) covers the window. A binocular one (``eyes=2``: both eyes are rendered
+    and timed) covers it the same way on a monoscopic display (``stereo=False``): the one eye ``eye`` at the
+    full render size, so that every condition fills the same area at the same size and none is told apart by
+    its layout; on a stereo display (``stereo=True``) the left and right eyes take the left and right halves,
+    each rendered at half the width with the same vertical visual angle."""
     (ww, wh), (rw, rh) = window, render
+    if eye not in EYES:
+        raise UserError(f"eye={eye!r} is invalid: allowed {', '.join(EYES)}")
     if eyes == 1:
         return [EyeView("mono", 0, 0, ww, wh, rw, rh)]
+    if not stereo:
+        return [EyeView(eye, 0, 0, ww, wh, rw, rh)]
     half = ww // 2
     rw2 = max(16, rw // 2)
     return [EyeView("left", 0, 0, half, wh, rw2, rh), EyeView("right", half, 0, ww - half, wh, rw2, rh)]

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from crafted_db import BOX, craft, live_db, live_protocol
+from crafted_db import BOX, craft, live_db, live_protocol, live_text
 from studyapp.cli import main
 
 
@@ -114,7 +114,7 @@ def test_a_session_that_recorded_no_scene_hashes(tmp_path, capsys, mesh_file):
 def test_eye_at_picks_the_viewport_that_holds_the_point():
     from data_schema.geometry import eye_at, eye_views
 
-    views = eye_views((320, 180), (32, 18), 2)
+    views = eye_views((320, 180), (32, 18), 2, stereo=True)  # a stereo display: the eyes side by side
     assert eye_at(views, 40, 90).eye == "left" and eye_at(views, 240, 90).eye == "right"
     assert eye_at(views, 240, 90).to_render(240, 90) == (8.0, 9.0)  # the centre of the right half's left half
     assert views[0].to_render(240, 90) == (16.0, 9.0)  # through the left eye: clamped to its edge (the bug)
@@ -136,14 +136,15 @@ def test_the_live_window_foveates_both_eyes_at_the_gaze_in_the_eye_it_falls_on(m
 
     def fake_render(scene, renderer, params, w, h, gaze=None, camera=None, backend=None):
         seen.update(size=(w, h), gaze=gaze)
-        return np.zeros((h, w, 3), np.float32), {"seconds": {"total": 0.0}}
+        img = np.zeros((h, w, 3), np.float32)
+        return img, {"seconds": {"total": 0.0}, "eye_images": [img, img]}
 
     monkeypatch.setattr("renderers.registry.render", fake_render)
     monkeypatch.setattr(lw.LiveTrial, "_surfaces", lambda self, i: [])
     trial = object.__new__(lw.LiveTrial)
     trial.live = [SimpleNamespace(scene="cornell", renderer="lafr", params={"stereo": "dup"}, backend="cpu",
                                   fov_y_deg=30.0, condition="LaFR")]
-    trial.views = [eye_views((320, 180), (32, 18), 2)]
+    trial.views = [eye_views((320, 180), (32, 18), 2, stereo=True)]
     trial.motions = [SimpleNamespace(pose=lambda *a: Pose((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)))]
     trial.p = SimpleNamespace(_exposure=lambda scene: 1.0)
     for window_gaze, gaze in (((240.0, 45.0), (8.0, 4.5)), ((40.0, 90.0), (4.0, 9.0))):
@@ -151,8 +152,16 @@ def test_the_live_window_foveates_both_eyes_at_the_gaze_in_the_eye_it_falls_on(m
         assert seen == {"size": (16, 18), "gaze": gaze}
 
 
-def test_a_binocular_trial_replays_the_eye_the_gaze_falls_on(tmp_path, capsys):
-    proto = live_protocol(tmp_path / "proto", params="{delta: 4.0, stereo: dup}")
+@pytest.mark.parametrize("stereo,params,eye,gaze,size", [
+    (True, "{delta: 4.0, stereo: dup}", "right", (8.0, 4.5), (16, 18)),  # side by side: the eye gazed at
+    (False, "{delta: 4.0, stereo: dup}", "left", (24.0, 4.5), (32, 18)),  # mono display: the named eye, full size
+    (False, "{delta: 4.0, stereo: dup, eye: right}", "right", (24.0, 4.5), (32, 18))])
+def test_a_binocular_trial_replays_the_eye_shown(tmp_path, capsys, stereo, params, eye, gaze, size):
+    folder = tmp_path / "proto"
+    folder.mkdir()
+    proto = folder / "live.yaml"
+    text = live_text(params=params)
+    proto.write_text(text.replace("refresh_hz: 60}", "refresh_hz: 60, stereo: true}") if stereo else text)
     db = live_db(proto, tmp_path / "s.db", frames_per_stimulus=1, gaze=(240.0, 45.0))
     out = tmp_path / "rep"
     code, _, err = _replay(capsys, db, out)
@@ -160,13 +169,13 @@ def test_a_binocular_trial_replays_the_eye_the_gaze_falls_on(tmp_path, capsys):
     import pandas as pd
 
     f = pd.read_csv(out / "frames.csv").set_index("condition")
-    assert f.loc["LaFR", "eye"] == "right" and f.loc["Ref", "eye"] == "mono"
-    assert (f.loc["LaFR", "gaze_x"], f.loc["LaFR", "gaze_y"]) == (8.0, 4.5)  # right eye: 16 x 18 pixels
+    assert f.loc["LaFR", "eye"] == eye and f.loc["Ref", "eye"] == "mono"
+    assert (f.loc["LaFR", "gaze_x"], f.loc["LaFR", "gaze_y"]) == gaze
     assert (f.loc["Ref", "gaze_x"], f.loc["Ref", "gaze_y"]) == (24.0, 4.5)  # mono: 32 x 18 pixels
     from PIL import Image
 
-    assert Image.open(out / f.loc["LaFR", "file"]).size == (16, 18)
-    assert Image.open(out / "ground_truth" / Path(f.loc["LaFR", "file"]).name).size == (16, 18)
+    assert Image.open(out / f.loc["LaFR", "file"]).size == size
+    assert Image.open(out / "ground_truth" / Path(f.loc["LaFR", "file"]).name).size == size
 
 
 # -- crafted frame rows: one line naming the database, the row and the field ------------------------------

@@ -160,9 +160,9 @@ def cmd_replay(args) -> int:
         except ValueError as exc:
             raise CLIError(f"{db}: participant {args.participant!r}, {label}: the logged camera cannot render: "
                            f"{exc}") from None
-        eyes = 2 if cond.params.get("stereo", "mono") in ("dup", "rep") else 1
-        views = eye_views(display, (geometry.width, geometry.height), eyes)
-        # Binocular: the eye the gaze falls on (its image is replayed), as the live window maps it.
+        eyes = cond.eyes
+        views = eye_views(display, (geometry.width, geometry.height), eyes, protocol.display.stereo, cond.eye)
+        # Binocular: the eye shown (a stereo display: the one the gaze falls on), as the live window maps it.
         view = views[0] if f["gaze_x"] is None else eye_at(views, f["gaze_x"], f["gaze_y"])
         gaze = None if f["gaze_x"] is None else view.to_render(f["gaze_x"], f["gaze_y"])
         params = dict(cond.params) if eyes == 1 else {**cond.params, "eye": view.eye}

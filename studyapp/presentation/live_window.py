@@ -1,11 +1,14 @@
 """Live trials in the PsychoPy window: every refresh renders the stimulus where the participant looks.
 
 Per refresh (:meth:`LiveTrial.run`): the newest gaze sample (psychopy.iohub: an eye tracker, or MouseGaze) is
-delayed by the condition's ``latency_ms``, mapped from window pixels onto each eye's render
-(:func:`data_schema.geometry.eye_views`), and the condition's renderer renders a new frame foveated there when
+delayed by the condition's ``latency_ms``, mapped from window pixels onto the render of the eye it falls on
+(:meth:`studyapp.runner.live.LiveStimulus.views`, :func:`data_schema.geometry.eye_views`), and the condition's renderer renders a new frame foveated there when
 the frame-rate cap allows (:class:`studyapp.runner.live.FramePacer`), on the GPU backend inside this window's
 OpenGL context (or the CPU backend); the frame is tone-mapped once (:func:`renderers.stimuli.to_srgb8`),
-uploaded into a texture that covers the window (both eyes side by side for binocular conditions) and flipped.
+uploaded into a texture that covers the window and flipped. A binocular condition (``stereo: dup|rep``) renders
+and times both eyes; a monoscopic display shows the eye its ``eye`` parameter names over the whole window, as
+every other condition (A and B are not told apart by their layout), a stereo display (``display.stereo``) both
+side by side.
 Every flip is logged (:class:`studyapp.runner.live.FrameRecord`): flip time, render time, the gaze sample
 used and its age, the camera pose, the dropped flag.
 
@@ -22,7 +25,7 @@ import time
 
 import numpy as np
 
-from data_schema.geometry import eye_at, eye_views
+from data_schema.geometry import EYES, eye_at
 from studyapp.runner.live import FramePacer, FrameRecord, GazeDelay
 from studyapp.runner.protocol import EXPLORE_KEYS
 
@@ -119,7 +122,7 @@ class LiveTrial:
         self.live = [s.live for s in trial.stimuli]
         win = presenter.win
         self.window = tuple(int(v) for v in win.size)
-        self.views = [eye_views(self.window, lv.render_size, lv.eyes) for lv in self.live]
+        self.views = [lv.views(self.window) for lv in self.live]
         self.motions = [lv.motion_model() for lv in self.live]
         if self.live[0].motion == "explore":  # one camera for the whole trial: a switch keeps the place
             self.motions = [self.motions[0]] * len(self.live)
@@ -152,7 +155,8 @@ class LiveTrial:
         pose = self.motions[i].pose(t_stim, held, drag)
         views = self.views[i]
         w, h = views[0].render_width, views[0].render_height
-        # Both eyes are foveated at the gaze as seen in the eye it falls on (the right half: the right eye).
+        # Both eyes are foveated at the gaze as seen in the eye it falls on (side by side, the right half: the
+        # right eye; on a monoscopic display the one eye shown).
         gaze = None if gaze_window is None else eye_at(views, *gaze_window).to_render(*gaze_window)
         params = dict(lv.params)
         t0 = time.perf_counter()
@@ -161,7 +165,8 @@ class LiveTrial:
                                 backend=lv.backend)
         except ValueError as exc:  # a user-facing problem (no OpenGL 4.3, ...): one line, as everywhere
             raise PresentationError(f"cannot render {lv.condition} live: {str(exc).splitlines()[0]}") from None
-        images = stats.get("eye_images") or [img]
+        both = stats.get("eye_images")
+        images = [img if both is None else both[EYES.index(v.eye)] for v in views]
         exposure = self.p._exposure(lv.scene)
         for surf, im in zip(self._surfaces(i), images):
             surf.update(to_srgb8(im, exposure))

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .protocol import MOVE_KEYS, TURN_KEYS
+from .protocol import MOVE_KEYS, TURN_KEYS, eye_of, eyes_of
 
 
 @dataclass(frozen=True)
@@ -194,10 +194,20 @@ class LiveStimulus:
     bounds: tuple | None = None
     extra: dict = field(default_factory=dict)
 
+    stereo_display: bool = False  # the protocol's display.stereo: both eyes side by side
+
     @property
     def eyes(self) -> int:
-        """Stereo conditions (VaFR dup/rep) render both eyes, shown side by side."""
-        return 2 if self.params.get("stereo", "mono") in ("dup", "rep") else 1
+        """Binocular conditions (``stereo: dup|rep``) render both eyes (and are timed for both)."""
+        return eyes_of(self.params)
+
+    def views(self, window: tuple[int, int]):
+        """Where this stimulus goes in a ``window`` (:func:`data_schema.geometry.eye_views`): one view over the
+        window, also for a binocular renderer on a monoscopic display (the eye its ``eye`` parameter names);
+        both eyes side by side on a stereo display."""
+        from data_schema.geometry import eye_views
+
+        return eye_views(window, self.render_size, self.eyes, self.stereo_display, eye_of(self.params))
 
     def motion_model(self):
         if self.motion == "explore":
@@ -255,7 +265,7 @@ def live_stimulus(protocol, condition: str, scene: str, scale: float = 1.0) -> L
     common = dict(condition=condition, scene=ref, renderer=cond.renderer, params=dict(cond.params),
                   backend=protocol.backend_of(condition), latency_ms=cond.latency_ms, max_fps=cond.max_fps,
                   motion=protocol.motion, duration_s=float(protocol.duration_s), fov_y_deg=geometry.fov_y_deg,
-                  render_size=(geometry.width, geometry.height))
+                  render_size=(geometry.width, geometry.height), stereo_display=protocol.display.stereo)
     if protocol.motion == "explore":
         ex = protocol.explore
         pose = Pose(*start_pose(protocol, scene))

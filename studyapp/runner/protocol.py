@@ -64,6 +64,26 @@ class Condition:
     def source(self) -> str:
         return "renderer" if self.renderer else ("folder" if self.folder else "derive")
 
+    @property
+    def eyes(self) -> int:
+        """2 for a binocular renderer (``stereo: dup`` or ``rep``: both eyes rendered and timed), else 1."""
+        return eyes_of(self.params)
+
+    @property
+    def eye(self) -> str:
+        """The eye a monoscopic display shows of a binocular renderer (its ``eye`` parameter, default left)."""
+        return eye_of(self.params)
+
+
+def eye_of(params: dict) -> str:
+    """The eye a monoscopic display shows of a binocular renderer with ``params``: its ``eye``, default left."""
+    return str(params.get("eye", "left"))
+
+
+def eyes_of(params: dict) -> int:
+    """How many eyes a renderer with ``params`` renders: 2 with ``stereo: dup`` or ``rep``, else 1."""
+    return 2 if params.get("stereo", "mono") in ("dup", "rep") else 1
+
 
 @dataclass(frozen=True)
 class Protocol:
@@ -205,6 +225,7 @@ def _conditions(doc: LoadedYAML, data: dict, base: Path, check_renderers: bool) 
                 reg.resolve_params(spec["renderer"], spec.get("params", {}))
             except ValueError as exc:
                 raise doc.error(where + ("params",), str(exc)) from None
+        _check_eye(doc, where, spec.get("params", {}), data["display"].get("stereo", False))
         derive = spec.get("derive", {})
         if derive and derive["from"] not in data["conditions"]:
             raise doc.error(where + ("derive", "from"), f"unknown condition {derive['from']!r}")
@@ -219,6 +240,19 @@ def _conditions(doc: LoadedYAML, data: dict, base: Path, check_renderers: bool) 
                               backend=spec.get("backend"), latency_ms=float(spec.get("latency_ms", 0.0)),
                               max_fps=spec.get("max_fps"))
     return out
+
+
+def _check_eye(doc: LoadedYAML, where: tuple, params: dict, stereo_display: bool) -> None:
+    """``eye`` picks the eye a monoscopic display shows of a binocular renderer: refused where it would choose
+    nothing (a one-view renderer; a stereo display, which shows both eyes) rather than silently ignored."""
+    if "eye" not in params:
+        return
+    if eyes_of(params) == 1:
+        raise doc.error(where + ("params", "eye"), f"eye: {params['eye']} means nothing for a one-view renderer "
+                        "(stereo: mono): remove it, or render both eyes (stereo: dup or rep)")
+    if stereo_display:
+        raise doc.error(where + ("params", "eye"), "the display is stereo (display.stereo: true) and shows both "
+                        "eyes side by side: remove eye, or set display.stereo: false to show this one eye")
 
 
 def _display(doc: LoadedYAML, data: dict) -> tuple[Display, tuple[int, int]]:
@@ -566,6 +600,9 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
     live_keys = [k for k in ("motion", "gaze", "min_fps", "explore") if k in stim]
     if kind != "live" and live_keys:
         raise doc.error(("stimulus", live_keys[0]), "only live stimuli (kind: live) have this")
+    if kind != "live" and data["display"].get("stereo"):
+        raise doc.error(("display", "stereo"), "a stereo display shows live binocular renderers side by side; "
+                        "a prepared stimulus holds one view (its condition's eye): remove display.stereo")
     if kind == "live":
         _check_live(doc, data, conditions, family, check_renderers)
     else:

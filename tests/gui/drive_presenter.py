@@ -2,8 +2,9 @@
 
 Spec: ``{"display": {...Display}, "presenter": {...kwargs}, "steps": [...], "result": path}``; a step
 is ``{"instructions": text}``, ``{"trial": {...TrialDisplay}}`` (stimuli as ``{"condition", "frames",
-"fps"}``), ``{"preload": {...}}``, ``{"prefetch": {...}}``, ``{"message": text, "seconds": s}`` or ``{"rest":
-text, "seconds": s}`` (a break). A trial
+"fps"}``, or ``{"condition", "live": {...}}``: :func:`make_live`), ``{"preload": {...}}``, ``{"prefetch":
+{...}}``, ``{"message": text, "seconds": s}`` or ``{"rest": text, "seconds": s}`` (a break); ``"watchdog_s"``
+(default 20) bounds the whole run. A trial
 that comes back escaped is followed by ``pause()`` and, on "resume", shown again. Every presenter event is
 printed as ``EVENT {json}`` (flushed), so the test knows when to press keys; the results are written as JSON
 to ``result``.
@@ -27,10 +28,23 @@ def emit(name: str, info: dict) -> None:
     print("EVENT " + json.dumps({"event": name, **info}), flush=True)
 
 
+def make_live(d: dict):
+    """A live stimulus of a protocol's condition: ``{"protocol", "condition", "scene", "scale", "duration_s",
+    "backend"}`` (renderer parameters of a thumbnail: the plug-in's preview, as ``run --simulate`` renders)."""
+    from renderers.registry import preview_params
+    from studyapp.runner.live import live_stimulus
+    from studyapp.runner.protocol import load_protocol
+
+    lv = live_stimulus(load_protocol(d["protocol"]), d["condition"], d["scene"], d.get("scale", 1.0))
+    return dataclasses.replace(lv, params=preview_params(lv.renderer, lv.params), duration_s=d["duration_s"],
+                               backend=d.get("backend", lv.backend))
+
+
 def make_trial(d: dict) -> TrialDisplay:
     d = dict(d)
     d["stimuli"] = tuple(
-        Stimulus(s["condition"], tuple(Path(f) for f in s["frames"]), s.get("fps", 0.0)) for s in d["stimuli"]
+        Stimulus(s["condition"], tuple(Path(f) for f in s.get("frames", ())), s.get("fps", 0.0),
+                 make_live(s["live"]) if "live" in s else None) for s in d["stimuli"]
     )
     for k in ("fixation_px", "progress"):
         if d.get(k) is not None:
@@ -45,8 +59,8 @@ def clean(x):
 
 
 def main(spec_path: str) -> int:
-    faulthandler.dump_traceback_later(20, exit=True)  # a hung window shows where it hangs, then exits
     spec = json.loads(Path(spec_path).read_text())
+    faulthandler.dump_traceback_later(spec.get("watchdog_s", 20), exit=True)  # a hung window shows where, exits
     pres = PsychoPyPresenter(on_event=emit, **spec.get("presenter", {}))
     out = {"facts": pres.open(Display(**spec["display"])), "trials": [], "pauses": []}
     emit("opened", out["facts"])
