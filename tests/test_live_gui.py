@@ -40,7 +40,7 @@ stimulus:
   duration_s: 5.0
   motion: explore
   gaze: mouse
-  explore: {{move_speed: 200, turn_speed_deg: 30}}
+  explore: {{move_speed_m_s: 0.2, turn_speed_deg: 30}}
 timing: {{black_s: 0.3}}
 design: {{repetitions: 1, trial_order: interleaved}}
 analysis: {{dv: response, unit: trial, test: summary_table}}
