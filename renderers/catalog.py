@@ -1,4 +1,5 @@
-"""The scene catalogue: built-in scene names and units (:data:`METRES_PER_UNIT`), and :func:`resolve` (a name, a YAML file or a Scene -> Scene).
+"""The scene catalogue: built-in scene names and units (:data:`METRES_PER_UNIT`), and :func:`resolve` (a name,
+a YAML file or a Scene -> Scene).
 
 Scenes are built once per process (built-in ones by name, scene files while they are unchanged), so a Dask
 worker rendering many frames of a scene builds it, and its BVH, once.

@@ -215,8 +215,9 @@ def test_controls_follow_instructions_without_the_placeholder_and_the_placeholde
                            text.replace("motion: explore", "motion: path")))
     assert main(["validate", str(path)]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "path.yaml:7: instructions: {controls} names the keys that move the camera: " \
-        "only a live stimulus with motion: explore has them" in err
+    assert err.count("\n") == 1
+    assert "path.yaml:7: instructions: {controls} names the keys that move the camera: only a live stimulus with " \
+        "motion: explore has them" in err
 
 
 # -- scene files and `studyapp scenes` -------------------------------------------------------------------------

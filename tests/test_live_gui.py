@@ -216,5 +216,6 @@ def test_live_trials_follow_the_gaze_log_every_flip_and_survive_a_kill(tmp_path)
     # the keys moved the camera forward (+z in the Cornell box); the drag did not turn it
     zs = [f["pos_z"] for f in frames1]
     assert zs[-1] > zs[0] + 50
-    views = np.array([[f["look_x"] - f["pos_x"], f["look_y"] - f["pos_y"], f["look_z"] - f["pos_z"]] for f in frames1])
+    views = np.array([[f["look_x"] - f["pos_x"], f["look_y"] - f["pos_y"], f["look_z"] - f["pos_z"]]
+                      for f in frames1])
     assert np.allclose(views, views[0], atol=1e-6), views[[0, -1]]

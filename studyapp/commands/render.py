@@ -107,8 +107,8 @@ def cmd_scenes(args) -> int:
           f"walk {WALK_M_S:g} m/s")
     for r in rows:
         print(f"{r['name']:<14} {r['triangles']:>10,} {r['point_lights']:>6} {r['directional_lights']:>5} "
-              f"{r['emissive_triangles']:>9}  {r['camera']['fov_y']:>11.1f}°  {unit_name(r['metres_per_unit']):>6}  "
-              f"{r['walk_units_per_s']:,.4g} units/s")
+              f"{r['emissive_triangles']:>9}  {r['camera']['fov_y']:>11.1f}°  "
+              f"{unit_name(r['metres_per_unit']):>6}  {r['walk_units_per_s']:,.4g} units/s")
     return 0
 
 

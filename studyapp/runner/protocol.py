@@ -39,7 +39,8 @@ TURN_KEYS = {"left": (-1, 0), "right": (1, 0), "up": (0, 1), "down": (0, -1)}
 EXPLORE_KEYS = tuple(MOVE_KEYS) + tuple(TURN_KEYS)
 #: psychopy.iohub's simulated eye tracker (MouseGaze): the mouse is the gaze, as with ``gaze: mouse``.
 MOUSE_GAZE_DEVICE = "eyetracker.hw.mouse.EyeTracker"
-#: In a live exploring protocol's instructions, replaced by the controls (:func:`studyapp.runner.live.controls_text`).
+#: In a live exploring protocol's instructions, replaced by the controls
+#: (:func:`studyapp.runner.live.controls_text`).
 CONTROLS = "{controls}"
 
 DEFAULT_SIMULATION = {"jnd": 0.02, "sensitivity_sd": 0.25, "bias_sd": 0.25, "lapse": 0.02, "criterion_jnd": 1.0,
