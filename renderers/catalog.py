@@ -1,4 +1,5 @@
-"""The scene catalogue: built-in scene names, and :func:`resolve` (a name, a YAML file or a Scene -> Scene).
+"""The scene catalogue: built-in scene names and units (:data:`METRES_PER_UNIT`), and :func:`resolve` (a name,
+a YAML file or a Scene -> Scene).
 
 Scenes are built once per process (built-in ones by name, scene files while they are unchanged), so a Dask
 worker rendering many frames of a scene builds it, and its BVH, once.
@@ -31,6 +32,23 @@ BUILTIN_SCENES = {
     "sponza_vpl": "renderers.lightcuts.scenes:sponza_vpl",
 }
 
+#: name -> how long one of its units is, in metres (``Scene.metres_per_unit``; exploration speeds are declared in
+#: metres per second and divided by it). Decided from each scene's real-world size:
+METRES_PER_UNIT = {
+    # The Cornell box as measured (Cornell data page): 556 x 549 x 559 millimetres, a box about 55 cm across,
+    # not a room; the scene's own eye separation (display ipd 64) is 64 mm too. Walking pace crosses it in 0.4 s.
+    "cornell": 0.001,
+    "cornell_many": 0.001,  # the same box with many more emitters
+    # The rest are modelled in metres: eye heights of 1.6-1.8 (the cameras), doors and storeys of 2-4, ipd 0.064.
+    "temple": 1.0,  # a colonnade 15 m wide and 44 m long
+    "street_night": 1.0,  # a street 24 m wide, 69 m long, façades 16 m high
+    "interior": 1.0,  # a bar room 14 x 12 m, 4 m high
+    "street_day": 1.0,  # street_night by day
+    "study": 1.0,  # a room 6 x 5 m, 3 m high
+    "yard": 1.0,  # a yard 40 x 40 m, walls 7 m high
+    "sponza_vpl": 1.0,  # an atrium 30 x 12 m, 10 m high
+}
+
 
 def _load(ref: str):
     module, _, name = ref.partition(":")
@@ -42,7 +60,9 @@ def builtin(name: str) -> Scene:
     """The built-in scene ``name`` (generated once per process)."""
     if name not in BUILTIN_SCENES:
         raise UserError(f"scene={name!r} is unknown: built-in scenes are {', '.join(BUILTIN_SCENES)}")
-    return _load(BUILTIN_SCENES[name])()
+    scene = _load(BUILTIN_SCENES[name])()
+    scene.metres_per_unit = METRES_PER_UNIT[name]
+    return scene
 
 
 def _scene_file(path: Path) -> Scene:

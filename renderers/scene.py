@@ -7,7 +7,10 @@ A :class:`Scene` is plain data (numpy arrays and dataclasses). Scenes come from 
 * a YAML file that references mesh files (any format pyvista reads), see :func:`load_yaml`;
 * Python code building a :class:`Scene` directly.
 
-Units are those of the scene (the Cornell box is in millimetres). Point-light ``intensity`` is radiant intensity
+Units are those of the scene; ``metres_per_unit`` says how long one is (default 1: metres; a scene file's
+optional ``metres_per_unit``, a built-in scene's in :data:`renderers.catalog.METRES_PER_UNIT`: the Cornell box
+is in millimetres, 0.001). Exploration speeds are declared in metres per second and divided by it
+(``studyapp.runner.live.live_stimulus``). Point-light ``intensity`` is radiant intensity
 (W/sr per channel): the irradiance at distance ``d`` is ``I cos(theta) / d^2``. A directional light gives
 irradiance ``E cos(theta)``. Emissive triangles have radiance ``L_e``; seen from the camera they show ``L_e`` and
 they light the scene as one point light per triangle at its centroid with intensity ``L_e A cos(theta_l)``
@@ -31,6 +34,8 @@ from data_schema.ranges import Range
 from data_schema.yamlfile import YAMLFileError
 
 TEXTURES = ("none", "checker", "brick", "noise")
+#: A scene unit's length in metres: from a micrometre to a kilometre (exploration speeds are divided by it).
+METRES_PER_UNIT_RANGE = Range(1e-6, 1e3)
 KINDS = ("diffuse", "glossy", "metallic")
 
 
@@ -219,6 +224,7 @@ class Scene:
     background: tuple[float, float, float] = (0.0, 0.0, 0.0)
     shadows: bool = True
     exposure: float = 1.0
+    metres_per_unit: float = 1.0  # how long one scene unit is; the image does not depend on it
     _hash: str | None = field(default=None, repr=False, compare=False)
     _emitters: tuple | None = field(default=None, repr=False, compare=False)
 
@@ -241,6 +247,7 @@ class Scene:
         self.ambient = _vec3("ambient", self.ambient, nonneg=True)
         self.background = _vec3("background", self.background, nonneg=True)
         self.exposure = _num("exposure", self.exposure, 0, None, lo_open=True)
+        self.metres_per_unit = float(METRES_PER_UNIT_RANGE.check("metres_per_unit", self.metres_per_unit))
 
     # -- derived -------------------------------------------------------------------------------------------------
     @property
@@ -278,7 +285,9 @@ class Scene:
         return len(self.point_lights) + len(self.directional_lights) + len(self.emitters()[0])
 
     def content_hash(self) -> str:
-        """SHA-256 of everything that determines the image (geometry, materials, lights, camera, settings)."""
+        """SHA-256 of everything that determines the image (geometry, materials, lights, camera, settings; not
+        ``metres_per_unit``, which only scales exploration speeds, so cached stimuli and recorded sessions keep
+        their hash)."""
         if self._hash is None:
             h = hashlib.sha256()
             for a in (self.vertices, self.faces, self.material_ids):
@@ -297,7 +306,7 @@ class Scene:
         return {"name": self.name, "triangles": self.n_triangles, "materials": len(self.materials),
                 "point_lights": len(self.point_lights), "directional_lights": len(self.directional_lights),
                 "emissive_triangles": len(self.emitters()[0]), "camera": asdict(self.camera),
-                "shadows": self.shadows}
+                "shadows": self.shadows, "metres_per_unit": self.metres_per_unit}
 
 
 # -- YAML ------------------------------------------------------------------------------------------------------
@@ -616,6 +625,7 @@ def load_yaml(path) -> Scene:
         background: [0, 0, 0]
         shadows: true
         exposure: 1.0
+        metres_per_unit: 1.0         # how long one unit is (default 1: metres; millimetres: 0.001)
     """
     from data_schema.validation import validate
     from data_schema.yamlfile import load_yaml as read_yaml
@@ -666,7 +676,7 @@ def load_yaml(path) -> Scene:
         material_ids=np.concatenate(mids), materials=materials, point_lights=pls, directional_lights=dls,
         camera=camera, display=display, ambient=doc.get("ambient", (0, 0, 0)),
         background=doc.get("background", (0, 0, 0)), shadows=bool(doc.get("shadows", True)),
-        exposure=doc.get("exposure", 1.0)))
+        exposure=doc.get("exposure", 1.0), metres_per_unit=doc.get("metres_per_unit", 1.0)))
     if scene.light_count() == 0:
         raise docy.error(("lights",), "the scene has no point, directional or emissive light")
     return scene

@@ -35,7 +35,7 @@ stimulus:
   duration_s: 2.0
   motion: explore
   gaze: {gaze}
-  explore: {{move_speed: 200, turn_speed_deg: 30}}
+  explore: {{move_speed_m_s: 0.2, turn_speed_deg: 30}}
 {eyetracker}
 timing: {{black_s: 0.3}}
 design: {{conditions: [LaFR], repetitions: 1, trial_order: interleaved}}

@@ -67,7 +67,7 @@ def _validate(tmp_path, capsys, stimulus: str, replace=()) -> tuple[int, str]:
     (PATH % "    - {t: 0, yaw_deg: -3, look_at: [0, 0, 0]}\n    - {t: 1, yaw_deg: 3}", (),
      "p.yaml:20: stimulus.camera_path[0].look_at: yaw_deg/pitch_deg turn the scene camera's view and replace "
      "look_at"),
-    (PATH % "    - {t: 0, yaw_deg: -3}\n  explore: {move_speed: 2}", (),
+    (PATH % "    - {t: 0, yaw_deg: -3}\n  explore: {move_speed_m_s: 2}", (),
      "p.yaml:21: stimulus.explore: explore settings belong to motion: explore"),
     (OK_EXPLORE, (("duration_s: 2.0", "duration_s: 0.02"),),
      "p.yaml:15: stimulus.duration_s: 0.02 s is shorter than two refreshes of the display (60 Hz)"),

@@ -40,7 +40,7 @@ stimulus:
   duration_s: 5.0
   motion: explore
   gaze: mouse
-  explore: {{move_speed: 200, turn_speed_deg: 30}}
+  explore: {{move_speed_m_s: 0.2, turn_speed_deg: 30}}
 timing: {{black_s: 0.3}}
 design: {{repetitions: 1, trial_order: interleaved}}
 analysis: {{dv: response, unit: trial, test: summary_table}}
@@ -144,7 +144,11 @@ def test_live_trials_follow_the_gaze_log_every_flip_and_survive_a_kill(tmp_path)
             x.xdotool("mousemove", str(wx + b[0]), str(wy + b[1]))
             time.sleep(1.2)
             x.xdotool("keydown", "w")  # explore: forward
-            time.sleep(0.6)
+            time.sleep(0.3)
+            x.xdotool("mousedown", "1")  # a drag: the mouse is the gaze (gaze: mouse), so it must not turn
+            x.xdotool("mousemove", str(wx + b[0] - 100), str(wy + b[1]))
+            time.sleep(0.3)
+            x.xdotool("mouseup", "1")
             x.xdotool("keyup", "w")
             _press_until(x, "y", lambda: _q(db, "SELECT COUNT(*) FROM responses") == [(1,)], 30, "the first answer")
             second = max(planned)
@@ -210,6 +214,9 @@ def test_live_trials_follow_the_gaze_log_every_flip_and_survive_a_kill(tmp_path)
         print(f"gaze {target}: error near it {near[target][0]:.5f}, near the other gaze {near[target][1]:.5f}; "
               f"replay PSNR {psnr:.1f} dB")
         assert psnr >= 40.0
-    # the keys moved the camera forward (+z in the Cornell box)
+    # the keys moved the camera forward (+z in the Cornell box); the drag did not turn it
     zs = [f["pos_z"] for f in frames1]
     assert zs[-1] > zs[0] + 50
+    views = np.array([[f["look_x"] - f["pos_x"], f["look_y"] - f["pos_y"], f["look_z"] - f["pos_z"]]
+                      for f in frames1])
+    assert np.allclose(views, views[0], atol=1e-6), views[[0, -1]]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 from data_schema.errors import CLIError
@@ -31,7 +32,9 @@ def register(sub, parser_class) -> None:
                         "window is open, Mesa's llvmpipe on machines without a GPU)")
     r.set_defaults(func=cmd_render)
     s = sub.add_parser("scenes", help="list the built-in scenes",
-                       description="List the built-in procedural scenes with triangle and light counts.")
+                       description="List the built-in procedural scenes with triangle and light counts, the length "
+                                   "of one scene unit and the resulting walking speed when exploring (1.4 m/s "
+                                   "unless a protocol's stimulus.explore.move_speed_m_s says otherwise).")
     s.add_argument("--json", action="store_true", help="print JSON instead of a table")
     s.set_defaults(func=cmd_scenes)
     lr = sub.add_parser("renderers", help="list the renderers and their parameters",
@@ -92,16 +95,29 @@ def cmd_render(args) -> int:
 
 def cmd_scenes(args) -> int:
     from renderers.catalog import BUILTIN_SCENES, builtin
+    from studyapp.runner.live import WALK_M_S
 
     rows = [builtin(name).summary() for name in BUILTIN_SCENES]
+    for r in rows:  # what exploring it means: the default walking pace in the scene's own units
+        r["walk_units_per_s"] = WALK_M_S / r["metres_per_unit"]
     if args.json:
         print(json.dumps(rows, indent=2))
         return 0
-    print(f"{'scene':<14} {'triangles':>10} {'point':>6} {'dir.':>5} {'emissive':>9}  camera fov_y")
+    print(f"{'scene':<14} {'triangles':>10} {'point':>6} {'dir.':>5} {'emissive':>9}  camera fov_y  1 unit  "
+          f"walk {WALK_M_S:g} m/s")
     for r in rows:
         print(f"{r['name']:<14} {r['triangles']:>10,} {r['point_lights']:>6} {r['directional_lights']:>5} "
-              f"{r['emissive_triangles']:>9}  {r['camera']['fov_y']:.1f}°")
+              f"{r['emissive_triangles']:>9}  {r['camera']['fov_y']:>11.1f}°  "
+              f"{unit_name(r['metres_per_unit']):>6}  {r['walk_units_per_s']:,.4g} units/s")
     return 0
+
+
+def unit_name(metres: float) -> str:
+    """One scene unit in words: ``1 mm``, ``1 cm``, ``1 m``, else ``0.3048 m``."""
+    for name, size in (("m", 1.0), ("cm", 0.01), ("mm", 0.001), ("km", 1000.0)):
+        if math.isclose(metres, size, rel_tol=1e-9):
+            return f"1 {name}"
+    return f"{metres:g} m"
 
 
 def cmd_renderers(args) -> int:

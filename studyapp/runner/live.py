@@ -7,7 +7,10 @@ the simulated observer and ``studyapp replay`` share them and they are tested wi
 - :class:`LiveStimulus` — one condition of a live trial: scene, renderer, parameters, backend, the controlled
   gaze delay (``latency_ms``) and frame-rate cap (``max_fps``), the motion and the geometry;
 - :class:`PathMotion` / :class:`ExploreMotion` — the camera: a key-framed path over the trial, or free
-  exploration from the keyboard and the mouse inside the scene's bounds;
+  exploration from the keyboard (and the mouse, unless it is the gaze) inside the scene's bounds, at speeds
+  declared in metres per second and scaled by the scene's unit (:data:`WALK_M_S`, :func:`live_stimulus`);
+- :func:`controls_text` / :func:`instructions_text` — the participant's instructions, with the exploration
+  controls generated from the keys the motion model responds to and the gaze source;
 - :class:`GazeDelay` — the newest gaze sample at least ``latency_ms`` old (the manipulation of Albert et al.
   2017);
 - :class:`FramePacer` — renders only as often as ``max_fps`` allows (an emulated slower renderer); the other
@@ -25,7 +28,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .protocol import MOVE_KEYS, TURN_KEYS, eye_of, eyes_of
+from .protocol import CONTROLS, MOVE_KEYS, TURN_KEYS, eye_of, eyes_of
+
+#: A human walking pace, metres per second, and the arrow keys' turning speed, degrees per second: the defaults of
+#: ``stimulus.explore.move_speed_m_s`` and ``turn_speed_deg``.
+WALK_M_S = 1.4
+TURN_DEG_S = 60.0
+#: How far a mouse drag turns the camera (degrees per pixel) when the mouse is not the gaze.
+MOUSE_DEG_PER_PX = 0.1
 
 
 @dataclass(frozen=True)
@@ -54,15 +64,16 @@ class PathMotion:
 
 class ExploreMotion:
     """Free exploration: W/S forward and back, A/D sideways, Left/Right turn, Up/Down look up and down, and the
-    mouse (a drag in pixels) turns; the position stays inside ``bounds``.
+    mouse (a drag in pixels) turns unless ``mouse_deg_per_px`` is 0; the position stays inside ``bounds``.
+    ``move_speed`` is in scene units per second, ``turn_speed_deg`` in degrees per second.
 
     ``pose(t_s, keys, mouse)`` integrates from the last call: ``keys`` are the keys held down now, ``mouse`` the
     pointer's motion (pixels) since the last call. Yaw turns about the world's up axis (+y), pitch is kept within
     ±85°, so the view never flips.
     """
 
-    def __init__(self, start: Pose, move_speed: float = 1.0, turn_speed_deg: float = 60.0,
-                 bounds: tuple | None = None, mouse_deg_per_px: float = 0.1):
+    def __init__(self, start: Pose, move_speed: float = WALK_M_S, turn_speed_deg: float = TURN_DEG_S,
+                 bounds: tuple | None = None, mouse_deg_per_px: float = MOUSE_DEG_PER_PX):
         p, q = np.asarray(start.position, float), np.asarray(start.look_at, float)
         d = q - p
         self.distance = float(np.linalg.norm(d)) or 1.0
@@ -189,9 +200,10 @@ class LiveStimulus:
     render_size: tuple[int, int]
     path: tuple = ()  # PathMotion's poses: ((t, Pose), ...) sampled along the path
     start: Pose | None = None
-    move_speed: float = 1.0
-    turn_speed_deg: float = 60.0
+    move_speed: float = WALK_M_S  # scene units per second: explore.move_speed_m_s / the scene's metres_per_unit
+    turn_speed_deg: float = TURN_DEG_S  # degrees per second
     bounds: tuple | None = None
+    mouse_turns: bool = True  # a mouse drag turns the camera (not when the mouse is the gaze)
     extra: dict = field(default_factory=dict)
 
     stereo_display: bool = False  # the protocol's display.stereo: both eyes side by side
@@ -211,7 +223,8 @@ class LiveStimulus:
 
     def motion_model(self):
         if self.motion == "explore":
-            return ExploreMotion(self.start, self.move_speed, self.turn_speed_deg, self.bounds)
+            return ExploreMotion(self.start, self.move_speed, self.turn_speed_deg, self.bounds,
+                                 MOUSE_DEG_PER_PX if self.mouse_turns else 0.0)
         ts = [t for t, _ in self.path]
         poses = [p for _, p in self.path]
 
@@ -254,7 +267,11 @@ def scene_hash(ref: str) -> str:
 
 
 def live_stimulus(protocol, condition: str, scene: str, scale: float = 1.0) -> LiveStimulus:
-    """The :class:`LiveStimulus` of ``condition`` in ``scene`` for a live protocol (geometry at ``scale``)."""
+    """The :class:`LiveStimulus` of ``condition`` in ``scene`` for a live protocol (geometry at ``scale``).
+
+    Exploring, the walking speed is ``explore.move_speed_m_s`` (default :data:`WALK_M_S`) in the scene's units
+    (divided by its ``metres_per_unit``), so every scene is walked at the same pace whatever its unit; the mouse
+    turns only if it is not the gaze (:attr:`~studyapp.runner.protocol.Protocol.mouse_is_gaze`)."""
     from renderers.catalog import resolve
 
     from .camera import path_samples, start_pose
@@ -269,14 +286,57 @@ def live_stimulus(protocol, condition: str, scene: str, scale: float = 1.0) -> L
     if protocol.motion == "explore":
         ex = protocol.explore
         pose = Pose(*start_pose(protocol, scene))
+        model = resolve(ref)
         bounds = (ex.get("bounds") or {}).get(scene)
         if bounds is None:  # the scene's bounding box, grown to hold the start position
-            v = np.vstack([resolve(ref).vertices, np.asarray(pose.position, dtype=float)[None]])
+            v = np.vstack([model.vertices, np.asarray(pose.position, dtype=float)[None]])
             bounds = (tuple(np.min(v, axis=0)), tuple(np.max(v, axis=0)))
-        return LiveStimulus(**common, start=pose, move_speed=float(ex.get("move_speed", 1.0)),
-                            turn_speed_deg=float(ex.get("turn_speed_deg", 60.0)),
-                            bounds=(tuple(bounds[0]), tuple(bounds[1])))
+        return LiveStimulus(**common, start=pose,
+                            move_speed=float(ex.get("move_speed_m_s", WALK_M_S)) / model.metres_per_unit,
+                            turn_speed_deg=float(ex.get("turn_speed_deg", TURN_DEG_S)),
+                            bounds=(tuple(bounds[0]), tuple(bounds[1])), mouse_turns=not protocol.mouse_is_gaze)
     return LiveStimulus(**common, path=tuple((t, Pose(p, q)) for t, p, q in path_samples(protocol, scene)))
+
+
+#: What each move key does, in the instructions (MOVE_KEYS' (forward, right) directions).
+_MOVE_WORDS = {(1, 0): "forward", (-1, 0): "back", (0, -1): "left", (0, 1): "right"}
+_ARROWS = ("left", "right", "up", "down")
+
+
+def key_label(key: str) -> str:
+    """How the participant's instructions name a key (psychtoolbox name): ``W``, ``Left arrow``."""
+    return f"{key.capitalize()} arrow" if key in _ARROWS else key.upper()
+
+
+def _listed(items: list[str]) -> str:
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
+
+
+def controls_text(protocol) -> str:
+    """The exploration controls in words, from the keys :class:`ExploreMotion` responds to
+    (:data:`~studyapp.runner.protocol.MOVE_KEYS`, :data:`~studyapp.runner.protocol.TURN_KEYS`) and the gaze
+    source: where the mouse is the gaze it does not turn (and the participant is told to point it where they
+    look); otherwise a drag turns too."""
+    move = [f"{key_label(k)} ({_MOVE_WORDS[v]})" for k, v in MOVE_KEYS.items()]
+    turn = [key_label(k) for k, (yaw, _) in TURN_KEYS.items() if yaw]
+    look = [key_label(k) for k, (_, pitch) in TURN_KEYS.items() if pitch]
+    text = (f"Move with {_listed(move)}. Turn with the {_listed(turn)} keys, look up and down with the "
+            f"{_listed(look)} keys.")
+    if protocol.mouse_is_gaze:
+        return text + " The mouse stands in for your eyes: keep it where you look. It does not turn the view."
+    return text + " You can also turn by dragging the mouse."
+
+
+def instructions_text(protocol) -> str:
+    """What the participant reads before the first trial: the protocol's ``instructions`` (else its question),
+    with ``{controls}`` replaced by :func:`controls_text` when exploring (without it, the controls follow as a
+    paragraph of their own: an exploring participant is always told the keys)."""
+    text = protocol.instructions or protocol.question
+    if not (protocol.live and protocol.motion == "explore"):
+        return text
+    if CONTROLS in text:
+        return text.replace(CONTROLS, controls_text(protocol))
+    return f"{text.rstrip()}\n\n{controls_text(protocol)}"
 
 
 def synthetic_gaze(duration_s: float, width: int, height: int, rng: np.random.Generator,

@@ -37,6 +37,11 @@ from data_schema.protocol_schema import LoadedYAML, load_yaml, validate_document
 MOVE_KEYS = {"w": (1, 0), "s": (-1, 0), "a": (0, -1), "d": (0, 1)}
 TURN_KEYS = {"left": (-1, 0), "right": (1, 0), "up": (0, 1), "down": (0, -1)}
 EXPLORE_KEYS = tuple(MOVE_KEYS) + tuple(TURN_KEYS)
+#: psychopy.iohub's simulated eye tracker (MouseGaze): the mouse is the gaze, as with ``gaze: mouse``.
+MOUSE_GAZE_DEVICE = "eyetracker.hw.mouse.EyeTracker"
+#: In a live exploring protocol's instructions, replaced by the controls
+#: (:func:`studyapp.runner.live.controls_text`).
+CONTROLS = "{controls}"
 
 DEFAULT_SIMULATION = {"jnd": 0.02, "sensitivity_sd": 0.25, "bias_sd": 0.25, "lapse": 0.02, "criterion_jnd": 1.0,
                       "rt_mu_s": 0.55, "rt_sigma_s": 0.08, "rt_tau_s": 0.25}
@@ -135,6 +140,13 @@ class Protocol:
     eyetracker: dict | None = None
     full: bool = False  # the full-size variant (the protocol's full block in place)
     key_reminder: str = "bottom"  # presentation.key_reminder: where trials recall their keys (bottom|top|off)
+
+    @property
+    def mouse_is_gaze(self) -> bool:
+        """Whether the mouse stands in for the eye (``gaze: mouse``, or the MouseGaze tracker): then it may not
+        also turn an exploring camera."""
+        return self.gaze_source == "mouse" or (self.gaze_source == "tracker" and (self.eyetracker or {}).get(
+            "device") == MOUSE_GAZE_DEVICE)
 
     @property
     def live(self) -> bool:
@@ -603,6 +615,9 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
     if kind != "live" and data["display"].get("stereo"):
         raise doc.error(("display", "stereo"), "a stereo display shows live binocular renderers side by side; "
                         "a prepared stimulus holds one view (its condition's eye): remove display.stereo")
+    if CONTROLS in data.get("instructions", "") and not (kind == "live" and stim.get("motion") == "explore"):
+        raise doc.error(("instructions",), f"{CONTROLS} names the keys that move the camera: only a live "
+                        "stimulus with motion: explore has them")
     if kind == "live":
         _check_live(doc, data, conditions, family, check_renderers)
     else:

@@ -34,7 +34,7 @@ from data_schema.names import check_name
 from data_schema.store import PlannedRow, Store, StoreError, open_store, remove_database
 from studyapp.presentation.base import Stimulus, TrialDisplay, TrialResult
 
-from .live import scene_record
+from .live import instructions_text, scene_record
 from .protocol import Protocol
 from .schedule import PlannedTrial, break_text, build_schedule, counterbalance_index, schedule_hash
 from .stimuli import frame_paths, missing_line, missing_stimuli, prepare_command, split_missing, stimulus_root
@@ -314,7 +314,7 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
     shown_total = sum(counted(t) for t in planned)
     shown = sum(1 for t in planned if counted(t) and t.idx in answered)
     gaze = protocol.render_geometry(scale).gaze if protocol.fixation_mark else None
-    text = protocol.instructions or protocol.question
+    text = instructions_text(protocol)
     presenter.instructions(("Welcome back. " if resume else "") + text)
     todo = [t for t in planned if t.idx not in answered]
     first = True
