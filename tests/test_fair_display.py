@@ -67,10 +67,10 @@ def test_a_stereo_display_shows_binocular_renderers_side_by_side_and_the_named_e
 
 @pytest.mark.parametrize("replace,expected", [
     ((("renderer: gt, quality", "renderer: gt, params: {eye: right}, quality"),),
-     "pilot.yaml:33: conditions.GT.params.eye: eye: right means nothing for a one-view renderer (stereo: mono): "
+     "conditions.GT.params.eye: eye: right means nothing for a one-view renderer (stereo: mono): "
      "remove it, or render both eyes (stereo: dup or rep)"),
     ((("stereo: rep}", "stereo: rep, eye: right}"), ("refresh_hz: 60}", "refresh_hz: 60, stereo: true}")),
-     "pilot.yaml:29: conditions.VaFR_Rep.params.eye: the display is stereo (display.stereo: true) and shows both "
+     "conditions.VaFR_Rep.params.eye: the display is stereo (display.stereo: true) and shows both "
      "eyes side by side: remove eye, or set display.stereo: false to show this one eye"),
     ((("stereo: rep}", "stereo: rep, eye: centre}"),), "conditions.VaFR_Rep.params.eye"),
     ((("refresh_hz: 60}", "refresh_hz: 60, stereo: 1}"),), "display.stereo"),
@@ -79,6 +79,9 @@ def test_an_eye_that_chooses_nothing_is_refused_in_one_line(tmp_path, capsys, re
     assert main(["validate", str(_pilot(tmp_path, *replace))]) == 2
     err = capsys.readouterr().err
     assert len(err.splitlines()) == 1 and err.startswith("studyapp: error: ") and expected in err, err
+    line = next(i for i, text in enumerate((tmp_path / "pilot.yaml").read_text().splitlines(), 1)
+                if expected.split(".")[1] + ":" in text)  # the message names the condition's line
+    assert f"pilot.yaml:{line}: " in err or expected == "display.stereo", err
 
 
 def test_a_stereo_display_is_refused_for_prepared_stimuli(tmp_path, capsys):
