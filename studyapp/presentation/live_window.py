@@ -15,6 +15,12 @@ used and its age, the camera pose, the dropped flag.
 The camera follows the protocol's path, or the participant's keys (W/S/A/D move, arrow keys turn) and a mouse
 drag when exploring. Answer and switch keys work as in pre-rendered trials; a switch shows the other condition
 at the same place (explore) or restarts its path (path).
+
+Keys are never lost (psychtoolbox queues them in its own thread while a render blocks this one): Escape is
+also polled just before and just after every render, so it ends the trial before the next flip instead of
+after it, and before the first frame at once (a first render at native size can take many seconds). Keys
+pressed before the trial's first frame are dropped, Escape excepted: before it every key is taken from the
+queue, after it a key that went down before the onset flip (negative time from onset) is ignored.
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ from studyapp.runner.live import FramePacer, FrameRecord, GazeDelay
 from studyapp.runner.protocol import EXPLORE_KEYS
 
 from .base import PresentationError, TrialDisplay
+from .psychopy_window import ESCAPE
 
 # psychtoolbox key names of exploration -> pyglet key codes (held-key state comes from pyglet)
 _PYGLET_KEYS = {"w": "W", "s": "S", "a": "A", "d": "D", "left": "LEFT", "right": "RIGHT", "up": "UP",
@@ -173,6 +180,13 @@ class LiveTrial:
         seconds = stats["seconds"].get("total", time.perf_counter() - t0)
         return float(seconds), pose
 
+    @staticmethod
+    def _escape_pressed(poll_keys, keys_wanted, started: bool) -> bool:
+        """Whether Escape went down since the last poll. Before the first frame (``started`` False) every
+        wanted key is taken from the queue and all but Escape dropped (none is an answer or a switch); after
+        it only Escape is taken, the other keys stay queued for the poll after the flip."""
+        return any(k.name == ESCAPE for k in poll_keys(keys_wanted if not started else [ESCAPE]))
+
     def run(self, state, keys_wanted, timed_once: bool, poll_keys, on_switch):
         p, trial = self.p, self.trial
         win = p.win
@@ -202,16 +216,21 @@ class LiveTrial:
                     if not timed_once and self.live[i].motion == "path":
                         t_stim = t_stim % self.live[i].duration_s
                     if self.pacers[i].due(t_est) or i not in self.surfaces:
+                        if self._escape_pressed(poll_keys, keys_wanted, onset is not None):
+                            escaped = True
+                            break
                         render_s, pose = self._render(i, t_stim, None if used is None else used[1:],
                                                       inp.held(), inp.take_drag())
+                        if self._escape_pressed(poll_keys, keys_wanted, onset is not None):
+                            escaped = True
+                            break
                     for surf in self.surfaces[i]:
                         surf.stim.draw()
                     p._draw_overlay(trial, state, None)
                     if render_s is not None and p.screenshot_dir is not None:
                         p._save_shot(trial, f"live{len(frames):05d}")
-                if onset is None:
+                if onset is None:  # the RT clock starts with the first frame (keys before it: rt < 0)
                     win.callOnFlip(p.kb.clock.reset)
-                    win.callOnFlip(p.kb.clearEvents)
                 t_flip = win.flip()
                 next_flip = t_flip + p._frame_period
                 if stim_onset is None or (onset is not None and frames and frames[-1].stimulus != i):
@@ -231,6 +250,8 @@ class LiveTrial:
                     p._info["question_shown"] = t_flip
                     p._emit("question", trial=trial.index)
                 for key in poll_keys(keys_wanted):
+                    if key.name != ESCAPE and key.rt is not None and key.rt < 0:
+                        continue  # went down before the first frame: not an answer, not a switch
                     event = state.press(key.name, key.rt, can_switch=not playback_over)
                     if event == "escape":
                         escaped = True
@@ -244,6 +265,8 @@ class LiveTrial:
                     break
                 if (state.answered or not trial.answer_keys) and (playback_over or not timed_once):
                     break
+            if escaped and onset is None:
+                p._info["escaped_before_onset"] = True
         finally:
             win.recordFrameIntervals = False
             inp.close()

@@ -30,13 +30,15 @@ def emit(name: str, info: dict) -> None:
 
 def make_live(d: dict):
     """A live stimulus of a protocol's condition: ``{"protocol", "condition", "scene", "scale", "duration_s",
-    "backend"}`` (renderer parameters of a thumbnail: the plug-in's preview, as ``run --simulate`` renders)."""
+    "backend", "full_params"}`` (renderer parameters of a thumbnail: the plug-in's preview, as ``run
+    --simulate`` renders; with ``"full_params": true`` the protocol's own, e.g. for a slow render)."""
     from renderers.registry import preview_params
     from studyapp.runner.live import live_stimulus
     from studyapp.runner.protocol import load_protocol
 
     lv = live_stimulus(load_protocol(d["protocol"]), d["condition"], d["scene"], d.get("scale", 1.0))
-    return dataclasses.replace(lv, params=preview_params(lv.renderer, lv.params), duration_s=d["duration_s"],
+    params = lv.params if d.get("full_params") else preview_params(lv.renderer, lv.params)
+    return dataclasses.replace(lv, params=params, duration_s=d["duration_s"],
                                backend=d.get("backend", lv.backend))
 
 

@@ -1,0 +1,98 @@
+"""Keys are never lost in a live trial (issue 26, item 3), in a real window under Xvfb with xdotool, with a
+CPU ground truth slow enough that one render takes over a second: Escape pressed during the first render ends
+the trial before its first frame (no onset), a key pressed before the first frame is not taken as the answer,
+and Escape pressed between flips (during a later render) ends the trial at the next flip, before it."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent / "gui"))
+import psychopy  # noqa: E402,F401 - the GUI tests need it: a missing install is a failure, not a skip
+from xvfb import Driver, Xvfb, missing_tools  # noqa: E402
+
+W, H = 160, 90
+SPP = 100  # about 1.2 s a render at 160 x 90 on this machine's CPU backend (the first adds numba's compile)
+
+PROTOCOL = f"""
+schema_version: 1
+name: live_keys
+version: "1"
+family: yes_no
+question: "Acceptable? Y / N"
+display: {{width_px: {W}, height_px: {H}, width_cm: 40.0, distance_cm: 40.0, refresh_hz: 60}}
+fixation: {{x: 0.5, y: 0.5, mark: false}}
+scenes: [cornell]
+conditions:
+  GT: {{renderer: gt, params: {{spp: {SPP}}}, backend: cpu}}
+stimulus: {{kind: live, duration_s: 0.5, motion: path, gaze: fixation}}
+timing: {{black_s: 0.2}}
+design: {{repetitions: 1, trial_order: interleaved}}
+analysis: {{dv: response, unit: trial, test: summary_table}}
+"""
+
+
+@pytest.fixture(autouse=True)
+def _gui_tools_installed():
+    assert not missing_tools(), f"GUI tests need {missing_tools()} (Debian: xvfb, xdotool; ./run installs them)"
+
+
+def _trial(index: int, protocol: Path) -> dict:
+    return {"trial": {"index": index, "family": "yes_no", "question": "Acceptable?",
+                      "answer_keys": {"y": "yes", "n": "no"}, "duration_s": 0.5, "black_before_s": 0.2,
+                      "stimuli": [{"condition": "GT", "live": {"protocol": str(protocol), "condition": "GT",
+                                                               "scene": "cornell", "duration_s": 0.5,
+                                                               "backend": "cpu", "full_params": True}}]}}
+
+
+def test_escape_and_early_keys_during_slow_live_renders(tmp_path):
+    protocol = tmp_path / "keys.yaml"
+    protocol.write_text(PROTOCOL)
+    spec = {"display": {"width_px": W, "height_px": H, "width_cm": 40.0, "distance_cm": 40.0},
+            "steps": [_trial(0, protocol), _trial(1, protocol)], "watchdog_s": 85}
+    with Xvfb() as x:
+        drv = Driver(x, spec, tmp_path, timeout_s=90)
+        try:
+            # a key before the first frame (during the first render) is not the answer
+            drv.wait_for("black", trial=0)
+            time.sleep(0.6)
+            x.key("y")
+            drv.wait_for("onset", trial=0)
+            drv.wait_for("question", trial=0)
+            x.key("n")
+            # Escape during the first render: the trial ends at once when the render returns, no frame shown
+            drv.wait_for("black", trial=1)
+            time.sleep(0.5)
+            t_esc = time.monotonic()
+            x.key("Escape")
+            ev = drv.next_event()
+            first_wait = time.monotonic() - t_esc
+            assert ev["event"] == "pause", drv.events  # not "onset": the Escape was not lost
+            x.key("r")
+            # Escape between flips, during a later render: acts at the next flip (before it)
+            drv.wait_for("onset", trial=1)
+            t_esc = time.monotonic()
+            x.key("Escape")
+            ev = drv.next_event()
+            between_wait = time.monotonic() - t_esc
+            assert ev["event"] == "pause", drv.events
+            x.key("e")
+            out = drv.finish()
+        finally:
+            drv.kill()
+    print(f"Escape acted {first_wait:.2f} s after it was pressed during the first render, {between_wait:.2f} s "
+          "after it was pressed between flips")
+    trials = out["trials"]
+    assert trials[0]["answers"] == ["no"] and not trials[0]["escaped"], trials[0]
+    assert trials[0]["rt_s"] > 0
+    assert trials[1]["escaped"] and trials[1]["onset_s"] is None, trials[1]
+    assert trials[2]["escaped"] and trials[2]["onset_s"] is not None, trials[2]
+    assert out["pauses"] == ["resume", "end"]
+    info = [i for i in out["trial_info"] if i["trial"] == 1]
+    assert info[0].get("escaped_before_onset") and not info[1].get("escaped_before_onset"), info
+    # at most one render (about 1.2 s, under 2.5 s on a loaded machine) passes before Escape acts
+    assert first_wait < 2.5 and between_wait < 2.5, (first_wait, between_wait)
