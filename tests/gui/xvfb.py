@@ -41,6 +41,11 @@ def missing_tools() -> list[str]:
     return [b for b in ("Xvfb", "xdotool") if shutil.which(b) is None]
 
 
+def require_tools() -> None:
+    """Fail a GUI test (never skip it) on a machine without the binaries it needs."""
+    assert not missing_tools(), f"GUI tests need {missing_tools()} (Debian: xvfb, xdotool; ./run installs them)"
+
+
 class Xvfb:
     """A private X server: ``with Xvfb() as x: subprocess.run(..., env=x.env)``.
 
