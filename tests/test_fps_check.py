@@ -160,3 +160,36 @@ def test_the_simulated_observer_has_no_check(tmp_path):
     from studyapp.runner.observer import SimulatedObserver
 
     assert not hasattr(SimulatedObserver, "fps_check_frames")  # --simulate: no window, no check (docs/live.md)
+
+
+def test_run_refuses_a_slow_condition_in_one_line_and_accept_slow_runs(tmp_path, monkeypatch, capsys):
+    from studyapp.cli import main
+    from studyapp.commands import study
+
+    p = protocol(tmp_path, "fps_check_s: 0.2")
+    clock = FakeClock()
+    monkeypatch.setattr(study, "_presenter_factory", lambda args, proto: lambda st, d: WindowLike(p, st, clock))
+    args = ["run", str(p.path), "--participant", "P1", "--db", str(tmp_path / "s.db"), "--quiet"]
+    assert main(args) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err[0] == "frame-rate check (min_fps 45):" and "Traceback" not in "\n".join(err)
+    assert err[-1].startswith("studyapp: error: frame-rate check: LaFR 16.0 fps (cornell): below the protocol's "
+                              "min_fps 45")
+    assert not (tmp_path / "s.db").exists()
+    assert main(args + ["--accept-slow"]) == 0
+    captured = capsys.readouterr()
+    assert "--accept-slow: the trials of LaFR are flagged" in captured.err
+    assert "completed, 2/2 trials answered" in captured.out
+
+
+@pytest.mark.parametrize("detail", ["not json", "null", '{"rows": 3, "accepted_slow": []}',
+                                    '{"rows": [{"condition": 1, "scene": "x"}], "accepted_slow": []}'])
+def test_a_record_of_the_check_not_written_by_studyapp_is_refused(tmp_path, detail):
+    from data_schema.store import StoreError, open_store
+
+    p = protocol(tmp_path, "fps_check_s: 0.2")
+    summary, _ = run(tmp_path, p, accept_slow=True)
+    with open_store(tmp_path / "s.db", "write") as st:
+        st.event(summary.session, "fps_check", detail)
+        with pytest.raises(StoreError, match="the record of its frame-rate check is invalid"):
+            st.fps_check(summary.session)
