@@ -301,8 +301,8 @@ def _recorded_number(db: Path, proto: dict, section: str, key: str, default):
 
 def _print_timing_qa(sessions, flips, trial_session, min_fps) -> None:
     """Live trials: frame rate and gaze-to-flip latency per session, pooled over the flips of every trial;
-    each trial's frame rate and frame time percentiles from its frame rows; flagged: trials with no frame rate (no stimulus with two rendered frames) and trials below the protocol's
-    min_fps."""
+    each trial's frame rate and frame time percentiles from its frame rows; flagged: trials with no frame rate
+    (no stimulus with two rendered frames) and trials below the protocol's min_fps."""
     import numpy as np
 
     from data_schema.timing import format_fps, pooled, rates, summary

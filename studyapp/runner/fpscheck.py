@@ -4,8 +4,9 @@ Each condition x scene of a live protocol is rendered for ``stimulus.fps_check_s
 :data:`~studyapp.runner.protocol.FPS_CHECK_S`; 0: no check; the whole check at most :data:`MAX_TOTAL_S`) at the
 session's render size on the session's backend, in the open window. The table (frame rate p5/p50 from the
 rendered-frame intervals and the gaze-to-flip latency p50, :mod:`data_schema.timing`) is stored with the
-session (a ``fps_check`` event) and printed to the experimenter's console; a condition whose median rate is below ``min_fps`` stops the session
-before its first trial (:class:`TooSlow`) unless the run accepts slow conditions (``run --accept-slow``).
+session (a ``fps_check`` event) and printed to the experimenter's console; a condition whose median rate is
+below ``min_fps`` stops the session before its first trial (:class:`TooSlow`) unless the run accepts slow
+conditions (``run --accept-slow``).
 
 This module is pure: the window's side (render, draw, flip one frame) is a callable handed to
 :func:`sample_frames`, so the check is tested with a fake renderer and clock.
