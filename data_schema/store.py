@@ -23,6 +23,8 @@ Tables
                    from stimulus onset, onset time, dropped frames, switches, gaze flag, catch correctness
 ``events``         pause, resume, end, break and error events per session; ``scenes`` (live sessions, written
                    with the session): the protocol folder and each scene's content hash, for ``replay``
+                   ``fps_check`` (live sessions in a window): the frame-rate check before the first trial
+                   (:meth:`Store.fps_check`); ``refused``: the check stopped the session (status ``refused``)
 
 Exports
 -------
@@ -573,11 +575,9 @@ class Store:
     def session_scenes(self, sid: str) -> dict | None:
         """What session ``sid`` recorded of its scenes (:meth:`start_session`): ``{"folder": str, "scenes":
         {scene: sha256}}``, or None for a session that recorded none (older studyapp, pre-rendered stimuli)."""
-        row = self.conn.execute("SELECT detail FROM events WHERE session = ? AND kind = 'scenes' ORDER BY id DESC "
-                                "LIMIT 1", (sid,)).fetchone()
-        if row is None:
+        rec = self._event_json(sid, "scenes")
+        if rec is None:
             return None
-        rec = _json(row[0]) if isinstance(row[0], str) else None
         ok = (isinstance(rec, dict) and isinstance(rec.get("folder"), str) and isinstance(rec.get("scenes"), dict)
               and all(isinstance(k, str) and isinstance(v, str) and len(v) == 64 for k, v in rec["scenes"].items()))
         if not ok:
@@ -585,6 +585,31 @@ class Store:
                              f"a sha256 per scene{_NOT_OURS}")
         return rec
 
+
+    def _event_json(self, sid: str, kind: str):
+        """The JSON detail of session ``sid``'s last event of ``kind``: None without one, ``False`` for a detail
+        that is not JSON (refused by the caller)."""
+        row = self.conn.execute("SELECT detail FROM events WHERE session = ? AND kind = ? ORDER BY id DESC LIMIT 1",
+                                (sid, kind)).fetchone()
+        if row is None:
+            return None
+        rec = _json(row[0]) if isinstance(row[0], str) else None
+        return False if rec is None else rec
+
+    def fps_check(self, sid: str) -> dict | None:
+        """The frame-rate check session ``sid`` recorded before its first trial (``fps_check`` event, written by
+        :mod:`studyapp.runner.fpscheck`'s caller): ``{"seconds", "scale", "min_fps", "rows": [{"condition",
+        "scene", "fps_p5", "fps_p50", "latency_p50_ms", "frames"}], "accepted_slow": [condition, ...]}``, or None
+        (no check: pre-rendered, simulated, older studyapp)."""
+        rec = self._event_json(sid, "fps_check")
+        if rec is None:
+            return None
+        ok = (isinstance(rec, dict) and isinstance(rec.get("rows"), list) and isinstance(rec.get("accepted_slow"), list)
+              and all(isinstance(r, dict) and isinstance(r.get("condition"), str) and isinstance(r.get("scene"), str)
+                      for r in rec["rows"]))
+        if not ok:
+            raise StoreError(f"{self.path}: session {sid}: the record of its frame-rate check is invalid{_NOT_OURS}")
+        return rec
 
 #: The end of the refusal of a row studyapp cannot have written (its checksum is valid: it was made so).
 _NOT_OURS = ": the database was not written by studyapp (restore its last good copy)"

@@ -60,3 +60,11 @@ def rates(flip_s, render_s, stimulus=None) -> np.ndarray:
         shown = np.asarray(stimulus)[rendered]
         gaps = gaps[shown[1:] == shown[:-1]]
     return 1.0 / gaps[gaps > 0] if gaps.size else np.array([])
+
+
+def format_fps(fps: float) -> str:
+    """A frame rate for a console: one decimal, two significant digits below 1 fps (a trial that showed frames is
+    never printed as 0.0), ``-`` where undefined."""
+    if fps != fps:
+        return "-"
+    return f"{fps:.1f}" if fps >= 1 else f"{fps:.2g}"

@@ -41,6 +41,7 @@ stimulus:
   motion: explore
   gaze: mouse
   explore: {{move_speed_m_s: 0.2, turn_speed_deg: 30}}
+  fps_check_s: 0.5
 timing: {{black_s: 0.3}}
 design: {{repetitions: 1, trial_order: interleaved}}
 analysis: {{dv: response, unit: trial, test: summary_table}}
@@ -134,6 +135,12 @@ def test_live_trials_follow_the_gaze_log_every_flip_and_survive_a_kill(tmp_path)
             display = json.loads(_q(db, "SELECT display FROM sessions")[0][0])
             assert display["window_size_px"] == [W, H] and display["eyetracker"]["ok"], display
             wx, wy = display["window_pos_px"]
+            # the frame-rate check renders each condition in the window before the instructions
+            _wait(lambda: _q(db, "SELECT COUNT(*) FROM events WHERE kind = 'fps_check'") == [(1,)], 60, proc,
+                  "the frame-rate check")
+            check = json.loads(_q(db, "SELECT detail FROM events WHERE kind = 'fps_check'")[0][0])
+            assert [r["condition"] for r in check["rows"]] == ["LaFR", "LaFR_late"], check
+            assert all(r["frames"] >= 1 and r["fps_p50"] > 0 for r in check["rows"]), check
             time.sleep(1.0)
             x.key("space")  # leave the instructions
             first = min(planned)
@@ -170,7 +177,8 @@ def test_live_trials_follow_the_gaze_log_every_flip_and_survive_a_kill(tmp_path)
         log = open(tmp_path / "resume.log", "w")
         proc = subprocess.Popen(cmd + ["--resume"], env=x.env, cwd=str(ROOT), stdout=log, stderr=subprocess.STDOUT)
         try:
-            _wait(lambda: _q(db, "SELECT COUNT(*) FROM sessions") == [(2,)], 90, proc, "the resumed session")
+            _wait(lambda: _q(db, "SELECT COUNT(*) FROM events WHERE kind = 'fps_check'") == [(2,)], 90, proc,
+                  "the resumed session's frame-rate check")
             time.sleep(1.0)
             x.key("space")
             _press_until(x, "n", lambda: _q(db, "SELECT COUNT(*) FROM responses") == [(2,)], 40, "the resumed answer")

@@ -223,7 +223,8 @@ def cmd_run(args) -> int:
     try:
         summary = run_session(p, args.participant, db, _presenter_factory(args, p), seed=args.seed,
                               resume=args.resume, scale=args.scale, stimuli_root=None, allow_declared=args.simulate,
-                              on_started=started, progress=(lambda d, t: bar(d, t)) if bar else None)
+                              on_started=started, progress=(lambda d, t: bar(d, t)) if bar else None,
+                              accept_slow=getattr(args, "accept_slow", False))
     except PresentationError as exc:  # no display, keyboard backend not ptb, an unreadable frame, ...
         if not session_started:
             raise
@@ -249,6 +250,7 @@ def cmd_sessions(args) -> int:
         min_fps = _recorded_number(db, proto, "stimulus", "min_fps", None)
         flips = st.trial_flips()
         trial_session = {(r["participant"], r["trial"]): r["session"] for r in st.tidy_rows()} if flips else {}
+        checks = {s["id"]: c for s in sessions if (c := st.fps_check(s["id"])) is not None}
     print(f"{db}: protocol {meta.get('protocol_name')} {meta.get('protocol_version')} "
           f"(sha256 {meta.get('protocol_hash', '')[:12]})")
     print(f"{'session':<16} {'participant':<12} {'status':<12} {'answers':>7}  {'started (UTC)':<27} resumed from")
@@ -263,9 +265,26 @@ def cmd_sessions(args) -> int:
                 "passed" if r["catch_correct"] >= frac * r["catch_planned"] else "FAILED")
             catch = f"{r['catch_correct']}/{r['catch_planned']} {verdict}"
         print(f"{r['participant']:<12} {r['answered']:>8} {r['planned']:>8}  {catch}")
+    if checks:
+        _print_fps_checks(checks)
     if flips:
         _print_timing_qa(sessions, flips, trial_session, min_fps)
     return 0
+
+
+def _print_fps_checks(checks: dict) -> None:
+    """Each live session's frame-rate check before its first trial (:mod:`studyapp.runner.fpscheck`)."""
+    from studyapp.runner.fpscheck import table_lines
+
+    nan = float("nan")
+    for sid, rec in checks.items():
+        rows = [{k: (nan if v is None else v) for k, v in r.items()} for r in rec["rows"]]
+        lines = table_lines(rows, rec.get("min_fps"))
+        print(f"session {sid}: {lines[0]}")
+        for line in lines[1:]:
+            print(line)
+        if rec["accepted_slow"]:
+            print(f"  run with --accept-slow: trials of {', '.join(rec['accepted_slow'])} flagged")
 
 
 def _recorded_number(db: Path, proto: dict, section: str, key: str, default):
@@ -282,9 +301,11 @@ def _recorded_number(db: Path, proto: dict, section: str, key: str, default):
 
 def _print_timing_qa(sessions, flips, trial_session, min_fps) -> None:
     """Live trials: frame rate and gaze-to-flip latency per session, pooled over the flips of every trial;
-    flagged: trials with no frame rate (no stimulus with two rendered frames) and trials below the protocol's
-    min_fps."""
-    from data_schema.timing import pooled, rates, summary
+    each trial's frame rate and frame time percentiles from its frame rows; flagged: trials with no frame rate
+    (no stimulus with two rendered frames) and trials below the protocol's min_fps."""
+    import numpy as np
+
+    from data_schema.timing import format_fps, pooled, rates, summary
 
     floor = f"; trials below min_fps {min_fps:g} flagged" if min_fps else ""
     print(f"timing (live trials, pooled over their flips{floor}; trials with fewer than two rendered frames "
@@ -301,9 +322,16 @@ def _print_timing_qa(sessions, flips, trial_session, min_fps) -> None:
                 and not summary(*flips[k])["fps_median"] >= min_fps]
         flagged = "; ".join(([f"trials {', '.join(few)} (< 2 rendered frames)"] if few else [])
                             + ([f"trials {', '.join(slow)} (below min_fps)"] if slow else []))
-        print(f"{s['id']:<16} {len(keys):>6} {t['fps_median']:>8.1f} {t['fps_p5']:>7.1f} "
+        print(f"{s['id']:<16} {len(keys):>6} {format_fps(t['fps_median']):>8} {format_fps(t['fps_p5']):>7} "
               f"{t['dropped_share']:>7.1%} {t['latency_p50_ms']:>6.0f}ms {t['latency_p95_ms']:>6.0f}ms  "
               f"{('FLAGGED ' + flagged) if flagged else '-'}")
+        for k in sorted(keys, key=lambda k: k[1]):  # each trial's frame times, from its frame rows
+            ms = 1000.0 / rates(flips[k][0], flips[k][1], flips[k][4])
+            times = (f"frame time p50 {np.percentile(ms, 50):.0f}ms p95 {np.percentile(ms, 95):.0f}ms"
+                     if ms.size else "fewer than two rendered frames")
+            one = summary(*flips[k])
+            print(f"  trial {k[1]:<4} {k[0]:<12} fps p50 {format_fps(one['fps_median']):>6} "
+                  f"p5 {format_fps(one['fps_p5']):>6}  {times}")
 
 
 def cmd_export(args) -> int:
@@ -380,7 +408,9 @@ def register(subparsers, parser_class) -> None:
                     "(then it is rendered first, with a progress bar and the time left). The database and the "
                     "participant (another protocol's database, an unknown or finished participant, a session still "
                     "running) are checked before anything is rendered. A live protocol renders during its trials, "
-                    "at its render size times --scale.")
+                    "at its render size times --scale; before its first trial each condition x scene is rendered "
+                    "for stimulus.fps_check_s seconds (default 2) in the window and a condition below min_fps stops "
+                    "the session (unless --accept-slow); --simulate has no such check.")
     r.add_argument("protocol", metavar="PROTOCOL")
     r.add_argument("--participant", required=True, metavar="ID", help="pseudonymous participant id")
     r.add_argument("--db", metavar="FILE", help="study database (default: <protocol name>.db)")
@@ -396,6 +426,10 @@ def register(subparsers, parser_class) -> None:
                    help="render the missing stimulus sets first (as `studyapp prepare` with the same PROTOCOL, "
                         "--scale, --stimuli, --full and cluster options), then run; without it a missing set is "
                         "refused")
+    r.add_argument("--accept-slow", action="store_true",
+                   help="live: run even if the frame-rate check before the first trial finds a condition below the "
+                        "protocol's min_fps (recorded with the session; its slow trials are flagged on the console "
+                        "and by `studyapp sessions`)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     _full_option(r)
     r.add_argument("--eyetracker", choices=("mousegaze",),

@@ -282,3 +282,33 @@ def check_live_trial(trial: TrialDisplay) -> None:
         raise PresentationError(f"trial {trial.index}: live and pre-rendered stimuli cannot be mixed in a trial")
     if trial.duration_s is None or not math.isfinite(trial.duration_s):
         raise PresentationError(f"trial {trial.index}: a live trial needs a duration")
+
+
+def fps_check_frames(presenter, live, seconds: float) -> tuple[list, list, list, list]:
+    """Render ``live`` (a :class:`~studyapp.runner.live.LiveStimulus`) in the presenter's window for ``seconds``
+    as a trial would (gaze, delay, camera at the path's start or the exploration's start, upload, draw, flip):
+    the frame-rate check's rows (:func:`studyapp.runner.fpscheck.sample_frames`). Keys are not read."""
+    from studyapp.runner.fpscheck import sample_frames
+
+    from .base import Stimulus
+
+    trial = TrialDisplay(index=-1, family="2afc", stimuli=(Stimulus(live.condition, (), 0.0, live=live),),
+                         question="", answer_keys={}, duration_s=live.duration_s)
+    lt = LiveTrial(presenter, trial)
+    t0 = presenter._now()
+
+    def frame():
+        now = presenter._now()
+        lt.delays[0].push(*lt._gaze_sample(now))
+        used = lt.delays[0].at(now)
+        render_s, _ = lt._render(0, now - t0, None if used is None else used[1:], (), (0.0, 0.0))
+        for surf in lt.surfaces[0]:
+            surf.stim.draw()
+        return presenter.win.flip(), render_s, None if used is None else used[0]
+
+    try:
+        return sample_frames(frame, presenter._now, seconds)
+    finally:
+        for surf in lt.surfaces.get(0, []):
+            surf.release()
+        presenter.win.flip()  # black again

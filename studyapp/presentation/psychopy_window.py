@@ -1118,6 +1118,13 @@ class PsychoPyPresenter:
         res.frames = [] if escaped else frames
         return res
 
+    def fps_check_frames(self, live, seconds: float):
+        """The frame-rate check's rows of one condition x scene (:func:`.live_window.fps_check_frames`)."""
+        from .live_window import fps_check_frames
+
+        self._require_open()
+        return fps_check_frames(self, live, seconds)
+
     def _write_gaze(self, index: int, samples: list) -> None:
         """Append ``samples`` of trial ``index`` to :attr:`gaze_log` (header first), then flush and fsync."""
         if self.gaze_log is None or not samples:

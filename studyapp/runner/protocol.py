@@ -42,6 +42,9 @@ MOUSE_GAZE_DEVICE = "eyetracker.hw.mouse.EyeTracker"
 #: In a live exploring protocol's instructions, replaced by the controls
 #: (:func:`studyapp.runner.live.controls_text`).
 CONTROLS = "{controls}"
+#: Seconds each condition x scene of a live protocol is rendered before the first trial
+#: (``stimulus.fps_check_s``, :mod:`studyapp.runner.fpscheck`).
+FPS_CHECK_S = 2.0
 
 DEFAULT_SIMULATION = {"jnd": 0.02, "sensitivity_sd": 0.25, "bias_sd": 0.25, "lapse": 0.02, "criterion_jnd": 1.0,
                       "rt_mu_s": 0.55, "rt_sigma_s": 0.08, "rt_tau_s": 0.25}
@@ -136,6 +139,7 @@ class Protocol:
     motion: str = "path"  # live: path | explore
     gaze_source: str = "fixation"  # live: tracker | mouse | fixation
     min_fps: float | None = None  # live: the timing check's floor
+    fps_check_s: float = FPS_CHECK_S  # live: seconds each condition x scene is rendered before the first trial (0: off)
     explore: dict = field(default_factory=dict)
     eyetracker: dict | None = None
     full: bool = False  # the full-size variant (the protocol's full block in place)
@@ -609,7 +613,7 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
     if kind == "image" and "fps" in stim:
         raise doc.error(("stimulus", "fps"), "still images have no frame rate (use kind: sequence)")
     _check_camera_path(doc, stim)
-    live_keys = [k for k in ("motion", "gaze", "min_fps", "explore") if k in stim]
+    live_keys = [k for k in ("motion", "gaze", "min_fps", "fps_check_s", "explore") if k in stim]
     if kind != "live" and live_keys:
         raise doc.error(("stimulus", live_keys[0]), "only live stimuli (kind: live) have this")
     if kind != "live" and data["display"].get("stereo"):
@@ -715,7 +719,8 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
         reference=reference.get("condition"), reference_label=reference.get("label", "This is the reference"),
         practice=practice, breaks=data.get("breaks"), catch=catch, simulation=simulation, analysis=analysis,
         stimuli_dir=sdir, content_hash=content_hash(data), motion=stim.get("motion", "path"),
-        gaze_source=stim.get("gaze", "fixation"), min_fps=stim.get("min_fps"), explore=dict(stim.get("explore", {})),
+        gaze_source=stim.get("gaze", "fixation"), min_fps=stim.get("min_fps"),
+        fps_check_s=float(stim.get("fps_check_s", FPS_CHECK_S)), explore=dict(stim.get("explore", {})),
         eyetracker=data.get("eyetracker"), full=full,
         key_reminder=data.get("presentation", {}).get("key_reminder", "bottom"))
     if kind == "live" and check_renderers and _registry() is not None:  # the poses need the scenes' cameras

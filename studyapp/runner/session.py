@@ -11,7 +11,10 @@ Order of events (what survives a crash at any point):
 3. the presenter is opened (a window checks its keyboard backend here);
 4. a new participant's whole schedule is written in one transaction; a returning one (``resume``) must have
    the same seed and the identical schedule (hash), and continues at the first unanswered trial;
-5. per trial: break message if due, ``present``, then the response is committed (fsync) before the next trial
+5. a live session in a window renders each condition x scene for a moment first (:mod:`.fpscheck`): the table is
+   stored (``fps_check`` event) and printed; a condition below ``min_fps`` ends the session as ``refused`` before
+   its first trial unless ``accept_slow``;
+6. per trial: break message if due, ``present``, then the response is committed (fsync) before the next trial
    is preloaded and shown. Escape -> ``pause``: ``resume`` shows the trial again, ``end`` closes the session
    as ``ended`` (both are logged as events); a later ``--resume`` continues it.
 """
@@ -34,6 +37,7 @@ from data_schema.names import check_name
 from data_schema.store import PlannedRow, Store, StoreError, open_store, remove_database
 from studyapp.presentation.base import Stimulus, TrialDisplay, TrialResult
 
+from .fpscheck import TooSlow, measure, refusal, seconds_per_cell, table_lines, too_slow, trial_flags
 from .live import instructions_text, scene_record
 from .protocol import Protocol
 from .schedule import PlannedTrial, break_text, build_schedule, counterbalance_index, schedule_hash
@@ -226,8 +230,13 @@ def check_admission(protocol: Protocol, participant: str, db_path, seed: int | N
 def run_session(protocol: Protocol, participant: str, db_path, presenter_factory: Callable, seed: int | None = None,
                 resume: bool = False, scale: float = 1.0, stimuli_root: Path | None = None,
                 allow_declared: bool = False, on_started: Callable[[str], None] | None = None,
-                progress: Callable[[int, int], None] | None = None) -> SessionSummary:
+                progress: Callable[[int, int], None] | None = None, accept_slow: bool = False,
+                console: Callable[[str], None] | None = None) -> SessionSummary:
     """Run (or resume) one participant's session; see the module docstring for the order of events.
+
+    ``accept_slow``: run a live session whose frame-rate check finds a condition below ``min_fps`` (recorded in
+    the ``fps_check`` event); ``console(line)`` shows the experimenter the check's table and every live trial
+    below ``min_fps`` as it ends (default: stderr).
 
     ``presenter_factory(stimuli, display)`` returns the Presenter (a window or the simulated observer); it is
     called after every check has passed, so a refused run opens no window.
@@ -239,7 +248,7 @@ def run_session(protocol: Protocol, participant: str, db_path, presenter_factory
     store = open_store(db_path, "create" if created else "write")
     try:
         return _run(store, protocol, participant, presenter_factory, seed, resume, scale, stimuli_root,
-                    allow_declared, on_started, progress)
+                    allow_declared, on_started, progress, accept_slow, console or warn_line)
     finally:
         empty = created and not store.has_answers()
         store.close()
@@ -248,7 +257,7 @@ def run_session(protocol: Protocol, participant: str, db_path, presenter_factory
 
 
 def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_root, allow_declared, on_started,
-         progress) -> SessionSummary:
+         progress, accept_slow=False, console=None) -> SessionSummary:
     adm = admit(store, protocol, pid, seed, resume)
     existing, seed, schedule, s_hash = adm.existing, adm.seed, adm.schedule, adm.schedule_hash
     if adm.unclosed:
@@ -283,8 +292,12 @@ def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_r
         if on_started:
             on_started(sid)
         try:
-            status = _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress)
+            _fps_check(store, protocol, sid, presenter, scale, accept_slow, console or warn_line)
+            status = _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress,
+                           console or warn_line)
         except BaseException as exc:  # Ctrl-C, SIGTERM, a full disk: committed answers stay; the session says so
+            if isinstance(exc, TooSlow):  # closed as refused already
+                raise
             with contextlib.suppress(StoreError):
                 store.event(sid, "interrupted", "Ctrl-C or SIGTERM" if isinstance(exc, KeyboardInterrupt)
                             else str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__)
@@ -293,6 +306,46 @@ def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_r
     finally:
         presenter.close()
     return _summary(store, protocol, pid, sid, status)
+
+
+def _fps_check(store, protocol, sid, presenter, scale, accept_slow, console) -> None:
+    """The frame-rate check before the first trial (:mod:`.fpscheck`), in a presenter that renders live frames
+    (a window: ``fps_check_frames``); the simulated observer renders nothing, so a simulated run has no check."""
+    check = getattr(presenter, "fps_check_frames", None)
+    seconds = seconds_per_cell(protocol) if protocol.live else 0.0
+    if check is None or not seconds:
+        return
+    rows = measure(protocol, scale, check, seconds)
+    slow = too_slow(rows, protocol.min_fps)
+    accepted = sorted({r["condition"] for r in slow}) if accept_slow else []
+    clean = [{k: (None if isinstance(v, float) and v != v else v) for k, v in r.items()} for r in rows]  # JSON: no NaN
+    store.event(sid, "fps_check", json.dumps({"seconds": seconds, "scale": scale, "min_fps": protocol.min_fps,
+                                              "rows": clean, "accepted_slow": accepted}, sort_keys=True))
+    for line in table_lines(rows, protocol.min_fps):
+        console(line)
+    if slow and not accept_slow:
+        line = refusal(slow, protocol.min_fps)
+        store.event(sid, "refused", line)
+        store.end_session(sid, "refused")
+        raise TooSlow(line)
+    if accepted:
+        console(f"--accept-slow: the trials of {', '.join(accepted)} are flagged")
+
+
+def _slow_trial(t, frames, min_fps) -> list[str]:
+    """The console lines of a finished live trial below ``min_fps`` (per stimulus, from its rendered frames)."""
+    if not frames or not min_fps:
+        return []
+    import numpy as np
+
+    from data_schema.timing import rates
+
+    per = []
+    for i in range(len(t.conditions)):
+        own = [f for f in frames if f.stimulus == i]
+        r = rates([f.flip_s for f in own], [f.render_s for f in own]) if own else np.array([])
+        per.append(float(np.median(r)) if r.size else float("nan"))
+    return trial_flags(t.idx, t.conditions, t.scene, per, min_fps)
 
 
 def _summary(store, protocol, pid, sid, status) -> SessionSummary:
@@ -305,7 +358,7 @@ def _summary(store, protocol, pid, sid, status) -> SessionSummary:
                           prog["catch_planned"], passed)
 
 
-def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress) -> str:
+def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress, console=None) -> str:
     planned = store.planned(pid)
     answered = store.answered(pid)
     total = sum(t.kind != "reference" for t in planned)
@@ -317,6 +370,9 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
     text = instructions_text(protocol)
     presenter.instructions(("Welcome back. " if resume else "") + text)
     todo = [t for t in planned if t.idx not in answered]
+    # a presenter that renders live frames in real time (a window) is checked against min_fps; the simulated
+    # observer's few sampled frames have no frame rate to flag
+    floor = protocol.min_fps if protocol.live and hasattr(presenter, "fps_check_frames") else None
     first = True
     displays = {}
 
@@ -356,6 +412,8 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
                               onset_s=result.onset_s, dropped_frames=result.dropped_frames,
                               switches=result.switches, gaze_left_fovea=result.gaze_left_fovea,
                               correct=_correct(store, pid, t, result.answers, derived), frames=result.frames)
+        for line in _slow_trial(t, result.frames, floor):
+            (console or warn_line)(line)
         if t.kind != "reference":
             number += 1
         shown += counted(t)
@@ -388,3 +446,8 @@ def ground_truth_stimuli(protocol: Protocol, stimuli: StimulusSet) -> dict[str, 
 
 def write_line(msg: str) -> None:
     print(msg, file=sys.stdout, flush=True)
+
+
+def warn_line(msg: str) -> None:
+    """A line for the experimenter's console (stderr: the participant's answers never go there)."""
+    print(msg, file=sys.stderr, flush=True)
