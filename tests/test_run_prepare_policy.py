@@ -243,7 +243,7 @@ def test_a_folder_sequence_names_its_frame_files(tmp_path, capsys, monkeypatch):
 
 
 def test_run_help_documents_pause_keys_prepare_policy_and_live_scale(capsys):
-    from studyapp.presentation.psychopy_window import END_KEY, ESCAPE, RESUME_KEY
+    from studyapp.presentation.base import END_KEY, ESCAPE, RESUME_KEY
 
     with pytest.raises(SystemExit):
         main(["run", "--help"])

@@ -395,7 +395,7 @@ def register(subparsers, parser_class) -> None:
     _render_options(pr, "with --full and no --scheduler: render the full-size set on this machine anyway")
     pr.set_defaults(func=cmd_prepare, interrupted_hint=PREPARE_INTERRUPTED)
 
-    from studyapp.presentation.psychopy_window import END_KEY, ESCAPE, RESUME_KEY
+    from studyapp.presentation.base import END_KEY, ESCAPE, RESUME_KEY
 
     r = subparsers.add_parser(
         "run", help="run (or resume) a participant's session",

@@ -108,6 +108,12 @@ class Presenter(Protocol):
         """Close the window."""
 
 
+#: The session keys of every presenter: Escape pauses a trial, then R resumes or E ends the session; SPACE
+#: ends a break once its countdown is over.
+ESCAPE = "escape"
+CONTINUE_KEY = "space"
+RESUME_KEY, END_KEY = "r", "e"
+
 KEY_REMINDER_PLACES = ("bottom", "top", "off")
 
 

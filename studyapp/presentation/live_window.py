@@ -35,8 +35,7 @@ from data_schema.geometry import EYES, eye_at
 from studyapp.runner.live import FramePacer, FrameRecord, GazeDelay
 from studyapp.runner.protocol import EXPLORE_KEYS
 
-from .base import PresentationError, TrialDisplay
-from .psychopy_window import ESCAPE
+from .base import ESCAPE, PresentationError, TrialDisplay
 
 # psychtoolbox key names of exploration -> pyglet key codes (held-key state comes from pyglet)
 _PYGLET_KEYS = {"w": "W", "s": "S", "a": "A", "d": "D", "left": "LEFT", "right": "RIGHT", "up": "UP",

@@ -55,11 +55,17 @@ from data_schema.errors import UserError
 from data_schema.geometry import Display
 
 from ._texture import TextureRef
-from .base import PresentationError, TrialDisplay, TrialResult, key_reminder_text, key_text
-
-ESCAPE = "escape"
-CONTINUE_KEY = "space"  # ends a break once its countdown is over
-RESUME_KEY, END_KEY = "r", "e"
+from .base import (
+    CONTINUE_KEY,
+    END_KEY,
+    ESCAPE,
+    RESUME_KEY,
+    PresentationError,
+    TrialDisplay,
+    TrialResult,
+    key_reminder_text,
+    key_text,
+)
 EventHook = Callable[[str, dict], None]
 
 
