@@ -24,3 +24,9 @@ class UserError(ValueError):
 
 #: The CLI's own errors (bad options); the same family.
 CLIError = UserError
+
+
+def first_line(exc: BaseException) -> str:
+    """The first line of ``exc``'s message (its type's name when it has none): a library's error in one line."""
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import UserError
+from .errors import UserError, first_line
 
 #: The largest image any reader decodes: 8192 x 8192 pixels (a stimulus at 8K, 7680 x 4320, is 33 M).
 MAX_IMAGE_SIDE = 8192
@@ -61,11 +61,6 @@ def _png_header_size(path) -> tuple[int, int] | None:
     return None
 
 
-def _first_line(exc: BaseException) -> str:
-    text = str(exc).strip()
-    return text.splitlines()[0] if text else type(exc).__name__
-
-
 @contextlib.contextmanager
 def open_image(path, *, load: bool = False):
     """Open an image file with Pillow and yield it once its size, read from the header, is within the limit.
@@ -92,14 +87,14 @@ def open_image(path, *, load: bool = False):
         raise ImageTooLarge(f"{path}: {size[0]}x{size[1]} pixels is over Pillow's limit of "
                             f"{Image.MAX_IMAGE_PIXELS} pixels (Image.MAX_IMAGE_PIXELS) for an image") from None
     except (OSError, SyntaxError, ValueError) as exc:  # missing, not an image
-        raise UserError(f"cannot read image {path}: {_first_line(exc)}") from None
+        raise UserError(f"cannot read image {path}: {first_line(exc)}") from None
     with im:
         check_image_pixels(path, *im.size)
         if load:
             try:
                 im.load()
             except (OSError, SyntaxError, ValueError) as exc:  # truncated, damaged
-                raise UserError(f"cannot read image {path}: {_first_line(exc)}") from None
+                raise UserError(f"cannot read image {path}: {first_line(exc)}") from None
         yield im
 
 
@@ -141,9 +136,9 @@ def read_npy_header(path, *, dtypes: tuple[str, ...] | None = None,
                 raise ValueError(f".npy format version {version[0]}.{version[1]} is not supported")
             offset, size = fh.tell(), os.fstat(fh.fileno()).st_size
     except OSError as exc:
-        raise UserError(f"cannot read image {path}: {(exc.strerror or _first_line(exc)).lower()}") from None
+        raise UserError(f"cannot read image {path}: {(exc.strerror or first_line(exc)).lower()}") from None
     except (ValueError, SyntaxError, EOFError) as exc:  # numpy's message for a bad magic or header
-        raise UserError(f"cannot read image {path}: not a .npy file ({_first_line(exc)})") from None
+        raise UserError(f"cannot read image {path}: not a .npy file ({first_line(exc)})") from None
     head = NpyHeader(tuple(int(n) for n in dims), np.dtype(dtype), bool(fortran), offset)
     if head.dtype.kind not in IMAGE_DTYPE_KINDS or head.dtype.fields is not None or head.dtype.subdtype:
         raise UserError(f"cannot read image {path}: dtype {head.dtype} is not an image's: use uint8, uint16 or float")
@@ -173,4 +168,4 @@ def load_npy(path, *, dtypes: tuple[str, ...] | None = None, shape: tuple[int, .
     try:
         return np.load(Path(path), mmap_mode="r" if mmap else None, allow_pickle=False)
     except (OSError, ValueError) as exc:  # changed since the header was read
-        raise UserError(f"cannot read image {path}: {_first_line(exc)}") from None
+        raise UserError(f"cannot read image {path}: {first_line(exc)}") from None

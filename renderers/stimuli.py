@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from data_schema.errors import UserError
+from data_schema.errors import UserError, first_line
 
 
 def to_srgb8(img: np.ndarray, exposure: float = 1.0) -> np.ndarray:
@@ -231,7 +231,7 @@ def check_entry(png: Path, shape: tuple[int, ...]) -> str | None:
     except FileNotFoundError:
         return ".json: missing"
     except (OSError, ValueError) as exc:
-        return f".json: not readable ({_first_line(exc)})"
+        return f".json: not readable ({first_line(exc)})"
     rec = meta.get(ENTRY_FIELD) if isinstance(meta, dict) else None
     if not isinstance(rec, dict) or meta.get("key") != png.stem:
         return ".json: not this entry's record"
@@ -246,11 +246,11 @@ def check_entry(png: Path, shape: tuple[int, ...]) -> str | None:
             if hashlib.file_digest(fh, "sha256").hexdigest() != rec.get("png_sha256"):
                 return ".png: its bytes differ from those recorded (damaged or replaced)"
     except (OSError, ValueError) as exc:
-        return f".png: {_first_line(exc).replace(f'cannot read image {png}: ', '').replace(f'{png}: ', '')}"
+        return f".png: {first_line(exc).replace(f'cannot read image {png}: ', '').replace(f'{png}: ', '')}"
     try:
         image = load_npy(npy, dtypes=("float32",), shape=shape, mmap=True)
     except (OSError, ValueError) as exc:
-        return f".npy: {_first_line(exc).replace(f'cannot read image {npy}: ', '').replace(f'{npy}: ', '')}"
+        return f".npy: {first_line(exc).replace(f'cannot read image {npy}: ', '').replace(f'{npy}: ', '')}"
     digest, bad = _scan(image)
     del image  # unmapped
     if bad:
@@ -258,11 +258,6 @@ def check_entry(png: Path, shape: tuple[int, ...]) -> str | None:
     if digest != rec.get("npy_sha256"):
         return ".npy: its data differ from those recorded (damaged or replaced)"
     return None
-
-
-def _first_line(exc: BaseException) -> str:
-    text = str(exc).strip()
-    return text.splitlines()[0] if text else type(exc).__name__
 
 
 def report_damaged(damaged: list[tuple[Path, str]], stream=None) -> None:

@@ -39,7 +39,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from data_schema.errors import UserError
+from data_schema.errors import UserError, first_line
 
 #: The environment variable naming a running scheduler (Dask's own name for it).
 ENV_SCHEDULER = "DASK_SCHEDULER_ADDRESS"
@@ -244,7 +244,7 @@ def _distributed():
     except Exception as exc:  # noqa: BLE001 - Dask's config files are the user's input: one line
         where = (f"DASK_CONFIG={os.environ['DASK_CONFIG']}" if "DASK_CONFIG" in os.environ else
                  "Dask's configuration (~/.config/dask, /etc/dask)")
-        raise UserError(f"{where}: Dask cannot read its configuration ({_first_line(exc).rstrip(':, ')}): fix or "
+        raise UserError(f"{where}: Dask cannot read its configuration ({first_line(exc).rstrip(':, ')}): fix or "
                         "unset it, or render in this process with --serial") from None
     return distributed
 
@@ -265,12 +265,12 @@ def _client(client_class, address: str):
         scheme, loc = parse_address(address, strict=True)
         host, port = parse_host_port(loc)
     except (ValueError, TypeError) as exc:
-        raise UserError(f"{where}: not a scheduler address ({_first_line(exc)}): give tcp://HOST:PORT") from None
+        raise UserError(f"{where}: not a scheduler address ({first_line(exc)}): give tcp://HOST:PORT") from None
     if scheme == "tcp":  # nothing listening: say so at once, not after Dask's retries
         try:
             socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S).close()
         except (OSError, UnicodeError) as exc:  # UnicodeError: a name the resolver cannot encode
-            why = getattr(exc, "strerror", None) or _first_line(exc)
+            why = getattr(exc, "strerror", None) or first_line(exc)
             raise UserError(f"{where}: no Dask scheduler answers there ({why}): {hint}") from None
     # In a thread with a deadline: a service that accepts the connection but is no scheduler never answers.
     box: dict = {}
@@ -279,7 +279,7 @@ def _client(client_class, address: str):
         try:
             box["client"] = client_class(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
         except Exception as exc:  # noqa: BLE001 - reported below in one line
-            box["reason"] = _first_line(exc)
+            box["reason"] = first_line(exc)
 
     thread = threading.Thread(target=make, name="studyapp-connect", daemon=True)
     thread.start()
@@ -296,11 +296,6 @@ def _client(client_class, address: str):
     raise UserError(f"{where}: no Dask scheduler answers there ({reason}): {hint}")
 
 
-def _first_line(exc: BaseException) -> str:
-    text = str(exc).strip()
-    return text.splitlines()[0] if text else type(exc).__name__
-
-
 def for_tasks(spec: ClusterSpec, n_tasks: int) -> ClusterSpec:
     """``spec`` for ``n_tasks`` tasks: a local cluster of no more workers than tasks (an idle worker is a
     process started for nothing; one task renders in this process)."""
@@ -315,9 +310,9 @@ def task_error(label: str, exc: BaseException) -> UserError:
     if name == "KilledWorker":
         why = "every worker that ran it died (distributed.scheduler.allowed-failures reached; out of memory?)"
     elif isinstance(exc, UserError):
-        why = _first_line(exc)
+        why = first_line(exc)
     else:
-        why = f"{name}: {_first_line(exc)}"
+        why = f"{name}: {first_line(exc)}"
     return UserError(f"{label}: {why}")
 
 
