@@ -289,6 +289,8 @@ def window_image(window: tuple[int, int], views, images) -> np.ndarray:
     out = np.zeros((wh, ww, 3), dtype=np.uint8)
     for v, img in zip(views, images):
         img = np.asarray(img, dtype=np.float64)
+        if img.shape != (v.render_height, v.render_width, 3):
+            raise ValueError(f"an image of {img.shape} for a view rendered at {v.render_width}x{v.render_height}")
         # texel coordinates of the pixel centres (EyeView.to_render), minus half a texel: texel centres
         u = (np.arange(v.width) + 0.5) * v.render_width / v.width - 0.5
         t = (np.arange(v.height) + 0.5) * v.render_height / v.height - 0.5
