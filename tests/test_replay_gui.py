@@ -20,6 +20,7 @@ import pytest
 from PIL import Image
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "gui"))
+from test_live_gui import _press_until, _psnr, _wait  # noqa: E402
 from xvfb import ROOT, Xvfb, require_tools  # noqa: E402
 from xvfb import query as _q  # noqa: E402
 
@@ -51,27 +52,6 @@ analysis: {{dv: response, unit: trial, test: summary_table}}
 """
 
 
-def _wait(pred, timeout_s: float, proc, what: str) -> None:
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        if pred():
-            return
-        if proc.poll() is not None:
-            break
-        time.sleep(0.05)
-    raise AssertionError(f"timed out waiting for {what}")
-
-
-def _press_until(x, key: str, pred, timeout_s: float, what: str) -> None:
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        if pred():
-            return
-        x.key(key)
-        time.sleep(0.3)
-    raise AssertionError(f"timed out waiting for {what}")
-
-
 def _attempt_shots(folder: Path, trial: int) -> list[dict[int, Path]]:
     """The screenshots of a trial's rendered frames, per attempt: frame -> file (an attempt starts again at a
     lower frame number; files are numbered in the order taken)."""
@@ -85,11 +65,6 @@ def _attempt_shots(folder: Path, trial: int) -> list[dict[int, Path]]:
         attempts[-1][frame] = s
         last = frame
     return attempts
-
-
-def _psnr(a, b) -> float:
-    mse = float(np.mean((np.asarray(a, float) - np.asarray(b, float)) ** 2))
-    return float("inf") if mse == 0 else 10 * np.log10(255.0 ** 2 / mse)
 
 
 def _session(tmp_path: Path, stereo: bool) -> tuple[Path, dict, Path]:
