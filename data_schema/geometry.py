@@ -230,6 +230,21 @@ class EyeView:
         v = (y - self.y0) * self.render_height / self.height
         return (min(max(u, 0.0), float(self.render_width)), min(max(v, 0.0), float(self.render_height)))
 
+    def record(self) -> dict:
+        """The view as plain data, as a session records it (:meth:`from_record` reads it back)."""
+        return {"eye": self.eye, "x0": self.x0, "y0": self.y0, "width": self.width, "height": self.height,
+                "render_width": self.render_width, "render_height": self.render_height}
+
+    @classmethod
+    def from_record(cls, rec) -> EyeView:
+        """A view recorded by :meth:`record`, checked: a one-line :class:`UserError` for anything else."""
+        names = ("eye", "x0", "y0", "width", "height", "render_width", "render_height")
+        if not isinstance(rec, dict) or set(rec) != set(names) or rec["eye"] not in ("mono", *EYES):
+            raise UserError(f"view {rec!r:.80} is invalid: must be an eye (mono, left, right) and its viewport")
+        ints = {k: (Range(0, PIXELS.high, integer=True) if k in ("x0", "y0") else PIXELS).check(f"view.{k}", rec[k])
+                for k in names[1:]}
+        return cls(rec["eye"], **ints)
+
 
 EYES = ("left", "right")
 

@@ -183,6 +183,13 @@ def _real(x) -> float | None:
     return None if x is None or not math.isfinite(float(x)) else float(x)
 
 
+def _frame_values(f) -> tuple:
+    """A logged flip (:class:`studyapp.runner.live.FrameRecord`-like) as the frames table's columns after
+    ``participant`` and ``idx``."""
+    return (int(f.frame), int(f.stimulus), float(f.flip_s), _real(f.render_s), _real(f.gaze_t), _real(f.gaze_x),
+            _real(f.gaze_y), *map(float, f.position), *map(float, f.look_at), int(bool(f.dropped)))
+
+
 def _is_full(exc: BaseException) -> bool:
     if isinstance(exc, OSError) and exc.errno == errno.ENOSPC:
         return True
@@ -463,9 +470,7 @@ class Store:
                                      None if gaze_left_fovea is None else int(gaze_left_fovea),
                                      None if correct is None else int(correct), utc_now()))
             for f in frames or ():
-                _insert(c, "frames", (pid, idx, int(f.frame), int(f.stimulus), float(f.flip_s), _real(f.render_s),
-                                      _real(f.gaze_t), _real(f.gaze_x), _real(f.gaze_y), *map(float, f.position),
-                                      *map(float, f.look_at), int(bool(f.dropped))))
+                _insert(c, "frames", (pid, idx, *_frame_values(f)))
             n = c.execute("SELECT n_answered, n_frames FROM participants WHERE id = ?", (pid,)).fetchone()
             _update(c, "participants", {"id": pid}, {"n_answered": (n[0] if n else 0) + 1,
                                                      "n_frames": (n[1] if n else 0) + len(frames or ())})
@@ -610,6 +615,60 @@ class Store:
         if not ok:
             raise StoreError(f"{self.path}: session {sid}: the record of its frame-rate check is invalid{_NOT_OURS}")
         return rec
+
+    def record_attempt(self, sid: str, pid: str, idx: int, frames: Sequence) -> None:
+        """The flips of an attempt at trial ``idx`` that Escape interrupted (it has no answer, so its frames are
+        not in the frames table, which holds the answered attempt's): an ``interrupted_attempt`` event of
+        session ``sid``, which ``studyapp replay`` reads back (:meth:`attempts`)."""
+        rows = [list(_frame_values(f)) for f in frames]
+        self.event(sid, "interrupted_attempt", json.dumps({"participant": pid, "trial": int(idx), "frames": rows}))
+
+    def attempts(self, pid: str, idx: int) -> list[dict]:
+        """The interrupted attempts at trial ``idx`` of ``pid`` (:meth:`record_attempt`), oldest first:
+        ``{"session": sid, "frames": [rows as :meth:`frames` returns them, each checked]}``."""
+        row = self.conn.execute("SELECT conditions FROM planned_trials WHERE participant = ? AND idx = ?",
+                                (pid, idx)).fetchone()
+        n_stimuli = 0 if row is None else len(self._conditions(pid, idx, row[0]))
+        cols = COLUMNS["frames"]
+        out = []
+        for sid, detail in self.conn.execute(
+                "SELECT e.session, e.detail FROM events e JOIN sessions s ON s.id = e.session WHERE "
+                "s.participant = ? AND e.kind = 'interrupted_attempt' ORDER BY e.id", (pid,)):
+            rec = _json(detail) if isinstance(detail, str) else None
+            if not (isinstance(rec, dict) and rec.get("participant") == pid and type(rec.get("trial")) is int
+                    and isinstance(rec.get("frames"), list)
+                    and all(isinstance(r, list) and len(r) == len(cols) - 2 for r in rec["frames"])):
+                raise StoreError(f"{self.path}: session {sid}: the record of an interrupted attempt is invalid"
+                                 f"{_NOT_OURS}")
+            if rec["trial"] == idx:
+                out.append({"session": sid, "frames": [check_frame(self.path, dict(zip(cols, (pid, idx, *r))),
+                                                                   n_stimuli) for r in rec["frames"]]})
+        return out
+
+    def session_layout(self, sid: str) -> dict | None:
+        """What live session ``sid`` recorded of its window (``live_layout`` event,
+        :func:`studyapp.runner.live.layout_record`): ``{"window_px": (w, h), "scale": float, "conditions":
+        {condition: {"backend": "cpu"|"gpu", "views": [EyeView, ...]}}}``, or None (an older studyapp,
+        pre-rendered stimuli)."""
+        from .geometry import PIXELS, EyeView
+
+        rec = self._event_json(sid, "live_layout")
+        if rec is None:
+            return None
+        try:
+            ok = (isinstance(rec, dict) and isinstance(rec.get("window_px"), list) and len(rec["window_px"]) == 2
+                  and isinstance(rec.get("conditions"), dict)
+                  and all(isinstance(c, dict) and c.get("backend") in ("cpu", "gpu")
+                          and isinstance(c.get("views"), list) and c["views"] for c in rec["conditions"].values()))
+            if ok:
+                return {"window_px": tuple(PIXELS.check("window_px", v) for v in rec["window_px"]),
+                        "scale": float(rec.get("scale", 1.0)),
+                        "conditions": {name: {"backend": c["backend"],
+                                              "views": [EyeView.from_record(v) for v in c["views"]]}
+                                       for name, c in rec["conditions"].items()}}
+        except (UserError, TypeError, ValueError):
+            pass
+        raise StoreError(f"{self.path}: session {sid}: the record of its window layout is invalid{_NOT_OURS}")
 
 #: The end of the refusal of a row studyapp cannot have written (its checksum is valid: it was made so).
 _NOT_OURS = ": the database was not written by studyapp (restore its last good copy)"

@@ -62,14 +62,18 @@ def live_protocol(folder: Path, **kw) -> Path:
     return path
 
 
-def live_db(protocol: Path, db: Path, frames_per_stimulus: int = 3, gaze=None, scenes: bool = True) -> Path:
+def live_db(protocol: Path, db: Path, frames_per_stimulus: int = 3, gaze=None, scenes: bool = True,
+            layout: bool = True, scale: float = 1.0) -> Path:
     """A completed live session of participant P1 of ``protocol`` in a new database ``db``.
 
     Every stimulus of every trial logs ``frames_per_stimulus`` rendered flips 1/30 s apart along its camera
-    path, the gaze at display pixel ``gaze`` (default: the centre) 52 ms old. ``scenes=False``: no scene record
-    (a session of an older studyapp)."""
+    path, the gaze at display pixel ``gaze`` (default: the centre) 52 ms old. The session records its window
+    layout (the display's size, renders at ``scale``) as ``run`` does. ``scenes=False``: no scene record,
+    ``layout=False``: no layout (sessions of an older studyapp)."""
+    import json
+
     from data_schema.store import PlannedRow, open_store
-    from studyapp.runner.live import FrameRecord, live_stimulus, scene_record
+    from studyapp.runner.live import FrameRecord, layout_record, live_stimulus, scene_record
     from studyapp.runner.protocol import load_protocol
     from studyapp.runner.schedule import build_schedule, counterbalance_index, schedule_hash
 
@@ -83,6 +87,9 @@ def live_db(protocol: Path, db: Path, frames_per_stimulus: int = 3, gaze=None, s
                   for t in sched])
         sid = st.start_session("P1", p.content_hash, 0, {}, {}, {}, "test",
                                scenes=scene_record(p) if scenes else None)
+        if layout:
+            st.event(sid, "live_layout", json.dumps(layout_record(p, scale, (p.display.width_px,
+                                                                             p.display.height_px))))
         for t in sched:
             frames = []
             for i, cond in enumerate(t.conditions):

@@ -114,8 +114,8 @@ def test_replay_re_renders_the_logged_frames_and_scores_them_along_the_gaze(tmp_
                  "--quality", "--serial", "--cache", str(tmp_path / "cache")]) == 0
     rows = (out / "frames.csv").read_text().splitlines()
     assert len(rows) == 1 + len(logged)
-    assert sorted(p.name for p in out.iterdir()) == ["conditions", "frames.csv", "gaze.csv", "ground_truth",
-                                                      "quality.csv", "quality.md"]
+    assert sorted(p.name for p in out.iterdir()) == ["conditions", "flips.csv", "frames.csv", "gaze.csv",
+                                                      "ground_truth", "quality.csv", "quality.md", "shown"]
     assert sorted(p.name for p in (out / "conditions").iterdir()) == ["GT", "LaFR"]
     q = (out / "quality.csv").read_text().splitlines()
     assert len(q) == 1 + 3 * len(logged)  # fovea, periphery, all per frame

@@ -45,8 +45,8 @@ def test_a_condition_named_gt_is_not_overwritten_by_the_ground_truth(tmp_path, c
     out = tmp_path / "rep"
     code, _, err = _replay(capsys, db, out, "--quality")
     assert code == 0, err
-    assert sorted(p.name for p in out.iterdir()) == ["conditions", "frames.csv", "gaze.csv", "ground_truth",
-                                                      "quality.csv", "quality.md"]
+    assert sorted(p.name for p in out.iterdir()) == ["conditions", "flips.csv", "frames.csv", "gaze.csv",
+                                                      "ground_truth", "quality.csv", "quality.md", "shown"]
     assert sorted(p.name for p in (out / "conditions").iterdir()) == ["Ref", "gt"]
     import pandas as pd
 

@@ -77,6 +77,7 @@ class TrialResult:
     gaze_left_fovea: bool | None = None  # None without an eye tracker
     escaped: bool = False  # Escape was pressed during this trial (no answer recorded)
     frames: list = field(default_factory=list)  # live trials: one studyapp.runner.live.FrameRecord per flip
+    # (also of an attempt that Escape ended: ``escaped`` tells it is no answer's)
 
 
 class Presenter(Protocol):

@@ -1121,7 +1121,7 @@ class PsychoPyPresenter:
         if escaped:
             state.picks, state.rt_s = [], None
         res = self._result(state, onset if onset is not None else float("nan"), dropped, None, escaped)
-        res.frames = [] if escaped else frames
+        res.frames = frames  # escaped: the interrupted attempt's flips (the runner keeps them apart, for replay)
         return res
 
     def fps_check_frames(self, live, seconds: float):

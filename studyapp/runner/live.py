@@ -266,6 +266,44 @@ def scene_hash(ref: str) -> str:
     return resolve(ref).content_hash()
 
 
+def layout_record(protocol, scale: float, window: tuple[int, int]) -> dict:
+    """What a live session records of its window for ``studyapp replay`` (``Store.record_layout``): the
+    window's size in pixels (where the gaze is logged and the stimulus shown) and, per condition, its backend
+    and its views (:meth:`LiveStimulus.views`, the function the live window places its eyes with): the render
+    size, one eye or both side by side. Replay follows the record, not the rules of a later studyapp."""
+    window = (int(window[0]), int(window[1]))
+    scene = protocol.scenes[0]  # the views and backend of a condition do not depend on the scene
+    conditions = {}
+    for c in protocol.conditions:
+        lv = live_stimulus(protocol, c, scene, scale)
+        conditions[c] = {"backend": lv.backend, "views": [v.record() for v in lv.views(window)]}
+    return {"window_px": list(window), "scale": float(scale), "conditions": conditions}
+
+
+def window_image(window: tuple[int, int], views, images) -> np.ndarray:
+    """What the window showed: ``images`` (8-bit sRGB, one per view, each ``render_height x render_width``)
+    drawn over their viewports on black, magnified as the window's textures are (``GL_LINEAR``: bilinear
+    between the four texels nearest each pixel centre, clamped at the edges: OpenGL 4.6 core profile, section 8.14.2),
+    ``(height, width, 3)`` uint8."""
+    ww, wh = window
+    out = np.zeros((wh, ww, 3), dtype=np.uint8)
+    for v, img in zip(views, images):
+        img = np.asarray(img, dtype=np.float64)
+        if img.shape != (v.render_height, v.render_width, 3):
+            raise ValueError(f"an image of {img.shape} for a view rendered at {v.render_width}x{v.render_height}")
+        # texel coordinates of the pixel centres (EyeView.to_render), minus half a texel: texel centres
+        u = (np.arange(v.width) + 0.5) * v.render_width / v.width - 0.5
+        t = (np.arange(v.height) + 0.5) * v.render_height / v.height - 0.5
+        i0, j0 = np.floor(u).astype(int), np.floor(t).astype(int)
+        a, b = (u - i0)[None, :, None], (t - j0)[:, None, None]
+        i0, i1 = np.clip(i0, 0, v.render_width - 1), np.clip(i0 + 1, 0, v.render_width - 1)
+        j0, j1 = np.clip(j0, 0, v.render_height - 1), np.clip(j0 + 1, 0, v.render_height - 1)
+        top = img[j0][:, i0] * (1 - a) + img[j0][:, i1] * a
+        bottom = img[j1][:, i0] * (1 - a) + img[j1][:, i1] * a
+        out[v.y0:v.y0 + v.height, v.x0:v.x0 + v.width] = np.round(top * (1 - b) + bottom * b)
+    return out
+
+
 def live_stimulus(protocol, condition: str, scene: str, scale: float = 1.0) -> LiveStimulus:
     """The :class:`LiveStimulus` of ``condition`` in ``scene`` for a live protocol (geometry at ``scale``).
 

@@ -16,7 +16,9 @@ Order of events (what survives a crash at any point):
    its first trial unless ``accept_slow``;
 6. per trial: break message if due, ``present``, then the response is committed (fsync) before the next trial
    is preloaded and shown. Escape -> ``pause``: ``resume`` shows the trial again, ``end`` closes the session
-   as ``ended`` (both are logged as events); a later ``--resume`` continues it.
+   as ``ended`` (both are logged as events); a later ``--resume`` continues it. The flips of a live attempt
+   that Escape interrupted are kept as an ``interrupted_attempt`` event (never as the answer's frames), and a
+   live session records its window's layout (``live_layout``) at its start: ``studyapp replay`` shows both.
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ from data_schema.store import PlannedRow, Store, StoreError, open_store, remove_
 from studyapp.presentation.base import Stimulus, TrialDisplay, TrialResult
 
 from .fpscheck import TooSlow, measure, refusal, seconds_per_cell, table_lines, too_slow, trial_flags
-from .live import instructions_text, scene_record
+from .live import instructions_text, layout_record, scene_record
 from .protocol import Protocol
 from .schedule import PlannedTrial, break_text, build_schedule, counterbalance_index, schedule_hash
 from .stimuli import frame_paths, missing_line, missing_stimuli, prepare_command, split_missing, stimulus_root
@@ -285,6 +287,9 @@ def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_r
         sid = store.start_session(pid, protocol.content_hash, seed, software_versions(measured.get("software")),
                                   display_info, measured, str(measured.get("presenter", type(presenter).__name__)),
                                   resumed_from=previous, scenes=scene_record(protocol) if protocol.live else None)
+        if protocol.live:  # what replay shows: the window's size, each condition's backend and eye layout
+            window = measured.get("window_size_px") or (display.width_px, display.height_px)
+            store.event(sid, "live_layout", json.dumps(layout_record(protocol, scale, window), sort_keys=True))
         validation = measured.get("validation")
         if validation:  # the eye tracker's accuracy, measured before the first trial
             store.record_validation(sid, validation["error_deg"],
@@ -400,6 +405,8 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
             result = presenter.present(d)
             if not result.escaped:
                 break
+            if result.frames:  # the flips of the interrupted attempt, kept apart from the answer's for replay
+                store.record_attempt(sid, pid, t.idx, result.frames)
             store.event(sid, "pause", f"trial {t.idx}")
             choice = presenter.pause()
             store.event(sid, choice, f"trial {t.idx}")
