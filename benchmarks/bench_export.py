@@ -9,7 +9,7 @@ written through the store's own insert path (``data_schema.store.synthetic_frame
 checksum, as a session writes it). Building 1.44 M rows is the slow part (about a minute), so the databases are
 kept in ``--dir`` (default: ``$TMPDIR/studyapp_bench_export``) and reused by later runs.
 
-Each export runs as a fresh child under ``/usr/bin/time -v`` (peak resident memory of the whole process:
+Each export runs as a fresh child (``benchmarks/harness.py``; peak resident memory of the whole process:
 Python, pandas, pyarrow and the export; the store's checks on open included): the command itself for Parquet
 and CSV, and, for comparison at ``--before-rows``, the whole-table export this streaming replaced (every row in
 one DataFrame). Target: peak under 500 MB for 1.44 M frames.
@@ -111,7 +111,7 @@ def main() -> int:
              "times are a shared machine's).", "",
              "`studyapp export --db DB --format frames --out FILE` on databases of live 2AFC trials (720 flips each, "
              "100 trials per participant) written through the store's insert path; peak resident memory of the "
-             "whole child process (`/usr/bin/time -v`: Python, pandas, pyarrow, the store's checks on open and the "
+             "whole child process (its maximum resident set: Python, pandas, pyarrow, the store's checks on open and the "
              f"export). The export reads {FRAMES_BLOCK_ROWS:,} rows at a time from a cursor and writes them as runs "
              f"of CSV lines or gathers them into Parquet row groups of {FRAMES_ROW_GROUP_ROWS:,} rows (Arrow "
              "columns); \"whole table (before)\" is the export this replaced (every row in one DataFrame; one "

@@ -68,7 +68,7 @@ def write_markdown(path: str, results: list[dict]) -> None:
     small = next(r for r in results if r["kind"] == "forward_screen" and r["width"] == 2560)
     lines = ["<!-- foveation:start -->", "## Foveation mappings (`benchmarks/bench_foveation.py`)", "",
              f"{machine_line()} Median of the repeats after a warm-up call; peak memory is the "
-             "process's maximum resident set (`/usr/bin/time -v`), one fresh process per row; load average "
+             "process's maximum resident set, one fresh process per row; load average "
              f"{max(r['load'] for r in results):.1f} at most.", "",
              "| operation | method | resolution | elements | median (s) | peak memory (MB) | target |",
              "|---|---|---|---:|---:|---:|---|"]

@@ -8,7 +8,7 @@ PNGs agree within one level, and the work counters of both. Writes section ``gpu
 
 Speed (default): milliseconds per frame and per stage for every method on temple at 640x480, 1280x720 and
 2468x2740 (medians over ``--repeats``; a size whose single frame takes over a minute is measured once), each
-configuration in its own process under ``/usr/bin/time -v`` for the peak memory; the GPU/CPU ratio for VaFR and
+configuration in its own process (``benchmarks/harness.py``) for the peak memory; the GPU/CPU ratio for VaFR and
 GT at 640x480 measured in the same run. Runs unchanged on a machine with a GPU (EGL, no display). Writes section
 ``gpu`` of ``docs/benchmarks.md`` and the raw rows to ``benchmarks/results/bench_gpu.csv`` (``benchmarks/harness.py``).
 
@@ -127,7 +127,7 @@ def measure_one(backend: str, method: str, size: str, repeats: int) -> dict:
 
 
 def run_config(backend: str, method: str, size: str, repeats: int) -> dict:
-    """:func:`measure_one` in a child process under ``/usr/bin/time -v`` (peak resident memory)."""
+    """:func:`measure_one` in a child process (its peak resident memory: :func:`benchmarks.harness.run_child`)."""
     return run_child([os.path.abspath(__file__), "--one", backend, method, size, "--repeats", str(repeats)],
                      f"{backend} {method} {size}")
 
@@ -153,7 +153,7 @@ def speed_section(rows, elapsed: float, repeats: int) -> list[str]:
         f"Command: `python benchmarks/bench_gpu.py` ({elapsed / 60:.1f} min). Scene {SPEED_SCENE} (517,090 "
         f"triangles, 31 point lights), gaze at the centre; median of {repeats} frames after a first full-size frame "
         f"(a configuration whose first frame took over {ONCE_SECONDS:.0f} s is that frame alone: `frames` = 1); "
-        "each configuration in its own process, peak resident memory from `/usr/bin/time -v`. vafr-dup renders "
+        "each configuration in its own process, peak MB its maximum resident set. vafr-dup renders "
         "both eyes (binocular), vafr-rep the left eye and the reprojected right one; the others one eye. Stage "
         f"times: {gpu[0]['timing'] if gpu else ''}.", "",
         LLVMPIPE_NOTE, "",

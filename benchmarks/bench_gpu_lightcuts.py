@@ -11,8 +11,8 @@ and whose variance ratio GPU / CPU lies in [0.8, 1.25]. Writes section ``gpu-lig
 
 Speed (default): milliseconds per frame of every method on every scene at 1280x720 and 2160x2160 (one eye: the
 lightcuts renderers are monocular; a binocular frame is two), medians of ``--repeats`` frames after a first
-full-size frame (one frame when it took over a minute), each configuration in its own process under
-``/usr/bin/time -v`` (:func:`benchmarks.harness.run_child`); the GPU / CPU time ratio of every method on cornell_many at
+full-size frame (one frame when it took over a minute), each configuration in its own process with
+its peak memory (:func:`benchmarks.harness.run_child`); the GPU / CPU time ratio of every method on cornell_many at
 the ``--ratio-size`` sizes (default 320x180; a speed size too: then the CPU frame follows each GPU one) in the
 same run. ``--repeats`` is one count or one per size. Runs unchanged on a machine with a GPU (EGL, no display).
 Writes section ``gpu-lightcuts`` of ``docs/benchmarks.md`` and ``benchmarks/results/bench_gpu_lightcuts.csv`` (the

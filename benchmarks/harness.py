@@ -1,9 +1,9 @@
 """The benchmark harness: every script in ``benchmarks/`` measures and reports through this module (and no script
 imports another).
 
-* **One configuration per child process** (:func:`run_child`): ``python ARGS`` under ``/usr/bin/time -v``; the
-  child prints its row as JSON on its last line (:func:`print_row`); the harness adds the child's peak resident
-  memory (``peak_mb``), its wall time (``wall_s``) and the machine's load average after it (``load``).
+* **One configuration per child process** (:func:`run_child`): ``python ARGS``; the child prints its row as JSON
+  on its last line (:func:`print_row`); the harness adds the child's peak resident memory (``peak_mb``, from
+  ``wait4``), its wall time (``wall_s``) and the machine's load average after it (``load``).
 * **Medians** of repeated timings after a warm-up (:func:`median_seconds`).
 * **Machine and date**: :func:`machine_line` heads every report section; :func:`load_line` records how busy the
   shared machine was.
@@ -25,6 +25,7 @@ import shlex
 import statistics
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable, Sequence
 
@@ -109,20 +110,30 @@ def print_row(row: dict) -> None:
 
 
 def run_child(args: list[str], label: str, row: bool = True, env: dict | None = None) -> dict:
-    """Run ``python args`` (a script and its options, or ``-c CODE ...``, or ``-m MODULE ...``) in a child process
-    under ``/usr/bin/time -v``: one configuration, so that its peak memory is its own. Returns the JSON row the
-    child printed last (``row``; otherwise an empty one) with ``peak_mb`` (the child's maximum resident set),
-    ``wall_s`` and ``load`` (the 5-minute load average after it) added. A child that fails raises
-    ``RuntimeError`` whose last line is the child's own last line of error."""
-    timed = os.path.exists("/usr/bin/time")
+    """Run ``python args`` (a script and its options, or ``-c CODE ...``, or ``-m MODULE ...``) in a child process:
+    one configuration, so that its peak memory is its own. Returns the JSON row the child printed last (``row``;
+    otherwise an empty one) with ``peak_mb`` (the child's maximum resident set, from ``wait4``: what
+    ``/usr/bin/time -v`` reports, without needing it), ``wall_s`` and ``load`` (the 5-minute load average after it)
+    added. A child that fails raises ``RuntimeError`` whose last line is the child's own last line of error."""
     t0 = time.perf_counter()
-    p = subprocess.run((["/usr/bin/time", "-v"] if timed else []) + [sys.executable, *args], capture_output=True,
-                       text=True, env=env or child_env(), cwd=ROOT)
+    p = subprocess.Popen([sys.executable, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         env=env or child_env(), cwd=ROOT)
+    streams: dict[str, str] = {}
+    readers = [threading.Thread(target=lambda k=k, f=f: streams.__setitem__(k, f.read()))
+               for k, f in (("out", p.stdout), ("err", p.stderr))]
+    for t in readers:
+        t.start()
+    for t in readers:
+        t.join()
+    p.stdout.close()
+    p.stderr.close()
+    _, status, usage = os.wait4(p.pid, 0)  # this child's own resource usage (Popen.wait would not give it)
+    p.returncode = os.waitstatus_to_exitcode(status)
     wall = time.perf_counter() - t0
     if p.returncode != 0:  # the child's error last, so that callers can show the last line
-        raise RuntimeError(f"{label} failed:\n{without_time_report(p.stderr)[-2000:]}")
-    out = json.loads(p.stdout.strip().splitlines()[-1]) if row else {}
-    out["peak_mb"] = peak_rss_mb(p.stderr) if timed else out.get("peak_mb", float("nan"))
+        raise RuntimeError(f"{label} failed:\n{streams['err'].rstrip(chr(10))[-2000:]}")
+    out = json.loads(streams["out"].strip().splitlines()[-1]) if row else {}
+    out["peak_mb"] = usage.ru_maxrss / 1024.0  # kB on Linux
     out["wall_s"] = wall
     out["load"] = load_average()[1]
     return out
