@@ -73,8 +73,11 @@ from .vocabulary import PRIORS
 __all__ = ["JOD_SIGMA", "ConvergenceError", "bradley_terry", "plackett_luce", "thurstone_jod"]
 
 
-class ConvergenceError(ValueError):
-    """A scale whose fit did not converge (one line; never an unconverged estimate returned silently)."""
+class ConvergenceError(UserError):
+    """A scale whose fit did not converge (one line; never an unconverged estimate returned silently).
+
+    A :class:`~data_schema.errors.UserError`: the data the user gave cannot be scaled (the CLI prints the one
+    line and exits 2, no traceback)."""
 
 #: Standard deviation of the Thurstone difference distribution in JOD units:
 #: ``Phi(1 / JOD_SIGMA) = 0.75``, i.e. 1 JOD is the difference that 75 % of observers see.

@@ -4,7 +4,8 @@ Run:  .venv/bin/python benchmarks/bench_analysis.py [--sizes 4500,100000,1000000
                                                    [--write docs/benchmarks.md]
 
 Each size is a CSV log written beforehand (not timed): the seed 001 2AFC log (4,500 trials) and synthetic
-2AFC logs of 600 trials per participant. Every measurement runs in a fresh process, which reads the CSV,
+2AFC logs of 600 trials per participant. Every measurement runs in a fresh child process
+(``benchmarks/harness.py``), which reads the CSV,
 runs the plan (votes, omnibus, pairwise Kruskal-Wallis + Holm overall and per scene, Dunn, summary vs
 reference, Thurstone and Bradley-Terry with 1,000 bootstrap replicates each) and writes every table and
 figure; peak memory is that process's maximum resident set. Medians over the repeats (one run at 10^7).
@@ -16,15 +17,15 @@ import argparse
 import json
 import os
 import statistics
-import subprocess
 import sys
 import tempfile
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from benchmarks.harness import machine_line, replace_section, run_child  # noqa: E402
 
 CHILD = r"""
-import json, resource, sys, time
+import json, sys, time
 t0 = time.perf_counter()
 from analysis.io import read_log
 from analysis.plan import AnalysisPlan
@@ -38,7 +39,7 @@ t3 = time.perf_counter()
 write_report(res, sys.argv[2])
 t4 = time.perf_counter()
 print(json.dumps({"import_s": t1 - t0, "read_s": t2 - t1, "analyze_s": t3 - t2, "write_s": t4 - t3,
-                  "total_s": t4 - t1, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+                  "total_s": t4 - t1}))
 """
 
 
@@ -53,9 +54,8 @@ def make_log(n: int, path: str) -> None:
 
 
 def measure(path: str, out: str) -> dict:
-    r = subprocess.run([sys.executable, "-c", CHILD, path, out], capture_output=True, text=True, cwd=ROOT,
-                       check=True)
-    return json.loads(r.stdout.strip().splitlines()[-1])
+    """One analysis of the log ``path`` in a child process: its stage times, peak memory and the load."""
+    return run_child(["-c", CHILD, path, out], f"analysis of {os.path.basename(path)}")
 
 
 def main() -> int:
@@ -75,6 +75,7 @@ def main() -> int:
             row = {"trials": n, "repeats": reps, "csv_mb": os.path.getsize(path) / 1e6}
             for k in runs[0]:
                 row[k] = statistics.median(r[k] for r in runs)
+            row["load"] = max(r["load"] for r in runs)
             results.append(row)
             print(json.dumps(row), flush=True)
             os.remove(path)
@@ -84,20 +85,19 @@ def main() -> int:
 
 
 def write_markdown(path: str, results: list[dict]) -> None:
-    from _report import machine_line, replace_section
-
     lines = ["## Study analysis (`benchmarks/bench_analysis.py`)", "",
              machine_line() + " Each row: a fresh process reads the CSV log, runs the whole plan (votes, "
              "omnibus and pairwise Kruskal-Wallis + Holm overall and per scene, Dunn, summary against the "
              "reference, Thurstone and Bradley-Terry with 1,000 bootstrap replicates each) and writes every "
-             "table and figure. Median of the repeats; peak memory = the process's maximum resident set.", "",
+             "table and figure. Median of the repeats; peak memory = the process's maximum resident set; load: "
+             "the 5-minute load average after the runs (at most).", "",
              "| trials | CSV (MB) | read (s) | analyse (s) | write tables+figures (s) | total (s) | "
-             "s per 10^6 trials | peak memory (MB) | repeats |",
-             "|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "s per 10^6 trials | peak memory (MB) | repeats | load |",
+             "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in results:
         lines.append(f"| {r['trials']:,} | {r['csv_mb']:.1f} | {r['read_s']:.3f} | {r['analyze_s']:.3f} | "
                      f"{r['write_s']:.3f} | {r['total_s']:.3f} | {r['total_s'] / r['trials'] * 1e6:.2f} | "
-                     f"{r['peak_mb']:.0f} | {r['repeats']} |")
+                     f"{r['peak_mb']:.0f} | {r['repeats']} | {r['load']:.1f} |")
     small = next((r for r in results if r["trials"] == 4500), None)
     big = next((r for r in results if r["trials"] >= 10_000_000), None)
     lines.append("")

@@ -20,14 +20,15 @@ Run:  .venv/bin/python benchmarks/bench_cluster.py [--part speedup,memory,overhe
   160x90 probe scaled by the pixel count (the renderers' work is per pixel at a fixed visual angle). The
   budgets are frames x seconds per frame / workers (``docs/distributed.md``).
 
-Writes the section ``cluster`` of ``docs/benchmarks.md`` and the section ``budget`` of ``docs/distributed.md``.
+Writes the section ``cluster`` of ``docs/benchmarks.md`` and the section ``budget`` of ``docs/distributed.md``; the
+raw results go to ``benchmarks/results/bench_cluster.json`` (not committed; ``--from-json`` rewrites the sections
+from it).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import resource
 import signal
 import statistics
@@ -37,12 +38,11 @@ import tempfile
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
+ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(HERE))
 
-from _report import peak_rss_mb  # noqa: E402
+from benchmarks.harness import (  # noqa: E402
+    DOC, child_env, load_average, load_line, machine_line, peak_rss_mb, replace_section, results_ref, write_json)
 
 PROTOCOL = """
 schema_version: 1
@@ -134,7 +134,7 @@ def speedup(folder: Path, frames: int, repeats: int, configs=tuple(CONFIGS)) -> 
     scheduler with 1 and with 2 single-threaded workers (fresh processes, alternately, ``repeats`` times)."""
     proto = folder / "bench.yaml"
     proto.write_text(PROTOCOL.format(frames=float(frames)))
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env = child_env()
     out: dict[str, dict[str, list]] = {w: {"wall": [], "cpu": [], "load": []} for w in configs}
     sets = {}
     for rep in range(repeats):
@@ -157,9 +157,9 @@ def speedup(folder: Path, frames: int, repeats: int, configs=tuple(CONFIGS)) -> 
                 raise SystemExit(r.stderr)
             out[cfg]["wall"].append(wall)
             out[cfg]["cpu"].append(cpu)
-            out[cfg]["load"].append(os.getloadavg()[0])
+            out[cfg]["load"].append(load_average()[0])
             print(f"prepare, {label}, run {rep + 1}: {wall:.1f} s wall, {cpu:.1f} CPU s; "
-                  f"load {os.getloadavg()[0]:.1f}", flush=True)
+                  f"load {load_average()[0]:.1f}", flush=True)
             sets[cfg] = _files(stim)
     n = 2 * 3 * frames
     med = {w: {k: statistics.median(d[k]) for k in ("wall", "cpu")} for w, d in out.items()}
@@ -178,7 +178,7 @@ def memory(folder: Path, frames: int) -> dict:
     ``prepare --scheduler`` (``/usr/bin/time -v``, maximum resident set size)."""
     proto = folder / "bench_mem.yaml"
     proto.write_text(PROTOCOL.format(frames=float(frames)))
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env = child_env()
     report = folder / "serial.time"
     r = subprocess.run(["/usr/bin/time", "-v", "-o", str(report), sys.executable, "-m", "studyapp", "prepare",
                         str(proto), "--serial", "--stimuli", str(folder / "ms"), "--cache", str(folder / "mc")],
@@ -264,7 +264,7 @@ def budget() -> dict:
                     seconds[key] = {"seconds": st["seconds"]["total"], "probe": [w, h], "scale": scale}
                     print(f"{cond.renderer} {cond.params} {need.scene} at {w}x{h}: {st['seconds']['total']:.2f} s "
                           f"(x{scale:g} -> {st['seconds']['total'] * scale:.1f} s at {g.width}x{g.height}); "
-                          f"load {os.getloadavg()[0]:.1f}", flush=True)
+                          f"load {load_average()[0]:.1f}", flush=True)
     return {"seconds": seconds, "frames": frames}
 
 
@@ -302,11 +302,10 @@ def _hours(s: float) -> str:
 
 
 def report(res: dict) -> None:
-    from _report import machine_line, replace_section
-
     lines = ["## Offline rendering on a cluster (`benchmarks/bench_cluster.py`)", "",
              machine_line() + " The cores are shared with other jobs (load averages below, from `uptime`), so wall "
-             "times carry their load; every run is niced. Raw results: `docs/bench_cluster.json`.", ""]
+             f"times carry their load; every run is niced. Raw results: `{results_ref('bench_cluster.json')}` (not "
+             "committed).", ""]
     if "speedup" in res:
         s = res["speedup"]
         m = s["median"]
@@ -358,7 +357,7 @@ def report(res: dict) -> None:
                   f"cluster of 2 workers take **{o['per_task_ms']:.2f} ms per task** (median of 3 rounds; in "
                   f"process {o['per_task_serial_ms']:.3f} ms); starting the cluster takes {o['start_s']:.1f} s and "
                   f"stopping it {o['stop_s']:.1f} s (once per command). Load: {o.get('load', '?')}.", ""]
-    replace_section(str(ROOT / "docs" / "benchmarks.md"), "cluster", lines)
+    replace_section(DOC, "cluster", lines)
     if "budget" in res:
         b = budget_table(res["budget"])
         rows = ["| protocol | frames | 1 worker (CPU time) | 2 workers (this machine) | 16 workers | 64 workers |",
@@ -399,14 +398,10 @@ def main(argv=None):
                           ("memory", lambda: memory(Path(tmp), min(args.frames, 2))),
                           ("overhead", lambda: overhead(args.tasks)), ("budget", budget)):
             if part in parts:
-                before = os.getloadavg()
+                before = load_average()
                 res[part] = run()
-                res[part]["load"] = f"{' '.join(f'{x:.2f}' for x in before)} -> " \
-                                    f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}"
-    out = ROOT / "docs" / "bench_cluster.json"
-    from data_schema.atomic import write_text
-
-    write_text(out, json.dumps(res, indent=1, default=str) + "\n")
+                res[part]["load"] = load_line(before, load_average())
+    write_json(res, "bench_cluster.json")
     report(res)
     print(json.dumps({k: v for k, v in res.items() if k != "budget"}, indent=1, default=str))
 

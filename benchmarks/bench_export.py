@@ -9,7 +9,7 @@ written through the store's own insert path (``data_schema.store.synthetic_frame
 checksum, as a session writes it). Building 1.44 M rows is the slow part (about a minute), so the databases are
 kept in ``--dir`` (default: ``$TMPDIR/studyapp_bench_export``) and reused by later runs.
 
-Each export runs as a fresh child under ``/usr/bin/time -v`` (peak resident memory of the whole process:
+Each export runs as a fresh child (``benchmarks/harness.py``; peak resident memory of the whole process:
 Python, pandas, pyarrow and the export; the store's checks on open included): the command itself for Parquet
 and CSV, and, for comparison at ``--before-rows``, the whole-table export this streaming replaced (every row in
 one DataFrame). Target: peak under 500 MB for 1.44 M frames.
@@ -19,18 +19,15 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from _report import command_line, machine_line, peak_rss_mb, without_time_report  # noqa: E402
+from benchmarks.harness import (  # noqa: E402
+    command_line, load_average, load_line, machine_line, replace_section, run_child)
 
 TARGET_MB = 500.0
 #: The export before streaming (kept here to measure it): the frames table in one DataFrame.
@@ -63,18 +60,12 @@ def database(folder: Path, rows: int) -> tuple[Path, float | None]:
 
 
 def measure(argv: list[str], out: Path) -> dict:
-    """Peak RSS (MB), wall seconds and output size of one child run under ``/usr/bin/time -v``."""
+    """Peak RSS (MB), wall seconds and output size of one child run (:func:`benchmarks.harness.run_child`)."""
     out.unlink(missing_ok=True)
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    t0 = time.perf_counter()
-    r = subprocess.run(["/usr/bin/time", "-v", sys.executable, *argv], capture_output=True, text=True, env=env,
-                       check=False)
-    wall = time.perf_counter() - t0
-    if r.returncode != 0:
-        raise RuntimeError(f"{' '.join(argv)} failed:\n{without_time_report(r.stderr)}")
+    r = run_child(argv, " ".join(argv[:4]), row=False)
     size = out.stat().st_size
     out.unlink()
-    return {"peak_mb": peak_rss_mb(r.stderr), "seconds": wall, "size_mb": size / 1e6}
+    return {"peak_mb": r["peak_mb"], "seconds": r["wall_s"], "size_mb": size / 1e6}
 
 
 def main() -> int:
@@ -87,9 +78,9 @@ def main() -> int:
     args = ap.parse_args()
     sizes = [int(x) for x in args.rows.split(",") if x]
     before = [int(x) for x in args.before_rows.split(",") if x]
-    folder = Path(args.dir or Path(tempfile.gettempdir()) / "studyapp_bench_export")
+    folder = Path(args.dir or Path(tempfile.gettempdir()) / "studyapp_bench_export").resolve()  # children: cwd ROOT
     folder.mkdir(parents=True, exist_ok=True)
-    load0 = os.getloadavg()
+    load0 = load_average()
     results, built = [], {}
     for n in sorted(set(sizes) | set(before)):
         db, seconds = database(folder, n)
@@ -108,7 +99,7 @@ def main() -> int:
             results.append({"rows": n, "how": how, "format": fmt, **m})
             print(f"{n:>9,} {fmt:<8} {how:<24} peak {m['peak_mb']:7.0f} MB  {m['seconds']:6.1f} s  "
                   f"{m['size_mb']:6.1f} MB", flush=True)
-    load1 = os.getloadavg()
+    load1 = load_average()
 
     from data_schema.store import FRAMES_BLOCK_ROWS, FRAMES_ROW_GROUP_ROWS
 
@@ -116,11 +107,11 @@ def main() -> int:
     worst = max(r["peak_mb"] for r in results if r["rows"] == largest and r["how"].startswith("streamed"))
     lines = ["## Frames export (`benchmarks/bench_export.py`)", "",
              f"`{command_line('benchmarks/bench_export.py', sys.argv[1:])}`. {machine_line()} Load averages at the "
-             f"start and end: {' '.join(f'{x:.2f}' for x in load0)} -> {' '.join(f'{x:.2f}' for x in load1)} (wall "
+             f"start and end: {load_line(load0, load1)} (wall "
              "times are a shared machine's).", "",
              "`studyapp export --db DB --format frames --out FILE` on databases of live 2AFC trials (720 flips each, "
              "100 trials per participant) written through the store's insert path; peak resident memory of the "
-             "whole child process (`/usr/bin/time -v`: Python, pandas, pyarrow, the store's checks on open and the "
+             "whole child process (its maximum resident set: Python, pandas, pyarrow, the store's checks on open and the "
              f"export). The export reads {FRAMES_BLOCK_ROWS:,} rows at a time from a cursor and writes them as runs "
              f"of CSV lines or gathers them into Parquet row groups of {FRAMES_ROW_GROUP_ROWS:,} rows (Arrow "
              "columns); \"whole table (before)\" is the export this replaced (every row in one DataFrame; one "
@@ -137,8 +128,6 @@ def main() -> int:
             f"{n:,} rows in {s:.0f} s" for n, s in sorted(built.items())) + ".")
     print("\n".join(lines))
     if args.write:
-        from _report import replace_section
-
         replace_section(args.write, "frames-export", lines)
     return 0 if worst < TARGET_MB else 1
 

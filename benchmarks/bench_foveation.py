@@ -2,9 +2,10 @@
 
 Run:  .venv/bin/python benchmarks/bench_foveation.py [--repeats 5] [--write docs/benchmarks.md]
 
-Each measurement runs in a fresh subprocess so that peak memory (ru_maxrss) belongs to that measurement alone;
-times are medians over the repeats inside that process, after one warm-up call (numba compiles on first use and
-caches to disk). The scaling from 2K to 8K is reported as a ratio measured in the same run.
+Each measurement runs in a fresh child process (``benchmarks/harness.py``) so that peak memory (its maximum resident
+set) belongs to that measurement alone; times are medians over the repeats inside that process, after one warm-up
+call (numba compiles on first use and caches to disk). The scaling from 2K to 8K is reported as a ratio measured in
+the same run.
 """
 
 from __future__ import annotations
@@ -12,16 +13,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
-import resource
 import statistics
-import subprocess
 import sys
-import time
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(HERE)
-sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from benchmarks.harness import machine_line, print_row, replace_section, run_child, timings  # noqa: E402
 
 
 def _measure(kind: str, method: str, W: int, H: int, repeats: int) -> dict:
@@ -39,21 +36,9 @@ def _measure(kind: str, method: str, W: int, H: int, repeats: int) -> dict:
             return m.inverse(u, v)
     else:
         raise SystemExit(f"unknown kind {kind}")
-    fn()  # warm-up (compilation, page faults of the first allocation)
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    times = timings(fn, repeats)  # after a warm-up call (compilation, page faults of the first allocation)
     return {"kind": kind, "method": method, "width": W, "height": H, "elements": n,
-            "median_s": statistics.median(times), "min_s": min(times), "repeats": repeats, "peak_mb": peak_mb}
-
-
-def run_child(args) -> dict:
-    cmd = [sys.executable, __file__, "--child", json.dumps(args)]
-    out = subprocess.run(cmd, check=True, capture_output=True, text=True, cwd=ROOT).stdout
-    return json.loads(out.strip().splitlines()[-1])
+            "median_s": statistics.median(times), "min_s": min(times), "repeats": repeats}
 
 
 def main() -> int:
@@ -63,14 +48,14 @@ def main() -> int:
     ap.add_argument("--child", help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.child:
-        print(json.dumps(_measure(*json.loads(a.child))))
+        print_row(_measure(*json.loads(a.child)))
         return 0
     jobs = [("forward_screen", m, 7680, 4320, a.repeats) for m in ("vafr", "lmfr", "lafr")]
     jobs += [("forward_screen", "vafr", 2560, 1440, a.repeats),
              ("inverse_shaded", "vafr", 7680, 4320, a.repeats)]
     results = []
     for job in jobs:
-        r = run_child(job)
+        r = run_child([os.path.abspath(__file__), "--child", json.dumps(job)], " ".join(map(str, job[:4])))
         results.append(r)
         print(f"{r['kind']:<24} {r['method']:<5} {r['width']}x{r['height']}: median {r['median_s']:.3f} s "
               f"(min {r['min_s']:.3f}), peak {r['peak_mb']:.0f} MB", flush=True)
@@ -80,13 +65,11 @@ def main() -> int:
 
 
 def write_markdown(path: str, results: list[dict]) -> None:
-    from _report import replace_section
-
     small = next(r for r in results if r["kind"] == "forward_screen" and r["width"] == 2560)
     lines = ["<!-- foveation:start -->", "## Foveation mappings (`benchmarks/bench_foveation.py`)", "",
-             f"Machine: {os.cpu_count()} cores, {platform.processor() or platform.machine()}, Python "
-             f"{platform.python_version()}. Median of the repeats after a warm-up call; peak memory is the "
-             "process's maximum resident set (ru_maxrss), one fresh process per row.", "",
+             f"{machine_line()} Median of the repeats after a warm-up call; peak memory is the "
+             "process's maximum resident set, one fresh process per row; load average "
+             f"{max(r['load'] for r in results):.1f} at most.", "",
              "| operation | method | resolution | elements | median (s) | peak memory (MB) | target |",
              "|---|---|---|---:|---:|---:|---|"]
     for r in results:

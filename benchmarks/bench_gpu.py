@@ -4,13 +4,13 @@
 (gt, VaFR with and without FXAA in dup and rep, LMFR, LaFR) rendered on both backends; for each case the PSNR of
 the GPU's linear image against the CPU's (exposed, clipped to [0, 1], peak 1), the share of pixels whose 8-bit
 PNGs agree within one level, and the work counters of both. Writes section ``gpu-agreement`` of
-``docs/benchmarks.md`` and ``docs/bench_gpu_agreement.csv``.
+``docs/benchmarks.md`` and the raw rows to ``benchmarks/results/bench_gpu_agreement.csv``.
 
 Speed (default): milliseconds per frame and per stage for every method on temple at 640x480, 1280x720 and
 2468x2740 (medians over ``--repeats``; a size whose single frame takes over a minute is measured once), each
-configuration in its own process under ``/usr/bin/time -v`` for the peak memory; the GPU/CPU ratio for VaFR and
+configuration in its own process (``benchmarks/harness.py``) for the peak memory; the GPU/CPU ratio for VaFR and
 GT at 640x480 measured in the same run. Runs unchanged on a machine with a GPU (EGL, no display). Writes section
-``gpu`` of ``docs/benchmarks.md`` and ``docs/bench_gpu.csv``.
+``gpu`` of ``docs/benchmarks.md`` and the raw rows to ``benchmarks/results/bench_gpu.csv`` (``benchmarks/harness.py``).
 
     python benchmarks/bench_gpu.py --agreement          # ~15 min on 2 cores with llvmpipe
     python benchmarks/bench_gpu.py                      # speed, ~30 min on 2 cores with llvmpipe
@@ -20,19 +20,17 @@ GT at 640x480 measured in the same run. Runs unchanged on a machine with a GPU (
 from __future__ import annotations
 
 import argparse
-import csv
-import json
 import os
-import subprocess
 import sys
 import time
 
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from benchmarks._report import machine_line, peak_rss_mb, replace_section, without_time_report  # noqa: E402
+from benchmarks.harness import (  # noqa: E402
+    DOC, LLVMPIPE_NOTE, ONCE_SECONDS, gpu_device_line, machine_line, print_row, replace_section,
+    run_child, timed_frames, write_csv)
 
 AGREEMENT_SCENES = ("cornell", "temple", "street_night", "interior")
 AGREEMENT_CASES = {
@@ -46,21 +44,6 @@ AGREEMENT_CASES = {
 }
 COUNTERS = ("shading_points", "rays_primary", "rays_shadow", "missed_rays", "offscreen_lp_pixels",
             "reshaded_pixels", "lights_culled")
-
-
-#: What figures measured on llvmpipe say, and the `load` column (the GPU benchmarks' sections).
-LLVMPIPE_NOTE = (
-    "Mesa's llvmpipe is a software OpenGL 4.5 implementation on the CPU cores, not a GPU: these figures say that the "
-    "GPU backend runs and what it costs there, not how fast it is on a graphics card; the same script runs "
-    "unchanged on a machine with a GPU (headless, EGL) and writes the same table. `load`: the machine's 5-minute "
-    "load average after the configuration (other jobs share the cores; above the core count, times are inflated).")
-
-
-def _gpu_device_line() -> str:
-    from renderers.gpu.context import get_device
-
-    d = get_device()
-    return f"GPU backend: {d.renderer}, OpenGL {d.version} ({d.source})."
 
 
 def agreement_rows(scenes, cases, size=(320, 240), progress=print) -> list[dict]:
@@ -92,7 +75,7 @@ def agreement_section(rows, elapsed: float) -> list[str]:
     worst = min(rows, key=lambda r: r["within_one"])
     lines = [
         "## GPU backend against the CPU backend (issue 13 item 5)", "",
-        machine_line(), _gpu_device_line(),
+        machine_line(), gpu_device_line(),
         f"Command: `python benchmarks/bench_gpu.py --agreement` ({elapsed / 60:.1f} min). Scenes at "
         f"{rows[0]['width']}x{rows[0]['height']}, gaze at the centre; dup and rep report the right eye (rep's is "
         "reprojected). PSNR: the GPU's linear image against the CPU's, exposed and clipped to [0, 1] (peak 1); "
@@ -115,18 +98,6 @@ def agreement_section(rows, elapsed: float) -> list[str]:
     return lines
 
 
-def write_csv(rows, name: str) -> str:
-    from data_schema.atomic import atomic_path
-
-    path = os.path.join(ROOT, "docs", name)
-    with atomic_path(path) as tmp:
-        with open(tmp, "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows(rows)
-    return path
-
-
 # -- speed ---------------------------------------------------------------------------------------------------------
 SPEED_SCENE = "temple"
 SIZES = ("640x480", "1280x720", "2468x2740")
@@ -138,25 +109,8 @@ METHODS = {
     "lafr": ("lafr", {}),
 }
 STAGES = ("visibility", "shading", "antialias", "inverse_map")
-#: A configuration whose first frame takes longer than this is measured once.
-ONCE_SECONDS = 60.0
 #: Targets for a GPU (issue 13 item 6), frame milliseconds on temple.
 TARGETS = {("vafr-dup", "2468x2740"): 1000.0 / 90.0, ("gt", "2468x2740"): 1000.0 / 30.0}
-
-
-def timed_frames(backend: str, scene: str, name: str, params: dict, size: str, repeats: int) -> list[dict]:
-    """The stats of the timed frames of one configuration in this process: a small untimed warm-up frame (shader
-    compilation, scene upload or BVH build, numba caches), then frames at ``size``; the first full-size frame also
-    allocates the frame buffers, so the timed frames are the ``repeats`` after it (or that frame alone if it took
-    longer than :data:`ONCE_SECONDS`)."""
-    from renderers import registry
-
-    W, H = (int(x) for x in size.split("x"))
-    registry.render(scene, name, params, 64, 48, backend=backend)
-    _, st = registry.render(scene, name, params, W, H, backend=backend)
-    if st["seconds"]["total"] >= ONCE_SECONDS:
-        return [st]
-    return [registry.render(scene, name, params, W, H, backend=backend)[1] for _ in range(repeats)]
 
 
 def measure_one(backend: str, method: str, size: str, repeats: int) -> dict:
@@ -173,24 +127,9 @@ def measure_one(backend: str, method: str, size: str, repeats: int) -> dict:
 
 
 def run_config(backend: str, method: str, size: str, repeats: int) -> dict:
-    """:func:`measure_one` in a child process under ``/usr/bin/time -v`` (peak resident memory)."""
-    return run_child(os.path.abspath(__file__), ["--one", backend, method, size, "--repeats", str(repeats)],
+    """:func:`measure_one` in a child process (its peak resident memory: :func:`benchmarks.harness.run_child`)."""
+    return run_child([os.path.abspath(__file__), "--one", backend, method, size, "--repeats", str(repeats)],
                      f"{backend} {method} {size}")
-
-
-def run_child(script: str, args: list[str], label: str) -> dict:
-    """Run ``script args`` (which prints one JSON row last) in a child process under ``/usr/bin/time -v``; the
-    row with the load average and the peak resident memory added."""
-    cmd = [sys.executable, script, *args]
-    timed = os.path.exists("/usr/bin/time")
-    p = subprocess.run((["/usr/bin/time", "-v"] if timed else []) + cmd, capture_output=True, text=True,
-                       env={**os.environ, "PYTHONPATH": os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")])})
-    if p.returncode != 0:  # the child's error last, so that callers can show the last line
-        raise RuntimeError(f"{label} failed:\n{without_time_report(p.stderr)[-2000:]}")
-    row = json.loads(p.stdout.strip().splitlines()[-1])
-    row["load"] = os.getloadavg()[1]  # other jobs on the cores inflate the times: say how busy the machine was
-    row["peak_mb"] = peak_rss_mb(p.stderr)
-    return row
 
 
 def speed_rows(methods, sizes, repeats: int, progress=print) -> list[dict]:
@@ -210,11 +149,11 @@ def speed_section(rows, elapsed: float, repeats: int) -> list[str]:
     gpu = [r for r in rows if r["backend"] == "gpu"]
     lines = [
         "## GPU backend: speed (issue 13 item 6)", "",
-        machine_line(), _gpu_device_line(),
+        machine_line(), gpu_device_line(),
         f"Command: `python benchmarks/bench_gpu.py` ({elapsed / 60:.1f} min). Scene {SPEED_SCENE} (517,090 "
         f"triangles, 31 point lights), gaze at the centre; median of {repeats} frames after a first full-size frame "
         f"(a configuration whose first frame took over {ONCE_SECONDS:.0f} s is that frame alone: `frames` = 1); "
-        "each configuration in its own process, peak resident memory from `/usr/bin/time -v`. vafr-dup renders "
+        "each configuration in its own process, peak MB its maximum resident set. vafr-dup renders "
         "both eyes (binocular), vafr-rep the left eye and the reprojected right one; the others one eye. Stage "
         f"times: {gpu[0]['timing'] if gpu else ''}.", "",
         LLVMPIPE_NOTE, "",
@@ -255,17 +194,16 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     if args.one:
-        print(json.dumps(measure_one(*args.one, args.repeats)))
+        print_row(measure_one(*args.one, args.repeats))
         return 0
-    docs = os.path.join(ROOT, "docs", "benchmarks.md")
     if args.agreement:
         rows = agreement_rows(args.scenes.split(","), {k: AGREEMENT_CASES[k] for k in args.cases.split(",")})
         write_csv(rows, "bench_gpu_agreement.csv")
-        replace_section(docs, "gpu-agreement", agreement_section(rows, time.perf_counter() - t0))
+        replace_section(DOC, "gpu-agreement", agreement_section(rows, time.perf_counter() - t0))
         return 0
     rows = speed_rows(args.methods.split(","), args.sizes.split(","), args.repeats)
     write_csv(rows, "bench_gpu.csv")
-    replace_section(docs, "gpu", speed_section(rows, time.perf_counter() - t0, args.repeats))
+    replace_section(DOC, "gpu", speed_section(rows, time.perf_counter() - t0, args.repeats))
     return 0
 
 

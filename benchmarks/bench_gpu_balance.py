@@ -11,7 +11,8 @@ frames alternating, medians of ``--repeats``, with the cores busy (process CPU t
 The frames are bit for bit the same either way
 (``tests/test_gpu_agreement.py::test_dealing_workgroups_in_stripes_changes_no_pixel``); only the time differs.
 On a GPU neither should cost anything; on llvmpipe the first of each pair leaves a core idle wherever the work is
-uneven over the grid. Writes ``docs/benchmarks.md`` and ``docs/bench_gpu_balance[_grid].csv``.
+uneven over the grid. Writes ``docs/benchmarks.md`` and the raw rows to
+``benchmarks/results/bench_gpu_balance[_grid].csv`` (``benchmarks/harness.py``).
 
     python benchmarks/bench_gpu_balance.py                    # sl_gt (96 + 64), fsl, sl_e on the four scenes
     python benchmarks/bench_gpu_balance.py --size 640x360 --repeats 5 --scenes yard
@@ -28,11 +29,11 @@ import statistics
 import sys
 import time
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from benchmarks._report import command_line, machine_line, replace_section  # noqa: E402
-from benchmarks.bench_gpu import LLVMPIPE_NOTE, _gpu_device_line, run_child, write_csv  # noqa: E402
+from benchmarks.harness import (  # noqa: E402
+    DOC, LLVMPIPE_NOTE, command_line, gpu_device_line, machine_line, print_row, replace_section, run_child,
+    write_csv)
 
 SCENES = ("cornell_many", "study", "yard", "sponza_vpl")
 #: Methods and the counts they are measured with (sl_gt with fewer samples than the seed's: 2 passes, 8 dispatches).
@@ -99,7 +100,7 @@ def section(rows, elapsed: float, command: str, ab: str = "stripes") -> list[str
            "laid out in full rows of 65,535 workgroups (before 2c6f99b; the last row mostly idle, one thread's "
            "share) and one in the fewest rows that hold the work (`grid_shape`, the default)")
     lines = [f"## GPU backend: workgroups {old} against {new} (`benchmarks/bench_gpu_balance.py --ab {ab}`)", "",
-             machine_line(), _gpu_device_line(),
+             machine_line(), gpu_device_line(),
              f"Command: `{command}` ({elapsed / 60:.1f} min). Each row: one process, an untimed 64x48 frame, then "
              f"{n} rounds of one frame with the workgroups {how}; medians. `cores`: process CPU time / "
              "wall time. The frames are bit for bit the same either way.", "", LLVMPIPE_NOTE, "",
@@ -127,7 +128,7 @@ def main(argv=None) -> int:
               "least 1", file=sys.stderr)
         return 2
     if args.one:
-        print(json.dumps(measure_one(*args.one, args.size, args.repeats, args.ab)))
+        print_row(measure_one(*args.one, args.size, args.repeats, args.ab))
         return 0
     t0 = time.perf_counter()
     command = command_line("benchmarks/bench_gpu_balance.py", argv if argv is not None else sys.argv[1:])
@@ -135,14 +136,13 @@ def main(argv=None) -> int:
     name = "gpu-balance" if args.ab == "stripes" else f"gpu-balance-{args.ab}"
     for scene in args.scenes.split(","):
         for method in args.methods.split(","):
-            r = run_child(os.path.abspath(__file__), ["--one", scene, method, "--size", args.size,
-                                                      "--repeats", str(args.repeats), "--ab", args.ab], f"{scene} {method}")
+            r = run_child([os.path.abspath(__file__), "--one", scene, method, "--size", args.size,
+                           "--repeats", str(args.repeats), "--ab", args.ab], f"{scene} {method}")
             rows.append(r)
             print(f"{scene} {method}: {old} {r['old_ms']:,.0f} ms, {new} {r['default_ms']:,.0f} ms "
                   f"({r['speedup']:.2f}x; cores {r['old_cores']:.2f} -> {r['default_cores']:.2f})", flush=True)
             write_csv(rows, f"bench_{name.replace('-', '_')}.csv")
-            replace_section(os.path.join(ROOT, "docs", "benchmarks.md"), name,
-                            section(rows, time.perf_counter() - t0, command, args.ab))
+            replace_section(DOC, name, section(rows, time.perf_counter() - t0, command, args.ab))
     return 0
 
 

@@ -7,21 +7,21 @@ versions, and speed.
 the same seeds, and on the GPU with 32 other seeds. Per pixel over the seeds
 (:func:`renderers.gpu.agreement.seed_agreement`): the share of pixels whose means agree within 4 standard errors,
 and whose variance ratio GPU / CPU lies in [0.8, 1.25]. Writes section ``gpu-lightcuts-agreement`` of
-``docs/benchmarks.md`` and ``docs/bench_gpu_lightcuts_agreement.csv``.
+``docs/benchmarks.md`` and the raw rows to ``benchmarks/results/bench_gpu_lightcuts_agreement.csv``.
 
 Speed (default): milliseconds per frame of every method on every scene at 1280x720 and 2160x2160 (one eye: the
 lightcuts renderers are monocular; a binocular frame is two), medians of ``--repeats`` frames after a first
-full-size frame (one frame when it took over a minute), each configuration in its own process under
-``/usr/bin/time -v`` (:func:`bench_gpu.run_child`); the GPU / CPU time ratio of every method on cornell_many at
+full-size frame (one frame when it took over a minute), each configuration in its own process with
+its peak memory (:func:`benchmarks.harness.run_child`); the GPU / CPU time ratio of every method on cornell_many at
 the ``--ratio-size`` sizes (default 320x180; a speed size too: then the CPU frame follows each GPU one) in the
 same run. ``--repeats`` is one count or one per size. Runs unchanged on a machine with a GPU (EGL, no display).
-Writes section ``gpu-lightcuts`` of ``docs/benchmarks.md`` and ``docs/bench_gpu_lightcuts.csv``, rewritten after
-every configuration (a run stopped early leaves what it measured, and names what it did not).
+Writes section ``gpu-lightcuts`` of ``docs/benchmarks.md`` and ``benchmarks/results/bench_gpu_lightcuts.csv`` (the
+raw rows; ``--section`` names both), rewritten after every configuration (a run stopped early leaves what it measured, and names what it did not).
 
 ``--gt-model PASSES,CHUNKS``: sl_gt alone. Its seed-size frames (2048 + 2048 samples: 43 light passes, 256 glossy
 dispatches) take hours on llvmpipe, longer than a working session; each configuration renders a frame of PASSES
 passes and CHUNKS dispatches and predicts the whole frame from its step times (:func:`gt_frame_ms`), checked against
-the whole frames that the speed sections' CSVs hold (:func:`whole_gt_frames`).
+the whole frames that the speed sections' raw rows in ``benchmarks/results/`` hold (:func:`whole_gt_frames`).
 
     python benchmarks/bench_gpu_lightcuts.py --agreement      # ~20 min on 2 cores with llvmpipe
     python benchmarks/bench_gpu_lightcuts.py                  # every method, scene and size (GT: --gt-samples)
@@ -42,12 +42,11 @@ import time
 
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from benchmarks._report import command_line, machine_line, replace_section  # noqa: E402
-from benchmarks.bench_gpu import (  # noqa: E402
-    LLVMPIPE_NOTE, _gpu_device_line, run_child, timed_frames, write_csv)
+from benchmarks.harness import (  # noqa: E402
+    DOC, LLVMPIPE_NOTE, RESULTS, command_line, gpu_device_line, machine_line, print_row, replace_section,
+    results_ref, run_child, timed_frames, write_csv)
 
 SCENES = ("cornell_many", "study", "yard", "sponza_vpl")
 SIZES = ("1280x720", "2160x2160")
@@ -114,7 +113,7 @@ def agreement_section(rows, elapsed: float, gt_samples: int, command: str) -> li
     n, (W, H) = rows[0]["same_seeds"], AGREEMENT_SIZE
     lines = [
         "## Lightcuts on the GPU backend against the CPU backend (issue 16 item 1)", "",
-        machine_line(), _gpu_device_line(),
+        machine_line(), gpu_device_line(),
         f"Command: `{command}` ({elapsed / 60:.1f} min). cornell_many "
         f"at {W}x{H} (scene camera, gaze at the centre), seeds 0-{n - 1} on both backends; sl_gt with "
         f"{gt_samples} + {gt_samples} samples. Per pixel and channel over the {n} seeds: the means agree when "
@@ -146,7 +145,7 @@ def agreement_section(rows, elapsed: float, gt_samples: int, command: str) -> li
 # -- speed ---------------------------------------------------------------------------------------------------------
 def measure_one(backend: str, scene: str, method: str, size: str, repeats: int, gt_samples: int,
                 gt_model: tuple[int, int] | None = None) -> dict:
-    """Frame times of one configuration in this process (:func:`bench_gpu.timed_frames`), medians. With
+    """Frame times of one configuration in this process (:func:`benchmarks.harness.timed_frames`), medians. With
     ``gt_model`` (sl_gt only), a frame of that many light passes and glossy chunks, and the frame of
     ``gt_samples`` predicted from it (:func:`gt_model_row`)."""
     name, params = _params(method, gt_samples)
@@ -211,11 +210,11 @@ def gt_model_row(row: dict, passes: int, chunks: int, gt_samples: int) -> dict:
             "predicted_light_samples": row["light_samples"] * full_passes // passes}
 
 
-def whole_gt_frames(gt_samples: int, docs: str) -> dict:
+def whole_gt_frames(gt_samples: int, folder: str = RESULTS) -> dict:
     """The whole sl_gt frames of ``gt_samples`` + ``gt_samples`` samples measured on the GPU in the speed sections'
-    CSVs (``docs/bench_gpu_lightcuts*.csv``): ``{(scene, size): row}``."""
+    raw rows (``benchmarks/results/bench_gpu_lightcuts*.csv``, ``folder``): ``{(scene, size): row}``."""
     found = {}
-    for path in sorted(glob.glob(os.path.join(docs, "bench_gpu_lightcuts*.csv"))):
+    for path in sorted(glob.glob(os.path.join(folder, "bench_gpu_lightcuts*.csv"))):
         with open(path, newline="") as fh:
             for r in csv.DictReader(fh):
                 if (r.get("method") == "sl_gt" and r.get("backend") == "gpu" and "predicted_ms" not in r
@@ -235,7 +234,7 @@ def model_section(rows, plan, elapsed: float, gt_samples: int, command: str, mod
     lines = [
         f"## Lightcuts on the GPU backend: sl_gt's frame predicted from {passes} light pass(es) and {chunks} glossy "
         f"dispatch(es) on {', '.join(scenes)} (issue 16 item 3)", "",
-        machine_line(), _gpu_device_line(),
+        machine_line(), gpu_device_line(),
         f"Command: `{command}` ({elapsed / 60:.1f} min). sl_gt with {gt_samples} + {gt_samples} samples (the "
         f"seed's counts) is {full_passes} light passes of {nodes} nodes and {full_chunks} glossy dispatches of "
         f"{slots} ray slots; on llvmpipe a 2160x2160 frame takes hours. Each row is one frame of "
@@ -258,7 +257,8 @@ def model_section(rows, plan, elapsed: float, gt_samples: int, command: str, mod
                      f"{r['predicted_light_samples']:,} | {check} | {r['peak_mb']:,.0f} | {r['load']:.1f} |")
     sources = sorted({w["file"] for w in whole.values()})
     if sources:
-        lines += ["", f"Whole frames from: {', '.join(f'`docs/{f}`' for f in sources)}."]
+        lines += ["", f"Whole frames from: {', '.join(f'`{results_ref(f)}`' for f in sources)} (raw rows, not "
+                  "committed)."]
     return lines + _not_measured(rows, plan, lambda b, sc, m, z: f"{sc} {z}")
 
 
@@ -293,8 +293,8 @@ def speed_rows(plan, gt_samples: int, progress=print, done=None, gt_model: str =
     for backend, scene, method, size, repeats in plan:
         label = f"{backend} {scene} {method} {size}"
         try:
-            r = run_child(os.path.abspath(__file__), ["--one", backend, scene, method, size, "--repeats",
-                                                      str(repeats), "--gt-samples", str(gt_samples)]
+            r = run_child([os.path.abspath(__file__), "--one", backend, scene, method, size, "--repeats",
+                           str(repeats), "--gt-samples", str(gt_samples)]
                           + (["--gt-model", gt_model] if gt_model else []), label)
         except RuntimeError as exc:
             progress(f"{label}: failed: {str(exc).splitlines()[-1]}")
@@ -320,7 +320,7 @@ def speed_section(rows, plan, elapsed: float, gt_samples: int, command: str) -> 
     lines = [  # the title names what the section covers: a long run may be split into sections (--section)
         f"## Lightcuts on the GPU backend: speed of {', '.join(methods)} on {', '.join(scenes)} (issue 16 item 3)",
         "",
-        machine_line(), _gpu_device_line(),
+        machine_line(), gpu_device_line(),
         f"Command: `{command}` ({elapsed / 60:.1f} min). "
         "Scene cameras, gaze at the centre, one eye (the lightcuts renderers are monocular: a binocular frame is "
         "two); after an untimed 64x48 frame and a first full-size frame, the median of "
@@ -370,7 +370,7 @@ OPTIONS = (
     ("--gt-samples", int, 2048, "speed: sl_gt's light and glossy samples"),
     ("--ratio-size", str, RATIO_SIZE, "speed: sizes of the GPU / CPU ratios on cornell_many, comma-separated "
      "(a speed size too: its GPU frames are reused; '': none)"),
-    ("--section", str, "gpu-lightcuts", "speed: the section of docs/benchmarks.md"),
+    ("--section", str, "gpu-lightcuts", "speed: the section of docs/benchmarks.md (and the raw rows' file)"),
     ("--gt-model", str, "", "speed: sl_gt only, its frame of --gt-samples predicted from a frame of PASSES light "
      "passes and CHUNKS glossy dispatches ('PASSES,CHUNKS', e.g. 2,16; '': whole frames)"),
 )
@@ -386,15 +386,14 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     model = _gt_model(args.gt_model)
     if args.one:
-        print(json.dumps(measure_one(*args.one, int(args.repeats), args.gt_samples, model)))
+        print_row(measure_one(*args.one, int(args.repeats), args.gt_samples, model))
         return 0
-    docs = os.path.join(ROOT, "docs", "benchmarks.md")
     methods = args.methods.split(",")
     command = command_line("benchmarks/bench_gpu_lightcuts.py", argv if argv is not None else sys.argv[1:])
     if args.agreement:
         rows = agreement_rows(methods, args.agreement_gt_samples, args.seeds)
         write_csv(rows, "bench_gpu_lightcuts_agreement.csv")
-        replace_section(docs, "gpu-lightcuts-agreement",
+        replace_section(DOC, "gpu-lightcuts-agreement",
                         agreement_section(rows, time.perf_counter() - t0, args.agreement_gt_samples,
                                           command))
         return 0
@@ -406,9 +405,9 @@ def main(argv=None) -> int:
     def done(rows):
         write_csv(rows, f"bench_{args.section.replace('-', '_')}.csv")
         elapsed = time.perf_counter() - t0
-        replace_section(docs, args.section,
+        replace_section(DOC, args.section,
                         model_section(rows, plan, elapsed, args.gt_samples, command, model,
-                                      whole_gt_frames(args.gt_samples, os.path.dirname(docs))) if model
+                                      whole_gt_frames(args.gt_samples)) if model
                         else speed_section(rows, plan, elapsed, args.gt_samples, command))
 
     speed_rows(plan, args.gt_samples, done=done, gt_model=args.gt_model)

@@ -14,27 +14,13 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import sys
-import time
 
 import numpy as np
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(HERE)
-sys.path.insert(0, ROOT)
-sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-
-def _median(fn, repeats: int, warm: bool = True) -> float:
-    if warm:
-        fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+from benchmarks.harness import load_average, machine_line, median_seconds as _median, replace_section  # noqa: E402
 
 
 def _lights(n: int, seed: int = 0):
@@ -146,12 +132,10 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--write", metavar="MD", help="write the 'lightcuts' section into this Markdown file")
     args = ap.parse_args(argv)
-    from _report import machine_line, replace_section
-
     rows = run(args.repeats)
     lines = ["## Stochastic lightcuts core (`benchmarks/bench_lightcuts.py`)", "",
              machine_line() + f" Median of {args.repeats} run(s) after compiling the kernels on a small frame; "
-             f"load average at the end {os.getloadavg()[0]:.1f}. Synthetic floor under lights in a slab, 200 "
+             f"load average at the end {load_average()[0]:.1f}. Synthetic floor under lights in a slab, 200 "
              "occluding triangles (see the script's docstring).", "",
              "| operation | input | time | note |", "|---|---|---|---|", *rows, "",
              "Reproduce: `.venv/bin/python benchmarks/bench_lightcuts.py --write docs/benchmarks.md`"]

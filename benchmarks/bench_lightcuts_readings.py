@@ -23,7 +23,7 @@ number of samples could reach against a uniform count: with per-pixel variance `
 estimate (from ``N`` renders of SL at 1 light sample + 1 glossy ray, clipped to [0, 1]), the allocation
 ``n ∝ σ`` (Neyman) gives ``mean(σ²) / mean(σ)²``. GT comes from the
 stimulus cache (``--cache``), rendered once per view. Writes ``lightcuts_readings.csv`` and
-``lightcuts_readings.md`` to ``--out``; ``--write`` puts the Markdown into the ``lightcuts-readings`` section of
+``lightcuts_readings.md`` to ``--out`` (default ``benchmarks/results/``, not committed); ``--write`` puts the Markdown into the ``lightcuts-readings`` section of
 that file. The machine load (``os.getloadavg``) is printed with the figures: frame times on a shared machine
 vary, the sample counts and MSE do not (fixed seeds).
 """
@@ -39,10 +39,9 @@ import time
 
 import numpy as np
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(HERE)
-sys.path.insert(0, ROOT)
-sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from benchmarks.harness import RESULTS, load_average, machine_line, replace_section  # noqa: E402
 
 #: view name -> (scene, camera overrides). "cornell_inside" is the Cornell box seen from just inside its open
 #: front with a 100° vertical field, close to the seed's HMD field (its scenes are seen through an HTC Cosmos).
@@ -172,8 +171,6 @@ def _mark(v: float, low: float) -> str:
 
 
 def markdown(rows: list[dict], args, load: tuple[float, float], bounds: dict) -> list[str]:
-    from _report import machine_line
-
     low = _seed_low()
     lines = ["## Readings of Eq 4–8 × budget accountings (`benchmarks/bench_lightcuts_readings.py`)", "",
              machine_line() + f" {args.width}×{args.height}, α = {ALPHA}, GT {args.gt_samples} light + "
@@ -224,7 +221,7 @@ def markdown(rows: list[dict], args, load: tuple[float, float], bounds: dict) ->
         lines.append(f"| {r['view']} | " + " | ".join(cells) + f" | {r['ms_ours']:.0f} / {r['ms_sl_f']:.0f} |")
     lines += ["", "Reproduce: `PYTHONPATH=. .venv/bin/python benchmarks/bench_lightcuts_readings.py "
               f"--width {args.width} --height {args.height} --gt-samples {args.gt_samples} "
-              f"--repeats {args.repeats} --out DIR`"]
+              f"--repeats {args.repeats}` (raw rows: `benchmarks/results/lightcuts_readings.csv`)"]
     return lines
 
 
@@ -246,7 +243,8 @@ def main(argv=None) -> int:
     ap.add_argument("--variance-only", action="store_true", help="only the Neyman bound per view")
     ap.add_argument("--from-csv", metavar="CSV", help="report the rows of an earlier run's CSV instead of measuring "
                     "(pass that run's --width/--height/--gt-samples/--repeats/--seed)")
-    ap.add_argument("--out", metavar="DIR", help="write lightcuts_readings.csv and .md here")
+    ap.add_argument("--out", metavar="DIR", default=RESULTS,
+                    help="write lightcuts_readings.csv and .md here (default: benchmarks/results, not committed)")
     ap.add_argument("--write", metavar="MD", help="write the 'lightcuts-readings' section into this Markdown file")
     args = ap.parse_args(argv)
     for name, allowed in (("views", VIEWS), ("readings", FPSM_READINGS), ("budgets", BUDGETS)):
@@ -257,7 +255,7 @@ def main(argv=None) -> int:
         setattr(args, name, values)
     if args.variance_renders == 1 or args.variance_renders < 0:
         ap.error("--variance-renders: must be 0 or >= 2")
-    load0 = os.getloadavg()[0]
+    load0 = load_average()[0]
     bounds = run_variance(args) if args.variance_renders else {}
     if args.variance_only:
         print("\n".join(f"{v}: {b:.3f}" for v, b in bounds.items()))
@@ -273,12 +271,13 @@ def main(argv=None) -> int:
         load = (rows[0]["load"], rows[-1]["load"])
     else:
         rows = run(args)
-        load = (load0, os.getloadavg()[0])
+        load = (load0, load_average()[0])
     lines = markdown(rows, args, load, bounds)
     print("\n".join(lines))
     if args.out:
         from data_schema.atomic import write_text
 
+        os.makedirs(args.out, exist_ok=True)
         buf = io.StringIO()
         w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
         w.writeheader()
@@ -286,8 +285,6 @@ def main(argv=None) -> int:
         write_text(os.path.join(args.out, "lightcuts_readings.csv"), buf.getvalue())
         write_text(os.path.join(args.out, "lightcuts_readings.md"), "\n".join(lines) + "\n")
     if args.write:
-        from _report import replace_section
-
         replace_section(args.write, "lightcuts-readings", lines)
     return 0
 

@@ -30,10 +30,10 @@ import threading
 import time
 from pathlib import Path
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(HERE)
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.join(ROOT, "tests", "gui"))
+from benchmarks.harness import command_line, machine_line, replace_section  # noqa: E402
 from xvfb import query as _q  # noqa: E402  (read-only queries while the session writes)
 
 METHODS = {  # renderer, params
@@ -147,7 +147,7 @@ def table(rows: list[dict], facts: dict, window: tuple[int, int], seconds: float
     gl = (facts.get("gpu") or {}).get("gl_renderer") or facts.get("gl_renderer", "?")
     out = [f"Window {window[0]}x{window[1]} ({'every method binocular, both eyes side by side' if binocular else 'one view; VaFR dup/rep: both eyes rendered, the left one shown'}), "
            f"{backend} backend on {gl}; {seconds:g}-s trials, `motion: path`, the mouse as the gaze jumping every "
-           f"250 ms. {os.cpu_count()} cores. Frames: new frames rendered in the trial; fps: new frames per second; "
+           f"250 ms. {machine_line()} Frames: new frames rendered in the trial; fps: new frames per second; "
            "dropped flips: flips PsychoPy counted as late (a render outlasted the refresh interval); latency: "
            "gaze sample to the flip that showed the frame rendered for it.", "",
            "| method | scene | frames | fps median | fps p5 | render ms (median) | dropped flips | latency p50 ms | latency p95 ms |",
@@ -205,12 +205,10 @@ def main(argv=None) -> int:
     lines = table(rows, facts, window, args.seconds, args.backend, args.binocular or args.seed_size)
     print("\n".join(lines))
     if args.write:
-        from _report import machine_line, replace_section
-
-        cmd = "python benchmarks/bench_live.py " + " ".join(argv if argv is not None else sys.argv[1:])
+        cmd = command_line("benchmarks/bench_live.py", argv if argv is not None else sys.argv[1:])
         replace_section(args.write, "bench_live", [
             "## Live trials: frame rate and gaze-to-flip latency (`benchmarks/bench_live.py`)", "",
-            f"`{cmd.strip()}`. {machine_line()}", "", *lines, ""])
+            f"`{cmd}`.", "", *lines, ""])
     return 0
 
 

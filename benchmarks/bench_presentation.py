@@ -33,9 +33,9 @@ import tempfile
 import time
 from pathlib import Path
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(HERE)
-sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from benchmarks.harness import load_average, machine_line, replace_section  # noqa: E402
 
 W, H = 2468, 2740
 TARGET_S = 0.5
@@ -128,7 +128,7 @@ def measure(repeats: int, workdir: Path) -> dict:
     return {
         "facts": facts,
         "scale": scale,
-        "load_avg": os.getloadavg()[0],
+        "load_avg": load_average()[0],
         "ready": _stats(ready),
         "draw": _stats(draw),
         "in_black": _stats(in_black),
@@ -141,8 +141,6 @@ def measure(repeats: int, workdir: Path) -> dict:
 
 
 def write_markdown(path: str, res: dict) -> None:
-    from _report import machine_line, replace_section
-
     f = res["facts"]
     rd, dr, ib, pf = res["ready"], res["draw"], res["in_black"], res["per_frame"]
     ok = "yes" if rd["median_s"] < TARGET_S and res["overran"] == 0 else "NO"

@@ -14,7 +14,8 @@ The 1-spp GT aliases (one ray per pixel centre), so errors are also measured aga
 GT with 16 stratified samples per pixel and a 1-px tent filter (``gt`` ``spp=16, filter=tent``; issue 13 item 7),
 rendered up to ``--reference-max-pixels`` (default 4K; 16x the GT's cost) and reported beside the GT columns.
 
-Writes ``docs/benchmarks.md`` section ``render``, ``docs/bench_render.csv`` and ``docs/bench_render.png``.
+Writes ``docs/benchmarks.md`` section ``render``; the raw rows and the plot go to ``benchmarks/results/``
+(``bench_render.csv``, ``bench_render.png``; not committed).
 
     python benchmarks/bench_render.py                        # every scene x resolution (hours on 2 cores)
     python benchmarks/bench_render.py --plan "cornell:2K:VaFR/LaFR(1.8)"      # one scene, chosen methods
@@ -34,10 +35,9 @@ import time
 
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from benchmarks._report import machine_line, replace_section  # noqa: E402
+from benchmarks.harness import DOC, machine_line, replace_section, results_path, results_ref, write_csv  # noqa: E402
 
 RESOLUTIONS = {"2K": (2560, 1440), "4K": (3840, 2160), "8K": (7680, 4320), "retinal": (11520, 6480)}
 METHODS = {
@@ -245,15 +245,9 @@ def merged(rows, path):
 def write_outputs(rows, elapsed, merge=True, where="this process"):
     from data_schema.atomic import atomic_path
 
-    docs = os.path.join(ROOT, "docs")
     if merge:
-        rows = merged(rows, os.path.join(docs, "bench_render.csv"))
-    with atomic_path(os.path.join(docs, "bench_render.csv")) as tmp:
-        with open(tmp, "w", newline="") as fh:
-            # rows of runs before the reference columns lack them
-            w = csv.DictWriter(fh, fieldnames=list(dict.fromkeys(k for r in rows for k in r)), restval="")
-            w.writeheader()
-            w.writerows(rows)
+        rows = merged(rows, results_path("bench_render.csv"))
+    write_csv(rows, "bench_render.csv")  # every key: rows of runs before the reference columns lack them
     try:
         import matplotlib
 
@@ -269,7 +263,7 @@ def write_outputs(rows, elapsed, merge=True, where="this process"):
         ax.set_ylabel("peripheral PSNR vs GT (dB)")
         ax.legend(fontsize=8)
         ax.set_title("Run time against error (all scenes and resolutions)")
-        with atomic_path(os.path.join(docs, "bench_render.png")) as tmp:
+        with atomic_path(results_path("bench_render.png")) as tmp:
             fig.savefig(tmp, format="png", dpi=100)
         plt.close(fig)
     except ImportError:
@@ -283,8 +277,8 @@ def write_outputs(rows, elapsed, merge=True, where="this process"):
              "sRGB against GT: fovea e <= 5°, periphery e > 5°; `ref` columns: against a 16-spp GT with a "
              "1-px tent filter (no aliasing; rendered up to 4K, – where not; the GT row then shows the 1-spp GT's "
              "own error). The machine's 2 cores are shared with other "
-             "jobs, so single timings carry noise of tens of per cent. CSV: `docs/bench_render.csv`, plot: "
-             "`docs/bench_render.png`.", "",
+             "jobs, so single timings carry noise of tens of per cent. Raw rows and plot (not committed): "
+             f"`{results_ref('bench_render.csv')}`, `{results_ref('bench_render.png')}`.", "",
              "| scene | res | method | total s | vis s | shade s | AA s | inv s | speed-up | shading pts | "
              "shadow rays | peak MB | PSNR fov | PSNR per | SSIM fov | SSIM per | PSNR fov ref | PSNR per ref | "
              "SSIM fov ref |",
@@ -298,7 +292,7 @@ def write_outputs(rows, elapsed, merge=True, where="this process"):
                      f"{fmt(r.get('psnr_fovea_ref'), 1)} | {fmt(r.get('psnr_periphery_ref'), 1)} | "
                      f"{fmt(r.get('ssim_fovea_ref'), 3)} |")
     lines += ["", *targets(rows)]
-    replace_section(os.path.join(docs, "benchmarks.md"), "render", lines)
+    replace_section(DOC, "render", lines)
 
 
 def targets(rows):

@@ -20,10 +20,10 @@ import tempfile
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
+ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(HERE))
+
+from benchmarks.harness import load_average, machine_line, replace_section  # noqa: E402
 
 
 def percentile(values, q):
@@ -104,13 +104,11 @@ def main() -> int:
         commits = bench_commits(folder, args.commits)
         schedules = bench_schedules()
         session = bench_session(folder)
-    from _report import machine_line
-
     ms = 1000.0
     lines = [
         "## Study runner (`benchmarks/bench_runner.py`)",
         "",
-        machine_line() + f" Load average during the run: {os.getloadavg()[0]:.1f} (other jobs share the 2 cores "
+        machine_line() + f" Load average during the run: {load_average()[0]:.1f} (other jobs share the 2 cores "
         "and the disk; wall times include their interference, CPU times do not).",
         "",
         "| measurement | value | target |",
@@ -139,8 +137,6 @@ def main() -> int:
               "Reproduce: `.venv/bin/python benchmarks/bench_runner.py --write docs/benchmarks.md`"]
     print("\n".join(lines))
     if args.write:
-        from _report import replace_section
-
         replace_section(args.write, "runner", lines)
     return 0
 

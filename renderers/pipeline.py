@@ -30,8 +30,9 @@ from data_schema.errors import UserError
 
 from . import _lp
 from .antialias import FOVEAL_RADII, foveal_gaussian, lp_filter
+from .projection import camera_rays, plane_to_screen, tan_half_fov
 from .scene import Camera
-from .tracer import Tracer, camera_rays
+from .tracer import Tracer
 
 TILE_PIXELS = 1 << 18
 MAPPING_KERNEL = {"vafr": 0, "lmfr": 1, "lafr": 2}
@@ -349,12 +350,10 @@ def reproject(tracer: Tracer, layout: LPLayout, lp_left, jj, ii, xs, ys, prim, t
     rel = np.where(hit[:, None], np.asarray(left.position) + d * tfar[:, None].astype(np.float64)
                    - np.asarray(right.position), d)
     zf = rel @ f
-    t = math.tan(math.radians(right.fov_y) / 2.0)
     front = zf > 0
     sx = np.where(front, rel @ r, 0.0) / np.where(front, zf, 1.0)
     sy = np.where(front, rel @ u, 0.0) / np.where(front, zf, 1.0)
-    xr = (sx / t + width / height) * height / 2.0
-    yr = (1.0 - sy / t) * height / 2.0
+    xr, yr = plane_to_screen(sx, sy, width, height, tan_half_fov(right))
     rows, cols = layout.lp_coords(xr[front], yr[front])
     depth = np.where(hit, zf, np.inf)[front]
     lin = rows * layout.w + cols

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from .scene import Camera, DirectionalLight, Display, Material, PointLight, Scene
+from .scene import Camera, DirectionalLight, Material, PointLight, Scene, ViewSettings
 
 
 class MeshBuilder:
@@ -156,7 +156,7 @@ def cornell() -> Scene:
     b.prism([(423, 247), (265, 296), (314, 456), (472, 406)], 330.0, "block")
     cam = Camera((278.0, 273.0, -800.0), (278.0, 273.0, 0.0), (0.0, 1.0, 0.0),
                  2 * math.degrees(math.atan(12.5 / 35.0)))
-    return b.scene("cornell", camera=cam, display=Display(640, 480, ipd=64.0), ambient=(0.03, 0.03, 0.03))
+    return b.scene("cornell", camera=cam, display=ViewSettings(640, 480, ipd=64.0), ambient=(0.03, 0.03, 0.03))
 
 
 # -- Temple -----------------------------------------------------------------------------------------------------
@@ -193,7 +193,7 @@ def temple() -> Scene:
             lights.append(PointLight((x, 2.6, z), (2.2, 1.6, 0.9)))
     lights.append(PointLight((0.0, 4.0, L - 3.4), (6.0, 5.0, 3.5)))
     cam = Camera((0.0, 1.7, -2.5), (0.0, 2.4, 20.0), (0.0, 1.0, 0.0), 60.0)
-    return b.scene("temple", point_lights=lights, camera=cam, display=Display(1280, 720),
+    return b.scene("temple", point_lights=lights, camera=cam, display=ViewSettings(1280, 720),
                    ambient=(0.01, 0.01, 0.012))
 
 
@@ -247,7 +247,7 @@ def street_night() -> Scene:
     poles = _street(b)
     lights = [PointLight((x + (-0.4 if x > 0 else 0.4), 4.1, z), (9.0, 7.0, 4.0)) for x, _, z in poles]
     cam = Camera((1.0, 1.7, -4.0), (-0.5, 2.5, 30.0), (0.0, 1.0, 0.0), 60.0)
-    return b.scene("street_night", point_lights=lights, camera=cam, display=Display(1280, 720),
+    return b.scene("street_night", point_lights=lights, camera=cam, display=ViewSettings(1280, 720),
                    ambient=(0.004, 0.005, 0.01), background=(0.005, 0.007, 0.02))
 
 
@@ -256,7 +256,7 @@ def street_day() -> Scene:
     _street(b)
     sun = DirectionalLight((-0.45, -0.8, 0.4), (3.2, 3.0, 2.7))
     cam = Camera((1.0, 1.7, -4.0), (-0.5, 2.5, 30.0), (0.0, 1.0, 0.0), 60.0)
-    return b.scene("street_day", directional_lights=[sun], camera=cam, display=Display(1280, 720),
+    return b.scene("street_day", directional_lights=[sun], camera=cam, display=ViewSettings(1280, 720),
                    ambient=(0.12, 0.13, 0.16), background=(0.45, 0.6, 0.85))
 
 
@@ -300,7 +300,7 @@ def interior() -> Scene:
     lights = [PointLight((x, H - 0.3, z), (1.6, 1.3, 0.9)) for x in np.linspace(-6, 6, 7)
               for z in (2.5, 6.0, 9.5)]
     cam = Camera((-5.5, 1.6, 0.6), (2.0, 1.1, 9.0), (0.0, 1.0, 0.0), 60.0)
-    return b.scene("interior", point_lights=lights, camera=cam, display=Display(1280, 720),
+    return b.scene("interior", point_lights=lights, camera=cam, display=ViewSettings(1280, 720),
                    ambient=(0.01, 0.01, 0.01))
 
 

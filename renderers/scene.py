@@ -184,8 +184,10 @@ class Camera:
 
 
 @dataclass(frozen=True)
-class Display:
-    """Resolution, gaze point (pixels, default the centre) and eye settings (``ipd`` in scene units)."""
+class ViewSettings:
+    """A scene's default view, the ``display:`` of a scene file: image resolution, gaze point (pixels, default the
+    centre), the eye rendered and the interpupillary distance (``ipd``, scene units). Not the participant's
+    physical display (that is :class:`data_schema.geometry.Display`)."""
 
     width: int = 640
     height: int = 480
@@ -219,7 +221,7 @@ class Scene:
     point_lights: list[PointLight] = field(default_factory=list)
     directional_lights: list[DirectionalLight] = field(default_factory=list)
     camera: Camera = field(default_factory=Camera)
-    display: Display = field(default_factory=Display)
+    display: ViewSettings = field(default_factory=ViewSettings)
     ambient: tuple[float, float, float] = (0.0, 0.0, 0.0)
     background: tuple[float, float, float] = (0.0, 0.0, 0.0)
     shadows: bool = True
@@ -670,7 +672,7 @@ def load_yaml(path) -> Scene:
             dls.append(build(("lights", k), lambda: DirectionalLight(L["direction"], L["irradiance"],
                                                                       bool(L.get("shadows", True)))))
     camera = build(("camera",), lambda: Camera(**doc["camera"]))
-    display = build(("display",), lambda: Display(**(doc.get("display") or {})))
+    display = build(("display",), lambda: ViewSettings(**(doc.get("display") or {})))
     scene = build((), lambda: Scene(
         name=str(doc.get("name", path.stem)), vertices=np.concatenate(verts), faces=np.concatenate(faces),
         material_ids=np.concatenate(mids), materials=materials, point_lights=pls, directional_lights=dls,

@@ -7,7 +7,6 @@ normal by ``1e-5`` of the scene's diagonal.
 
 from __future__ import annotations
 
-import math
 import time
 import weakref
 from dataclasses import dataclass, field
@@ -15,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _shade as S
+from .projection import camera_rays
 from .scene import Camera, Scene
 
 #: Points shaded per chunk: bounds the (points x lights) temporaries (~ CHUNK * lights * 17 bytes).
@@ -54,21 +54,6 @@ def embree_scene(scene: Scene):
         mesh_construction.TriangleMesh(es, scene.vertices, scene.faces)
         _BVH_CACHE[scene] = es
     return es
-
-
-def camera_rays(camera: Camera, width: int, height: int, x, y) -> np.ndarray:
-    """Unit float64 directions of the pinhole rays through screen positions ``(x, y)`` (pixels, y down).
-
-    ``d = f + (2x/W - 1) tan(fov/2) (W/H) r + (1 - 2y/H) tan(fov/2) u``: the ray of screen position ``(x, y)`` of a
-    display whose vertical field of view is ``fov_y`` (the c_r of seed 001 Eq 3 is ``2 tan(fov/2) / H``).
-    """
-    f, r, u = camera.basis()
-    t = math.tan(math.radians(camera.fov_y) / 2.0)
-    sx = (2.0 * np.asarray(x, dtype=np.float64) / height - width / height) * t
-    sy = (1.0 - 2.0 * np.asarray(y, dtype=np.float64) / height) * t
-    d = f[None, :] + sx.reshape(-1, 1) * r[None, :] + sy.reshape(-1, 1) * u[None, :]
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    return d
 
 
 def pack_scene(sc: Scene, shadows: bool) -> dict:

@@ -245,3 +245,19 @@ def test_cli_prior_is_recorded_in_json_and_report(tmp_path, capsys):
     assert main(["analyze", str(log), "--out", str(tmp_path / "x"), "--prior", "strong"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "invalid choice: 'strong'" in err and not (tmp_path / "x").exists()
+
+
+def test_a_fit_that_does_not_converge_is_one_line_and_exit_2_on_the_cli(monkeypatch, tmp_path, capsys):
+    # a user's log that cannot be scaled is bad input (a UserError), not a bug: no traceback, nothing written
+    from analysis.synthetic import synthetic_2afc_log
+    from studyapp.cli import main
+
+    log = tmp_path / "log.csv"
+    synthetic_2afc_log(600, seed=0).to_csv(log, index=False)
+    monkeypatch.setattr(scaling, "_gtol", lambda total: 0.0)
+    capsys.readouterr()
+    code = main(["analyze", str(log), "--out", str(tmp_path / "out"), "--n-boot", "0", "--no-figures"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1 and err.startswith("studyapp: error: ") and "did not converge" in err, err
+    assert not (tmp_path / "out").exists()

@@ -69,7 +69,7 @@ def test_whole_frames_are_only_whole_gpu_sl_gt_frames_of_the_same_counts(tmp_pat
 
 
 def test_the_section_checks_each_prediction_against_its_whole_frame(monkeypatch):
-    monkeypatch.setattr(B, "_gpu_device_line", lambda: "GPU backend: test.")
+    monkeypatch.setattr(B, "gpu_device_line", lambda: "GPU backend: test.")
     rows = [B.gt_model_row(_row(90_000.0, 2_000.0, 7_000.0, 9_000.0, 70_000.0), 2, 2, 2048),
             {**B.gt_model_row(_row(90_000.0, 2_000.0, 7_000.0, 9_000.0, 70_000.0), 2, 2, 2048), "scene": "yard"}]
     plan = [("gpu", sc, "sl_gt", "1280x720", 1) for sc in ("cornell_many", "yard", "study")]
@@ -81,4 +81,4 @@ def test_the_section_checks_each_prediction_against_its_whole_frame(monkeypatch)
     assert "| 9,000,000 | 1.034 |" in text
     assert "| yard | 1280x720 |" in text and "not measured | - |" in text
     assert "Not measured in this run (stopped or failed before they ran): study 1280x720." in text
-    assert "`docs/bench_gpu_lightcuts_gt.csv`" in text
+    assert "`benchmarks/results/bench_gpu_lightcuts_gt.csv`" in text  # a raw result: not in docs/

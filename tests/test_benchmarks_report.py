@@ -1,11 +1,21 @@
-"""The benchmarks' report helpers: the command a section records reruns the same arguments, and a section is
-replaced without touching the others."""
+"""The benchmark harness (benchmarks/harness.py): every script uses it and no script imports another; a child per
+configuration with its peak memory and the load; the command a section records reruns the same arguments; a
+section is replaced without touching the others; raw results go to the ignored benchmarks/results/, not docs/."""
 
+import ast
+import datetime
+import json
 import shlex
+import subprocess
+from pathlib import Path
 
 from hypothesis import given, strategies as st
 
-from benchmarks._report import command_line, peak_rss_mb, replace_section, without_time_report
+from benchmarks import harness
+from benchmarks.harness import command_line, peak_rss_mb, replace_section, run_child, without_time_report
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPTS = sorted((ROOT / "benchmarks").glob("bench_*.py"))
 
 
 def test_recorded_command_keeps_empty_and_quoted_arguments():
@@ -43,14 +53,69 @@ def test_a_failed_childs_error_is_its_last_line_not_the_time_report():
 
 
 def test_run_child_reports_the_childs_error(tmp_path):
-    from benchmarks.bench_gpu import run_child
-
     script = tmp_path / "child.py"
     script.write_text("raise RuntimeError('renderer produced negative radiance')\n")
     try:
-        run_child(str(script), [], "gpu yard sl_gt")
+        run_child([str(script)], "gpu yard sl_gt")
     except RuntimeError as exc:
         assert str(exc).splitlines()[0] == "gpu yard sl_gt failed:"
         assert str(exc).splitlines()[-1] == "RuntimeError: renderer produced negative radiance"
     else:
         raise AssertionError("a failing child must raise")
+
+
+def _benchmark_imports(path: Path) -> set[str]:
+    """The modules of ``benchmarks/`` (and sibling scripts) that ``path`` imports."""
+    names = {p.stem for p in SCRIPTS} | {"harness", "_report"}
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom):
+            mods = [node.module or ""] + ([f"{node.module}.{a.name}" for a in node.names] if node.module else [])
+        elif isinstance(node, ast.Import):
+            mods = [a.name for a in node.names]
+        else:
+            continue
+        for m in mods:
+            parts = m.split(".")
+            if parts[0] == "benchmarks" and len(parts) > 1:
+                found.add(parts[1])
+            elif parts[0] in names:
+                found.add(parts[0])
+    return found
+
+
+def test_every_script_uses_the_harness_and_imports_no_other_script():
+    assert len(SCRIPTS) >= 13
+    for path in SCRIPTS:
+        used = _benchmark_imports(path)
+        assert "harness" in used, f"{path.name} does not use benchmarks/harness.py"
+        others = used - {"harness", path.stem}  # bench_render imports itself: Dask tasks by reference
+        assert not others, f"{path.name} imports {sorted(others)}: shared code belongs in the harness"
+
+
+def test_raw_results_are_ignored_and_not_in_docs():
+    assert not [p.name for p in (ROOT / "docs").iterdir()
+                if p.name.startswith("bench_") and p.suffix in (".csv", ".json", ".png")]
+    assert Path(harness.RESULTS) == ROOT / "benchmarks" / "results"
+    ignored = subprocess.run(["git", "check-ignore", "-q", "benchmarks/results/bench_gpu.csv"], cwd=ROOT)
+    assert ignored.returncode == 0, "benchmarks/results/ must be in .gitignore"
+    text = "\n".join(p.read_text(encoding="utf-8") for p in [*(ROOT / "docs").glob("*.md"), ROOT / "README.md"])
+    assert "docs/bench_" not in text
+
+
+def test_a_child_row_gets_its_peak_memory_wall_time_and_load(tmp_path):
+    script = tmp_path / "child.py"
+    script.write_text("import json, sys\nblock = bytearray(64 * 2**20)\nprint('noise')\n"
+                      "print(json.dumps({'arg': sys.argv[1]}))\n")
+    row = run_child([str(script), "x"], "child")
+    assert row["arg"] == "x" and row["wall_s"] > 0 and row["load"] >= 0
+    assert 64 <= row["peak_mb"] < 1024  # the child's 64 MB block counts, the parent's memory does not
+    assert set(run_child([str(script), "y"], "child", row=False)) == {"peak_mb", "wall_s", "load"}
+
+
+def test_the_machine_line_names_the_date_and_results_go_to_the_results_folder(tmp_path, monkeypatch):
+    assert datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d") in harness.machine_line()
+    monkeypatch.setattr(harness, "RESULTS", str(tmp_path / "results"))
+    path = harness.write_csv([{"a": 1}, {"a": 2, "b": 3}], "x.csv")
+    assert Path(path).read_text().splitlines() == ["a,b", "1,", "2,3"]
+    assert json.loads(Path(harness.write_json({"k": [1]}, "x.json")).read_text()) == {"k": [1]}

@@ -121,8 +121,7 @@ def test_shading_points_are_the_primary_hits():
 
 
 def test_view_projection_maps_each_ray_back_to_its_pixel():
-    from renderers.lightcuts.plugin import view_projection
-    from renderers.tracer import camera_rays
+    from renderers.projection import camera_rays, view_projection
 
     rng = np.random.default_rng(3)
     for _ in range(5):

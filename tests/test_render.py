@@ -13,7 +13,7 @@ from data_schema.geometry import ViewingGeometry
 from renderers import render
 from renderers.antialias import fxaa
 from renderers.registry import Param, RendererPlugin, available, resolve_params
-from renderers.scene import Camera, Display, Material, PointLight, Scene
+from renderers.scene import Camera, Material, PointLight, Scene, ViewSettings
 
 
 # -- an independent brute-force reference (pure numpy Möller–Trumbore, per pixel and per light) ---------------
@@ -107,7 +107,7 @@ def tiny_scene(ipd: float = 0.1) -> Scene:
     return Scene("tiny", V, F, [0, 0, 1, 2, 2], mats,
                  point_lights=[PointLight((0.3, 2.5, 1.2), (6, 6, 6)), PointLight((-2, 1.0, 0.0), (1, 2, 3))],
                  camera=Camera((0, 1.2, -2.5), (0, 0.6, 2.0), (0, 1, 0), 50.0),
-                 display=Display(64, 48, ipd=ipd), ambient=(0.02, 0.02, 0.02), background=(0.1, 0.2, 0.3))
+                 display=ViewSettings(64, 48, ipd=ipd), ambient=(0.02, 0.02, 0.02), background=(0.1, 0.2, 0.3))
 
 
 def test_gt_matches_brute_force_reference():

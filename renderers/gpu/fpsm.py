@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..lightcuts.fpsm import D_TOL, EPSILON, LUMA
-from ..lightcuts.plugin import view_projection
+from ..projection import view_projection
 
 #: Edge padding of ``fb'`` before the spline prefilter (scipy pads modes ``nearest`` by 12 for its filter).
 PAD = 12

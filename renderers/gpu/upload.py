@@ -8,12 +8,12 @@ with its own :class:`~renderers.tracer.Counters`, so every render reports its ow
 
 from __future__ import annotations
 
-import math
 import time
 import weakref
 
 import numpy as np
 
+from ..projection import tan_half_fov
 from ..tracer import Counters, pack_scene
 from . import bvh as B
 from .context import TEX_WIDTH, WAY_OUT, Device, get_device
@@ -143,7 +143,9 @@ def device_scene(scene, params: dict) -> DeviceScene:
 
 
 def camera_uniforms(camera, width: int, height: int) -> dict:
-    """Uniforms of ``shaders/camera.glsl`` for a :class:`~renderers.scene.Camera`."""
+    """Uniforms of ``shaders/camera.glsl`` for a :class:`~renderers.scene.Camera`: its basis, ``t = tan(fov/2)``
+    (:func:`renderers.projection.tan_half_fov`) and the screen size; the shader evaluates
+    :func:`renderers.projection.camera_rays` with them."""
     f, r, u = camera.basis()
     return {"u_cam_f": tuple(map(float, f)), "u_cam_r": tuple(map(float, r)), "u_cam_u": tuple(map(float, u)),
-            "u_tan": math.tan(math.radians(camera.fov_y) / 2.0), "u_screen": (float(width), float(height))}
+            "u_tan": tan_half_fov(camera), "u_screen": (float(width), float(height))}

@@ -36,6 +36,7 @@ from numba import njit, prange
 
 from renderers._shade import texture_weight
 from renderers.plugin_types import Param, RendererPlugin, StrengthSpec
+from renderers.projection import view_projection
 
 from .foveated import foveated_lightcuts
 from .fpsm import (ALPHA, FPSM_READINGS, acuity_map, eccentricity_map, light_budget, screen_velocity,
@@ -178,7 +179,7 @@ class Hits:
 
 
 def primary_hits(tracer, camera, width: int, height: int) -> Hits:
-    from renderers.tracer import camera_rays
+    from renderers.projection import camera_rays
 
     x, y = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
     return Hits(tracer, np.asarray(camera.position, dtype=np.float64), camera_rays(camera, width, height, x, y),
@@ -270,24 +271,6 @@ def run_sl_uniform(ctx):
     return _finish(ctx, hits, diffuse, int(p["rspp"]), p["seed"])
 
 
-def view_projection(camera, width: int, height: int) -> np.ndarray:
-    """World -> clip matrix (4x4, column vectors) of the tracer's pinhole camera (``camera_rays``).
-
-    With ``v = p - eye`` and the camera basis ``(f, r, u)``: ``clip = (r.v / (t a), u.v / t, 0, f.v)``,
-    ``t = tan(fov_y / 2)``, ``a = width / height``, so ``x = (ndc_x + 1) w / 2`` and ``y = (1 - ndc_y) h / 2`` are
-    the screen position whose ray ``camera_rays`` shoots through ``p``.
-    """
-    f, r, u = camera.basis()
-    e = np.asarray(camera.position, dtype=np.float64)
-    t = math.tan(math.radians(camera.fov_y) / 2.0)
-    a = width / height
-    m = np.zeros((4, 4))
-    m[0, :3], m[0, 3] = r / (t * a), -(r @ e) / (t * a)
-    m[1, :3], m[1, 3] = u / t, -(u @ e) / t
-    m[3, :3], m[3, 3] = f, -(f @ e)
-    return m
-
-
 def velocity_buffer(ctx, position, hit) -> np.ndarray:
     """Screen-space motion (pixels, (h, w, 2)) of the visible points ``position`` (h·w, 3) from the previous
     frame's camera to this one (seed 003 §3.1's velocity buffer); zero without a previous camera and where
@@ -336,7 +319,7 @@ def run_fsl(ctx):
     t0 = time.perf_counter()
     hits = primary_hits(ctx.tracer, ctx.camera, w, h)
     wl, hl = _low_res(w, h)
-    from renderers.tracer import camera_rays
+    from renderers.projection import camera_rays
 
     x, y = np.meshgrid((np.arange(wl) + 0.5) * w / wl, (np.arange(hl) + 0.5) * h / hl)
     low = Hits(ctx.tracer, np.asarray(ctx.camera.position, dtype=np.float64), camera_rays(ctx.camera, w, h, x, y),

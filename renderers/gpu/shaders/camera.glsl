@@ -1,4 +1,4 @@
-// Pinhole rays through screen positions (renderers/tracer.py camera_rays):
+// Pinhole rays through screen positions (renderers/projection.py camera_rays; u_tan = tan_half_fov):
 // d = f + (2x/H - W/H) tan(fov/2) r + (1 - 2y/H) tan(fov/2) u, normalised -- in float64 with the CPU's order of
 // operations, rounded to float32 once at the end (as the CPU's float64 rays are for Embree), so that both
 // backends trace the same float32 rays.
