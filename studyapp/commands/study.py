@@ -249,8 +249,11 @@ def cmd_sessions(args) -> int:
         frac = _recorded_number(db, proto, "catch", "pass_fraction", 0.75)
         min_fps = _recorded_number(db, proto, "stimulus", "min_fps", None)
         flips = st.trial_flips()
-        trial_session = {(r["participant"], r["trial"]): r["session"] for r in st.tidy_rows()} if flips else {}
         checks = {s["id"]: c for s in sessions if (c := st.fps_check(s["id"])) is not None}
+        tidy = st.tidy_rows() if flips or checks else []
+        trial_session = {(r["participant"], r["trial"]): r["session"] for r in tidy} if flips else {}
+        # trials of a condition below min_fps in the frame-rate check, run with --accept-slow
+        check_slow = {(r["participant"], r["trial"]) for r in tidy if r["fps_check_slow"]}
     print(f"{db}: protocol {meta.get('protocol_name')} {meta.get('protocol_version')} "
           f"(sha256 {meta.get('protocol_hash', '')[:12]})")
     print(f"{'session':<16} {'participant':<12} {'status':<12} {'answers':>7}  {'started (UTC)':<27} resumed from")
@@ -266,14 +269,15 @@ def cmd_sessions(args) -> int:
             catch = f"{r['catch_correct']}/{r['catch_planned']} {verdict}"
         print(f"{r['participant']:<12} {r['answered']:>8} {r['planned']:>8}  {catch}")
     if checks:
-        _print_fps_checks(checks)
+        _print_fps_checks(checks, check_slow, {(r["participant"], r["trial"]): r["session"] for r in tidy})
     if flips:
-        _print_timing_qa(sessions, flips, trial_session, min_fps)
+        _print_timing_qa(sessions, flips, trial_session, min_fps, check_slow)
     return 0
 
 
-def _print_fps_checks(checks: dict) -> None:
-    """Each live session's frame-rate check before its first trial (:mod:`studyapp.runner.fpscheck`)."""
+def _print_fps_checks(checks: dict, check_slow: set, trial_session: dict) -> None:
+    """Each live session's frame-rate check before its first trial (:mod:`studyapp.runner.fpscheck`), and the
+    trials flagged because it was run with ``--accept-slow`` (``check_slow``: (participant, trial))."""
     from studyapp.runner.fpscheck import table_lines
 
     nan = float("nan")
@@ -284,7 +288,9 @@ def _print_fps_checks(checks: dict) -> None:
         for line in lines[1:]:
             print(line)
         if rec["accepted_slow"]:
-            print(f"  run with --accept-slow: trials of {', '.join(rec['accepted_slow'])} flagged")
+            mine = sorted(k[1] for k in check_slow if trial_session.get(k) == sid)
+            print(f"  run with --accept-slow: trials of {', '.join(rec['accepted_slow'])} flagged ("
+                  + (f"trials {', '.join(map(str, mine))})" if mine else "none answered yet)"))
 
 
 def _recorded_number(db: Path, proto: dict, section: str, key: str, default):
@@ -299,7 +305,7 @@ def _recorded_number(db: Path, proto: dict, section: str, key: str, default):
     return float(value)
 
 
-def _print_timing_qa(sessions, flips, trial_session, min_fps) -> None:
+def _print_timing_qa(sessions, flips, trial_session, min_fps, check_slow=frozenset()) -> None:
     """Live trials: frame rate and gaze-to-flip latency per session, pooled over the flips of every trial;
     each trial's frame rate and frame time percentiles from its frame rows; flagged: trials with no frame rate
     (no stimulus with two rendered frames) and trials below the protocol's min_fps."""
@@ -331,7 +337,8 @@ def _print_timing_qa(sessions, flips, trial_session, min_fps) -> None:
                      if ms.size else "fewer than two rendered frames")
             one = summary(*flips[k])
             print(f"  trial {k[1]:<4} {k[0]:<12} fps p50 {format_fps(one['fps_median']):>6} "
-                  f"p5 {format_fps(one['fps_p5']):>6}  {times}")
+                  f"p5 {format_fps(one['fps_p5']):>6}  {times}"
+                  + ("  FLAGGED: below min_fps in the frame-rate check (--accept-slow)" if k in check_slow else ""))
 
 
 def cmd_export(args) -> int:
