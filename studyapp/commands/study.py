@@ -155,8 +155,8 @@ def _stimuli_for_run(args, p, db: Path) -> list[str]:
     The missing sets a run needs (:func:`~studyapp.runner.stimuli.split_missing`: ``--simulate`` needs none of a
     condition that declares a quality) are refused in one line naming them and the ``prepare`` command, or with
     ``--prepare`` rendered first; a folder condition's are refused either way, naming the folder and its files.
-    Before either, the database's refusals (:func:`~studyapp.runner.session.check_admission`). Returns the notes
-    to print once the session has started.
+    Before either, the database's refusals (:func:`~studyapp.runner.session.check_admission`; none for
+    ``db`` None: ``--preview``). Returns the notes to print once the session has started.
     """
     from studyapp.runner.session import check_admission
     from studyapp.runner.stimuli import (missing_line, missing_stimuli, prepare, prepare_command, render_function,
@@ -164,7 +164,7 @@ def _stimuli_for_run(args, p, db: Path) -> list[str]:
 
     missing = missing_stimuli(p, args.scale)
     blocking, declared = split_missing(p, missing, args.simulate)
-    if blocking or (missing and args.prepare) or (args.resume and args.seed is None):
+    if db is not None and (blocking or (missing and args.prepare) or (args.resume and args.seed is None)):
         # The database's refusals (another protocol, the participant's state) come before any rendering.
         adm = check_admission(p, args.participant, db, args.seed, args.resume)
         if adm is not None:
@@ -201,6 +201,10 @@ def cmd_run(args) -> int:
 
     from data_schema.atomic import check_target, real_file, real_folder
 
+    if args.preview:
+        return _cmd_preview(args)
+    if not args.participant:
+        raise CLIError("the following arguments are required: --participant (or --preview for a dry run)")
     p, _ = checked_protocol(args, args.stimuli)  # validate's checks, before anything is created or rendered
     db = Path(args.db) if args.db else Path(f"{p.name}.db")
     real_file(db, "--db")  # a FIFO would block SQLite's open, a device node is no database: refuse before
@@ -234,6 +238,25 @@ def cmd_run(args) -> int:
         verdict = {True: "passed", False: "FAILED", None: "pending"}[summary.catch_passed]
         catch = f"; catch trials {summary.catch_correct}/{summary.catch_total} correct ({verdict})"
     print(f"session {summary.session}: {summary.status}, {summary.answered}/{summary.planned} trials answered{catch}")
+    return 0
+
+
+#: The options of a participant's session, refused with ``run --preview`` (no participant, nothing stored).
+_NOT_WITH_PREVIEW = ("participant", "db", "resume", "seed", "simulate", "accept_slow", "gaze_log")
+
+
+def _cmd_preview(args) -> int:
+    """``run --preview``: every condition of every scene once in the window, nothing stored, then the frame-rate
+    table (:mod:`studyapp.runner.preview`)."""
+    from studyapp.runner.preview import run_preview
+    from studyapp.runner.session import StimulusSet
+
+    given = [f"--{o.replace('_', '-')}" for o in _NOT_WITH_PREVIEW if getattr(args, o, None) not in (None, False)]
+    if given:
+        raise CLIError(f"--preview records nothing and has no participant: drop {', '.join(given)}")
+    p, _ = checked_protocol(args, args.stimuli)
+    _stimuli_for_run(args, p, None)  # a missing set: refused, or rendered first with --prepare
+    run_preview(p, StimulusSet(p, args.scale), _presenter_factory(args, p), args.scale)
     return 0
 
 
@@ -419,7 +442,11 @@ def register(subparsers, parser_class) -> None:
                     "for stimulus.fps_check_s seconds (default 2) in the window and a condition below min_fps stops "
                     "the session (unless --accept-slow); --simulate has no such check.")
     r.add_argument("protocol", metavar="PROTOCOL")
-    r.add_argument("--participant", required=True, metavar="ID", help="pseudonymous participant id")
+    r.add_argument("--participant", metavar="ID", help="pseudonymous participant id (required, except with --preview)")
+    r.add_argument("--preview", action="store_true",
+                   help="a windowed dry run: every condition of every scene once, labelled, in the window "
+                        "(pre-rendered or live, at --scale), then a live protocol's frame-rate table; no "
+                        "participant, no answers collected, no database opened or created")
     r.add_argument("--db", metavar="FILE", help="study database (default: <protocol name>.db)")
     r.add_argument("--simulate", action="store_true",
                    help="simulated observer, no window; it needs no images of a condition that declares a quality "
