@@ -22,6 +22,7 @@ from test_live_gui import PROTOCOL as LIVE_PROTOCOL  # noqa: E402
 
 W, H = 160, 90
 SPP = 100  # about 1.2 s a render at 160 x 90 on this machine's CPU backend (the first adds numba's compile)
+IDLE_RENDER_S = 1.2  # that render's time on the idle machine: how much slower a loaded machine runs
 
 
 def _protocol() -> str:
@@ -95,11 +96,14 @@ def test_escape_and_early_keys_during_slow_live_renders(tmp_path):
     assert info[0].get("escaped_before_onset") and not info[1].get("escaped_before_onset"), info
     # The render is cancelled: Escape acts within 100 ms of the key going down (measured in the window's process,
     # from the key's own time stamp), not after the render (this run's second frame of trial 0: over a second;
-    # the first adds numba's compile). Seen from here the wait adds xdotool's and the pipe's delays.
+    # the first adds numba's compile). On a machine loaded by other jobs every chunk of the render takes longer
+    # in proportion, so the bound is scaled by how much slower the render ran than on the idle machine. Seen from
+    # here the wait adds xdotool's and the pipe's delays.
     render_s = trials[0]["frames"][1]["render_s"]
+    slower = max(1.0, render_s / IDLE_RENDER_S)
     latency = [i["escape_latency_s"] for i in info]
     print(f"Escape latency in the window's process: {latency[0] * 1000:.0f} ms during the first render, "
-          f"{latency[1] * 1000:.0f} ms during a later render")
+          f"{latency[1] * 1000:.0f} ms during a later render (renders {slower:.1f}x slower than idle)")
     assert render_s > 1.0, trials[0]["frames"]  # the renders are as slow as this test needs
-    assert all(0.0 <= v < 0.1 for v in latency), latency
+    assert all(0.0 <= v < 0.1 * slower for v in latency), (latency, slower)
     assert first_wait < render_s and between_wait < render_s, (first_wait, between_wait, render_s)

@@ -118,3 +118,14 @@ def test_preview_refuses_the_options_of_a_session_in_one_line(tmp_path, extra, n
     assert main(["run", str(proto)]) == 2
     assert "--participant (or --preview for a dry run)" in capsys.readouterr().err
     assert not list(tmp_path.glob("*.db"))
+
+
+def test_run_help_documents_the_preview(capsys):
+    from studyapp.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    text = " ".join(capsys.readouterr().out.split())  # argparse wraps lines
+    assert ("--preview a windowed dry run: every condition of every scene once, labelled, in the window "
+            "(pre-rendered or live, at --scale), then a live protocol's frame-rate table; no participant, no answers "
+            "collected, no database opened or created") in text

@@ -440,7 +440,9 @@ def register(subparsers, parser_class) -> None:
                     "running) are checked before anything is rendered. A live protocol renders during its trials, "
                     "at its render size times --scale; before its first trial each condition x scene is rendered "
                     "for stimulus.fps_check_s seconds (default 2) in the window and a condition below min_fps stops "
-                    "the session (unless --accept-slow); --simulate has no such check.")
+                    "the session (unless --accept-slow); --simulate has no such check. --preview is a windowed "
+                    "dry run: every condition of every scene once, labelled, nothing stored, then the frame-rate "
+                    "table.")
     r.add_argument("protocol", metavar="PROTOCOL")
     r.add_argument("--participant", metavar="ID", help="pseudonymous participant id (required, except with --preview)")
     r.add_argument("--preview", action="store_true",
