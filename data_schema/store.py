@@ -524,7 +524,8 @@ class Store:
             return slow[sid]
 
         rows = []
-        for pid, sid, block, scene, idx, fam, conds, chosen, chosen_2, resp, rt, kind in self.conn.execute(q).fetchall():
+        found = self.conn.execute(q).fetchall()  # all first: fps_check reads the same connection
+        for pid, sid, block, scene, idx, fam, conds, chosen, chosen_2, resp, rt, kind in found:
             shown = self._conditions(pid, idx, conds)
             rows.append(tidy_row(pid, sid, block, scene, idx, fam, shown, chosen, chosen_2, resp, rt, kind,
                                  fps_check_slow=bool(slow_in(sid) & set(shown))))
@@ -953,8 +954,8 @@ def read_trials(db_path):
     """The tidy trial log of a study database as a pandas DataFrame (columns :data:`ALL_COLUMNS`).
 
     Text columns are strings (``""`` where a column does not apply to the trial family), ``trial``,
-    ``practice``, ``catch`` and ``fps_check_slow`` are int64, ``response`` is float64 (1.0/0.0 for ``yes_no``, NaN for the other
-    families) and ``rt_s`` float64 (NaN when not measured).
+    ``practice``, ``catch`` and ``fps_check_slow`` are int64, ``response`` is float64 (1.0/0.0 for ``yes_no``,
+    NaN for the other families) and ``rt_s`` float64 (NaN when not measured).
     """
     with open_store(db_path) as st:
         if not st.meta():

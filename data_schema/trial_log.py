@@ -51,8 +51,8 @@ FAMILY_COLUMNS = {name: fam.log_columns for name, fam in _FAMILIES.items()}
 OPTIONAL = ("block", "session", "trial", "chosen_2", "rt_s", "practice", "catch", *TIMING_COLUMNS, "fps_check_slow")
 
 ALL_COLUMNS = ("participant", "session", "block", "scene", "trial", "family", "condition", "condition_a",
-               "condition_b", "conditions", "chosen", "chosen_2", "response", "rt_s", "practice", "catch", *TIMING_COLUMNS,
-               "fps_check_slow")
+               "condition_b", "conditions", "chosen", "chosen_2", "response", "rt_s", "practice", "catch",
+               *TIMING_COLUMNS, "fps_check_slow")
 
 
 
