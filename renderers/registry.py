@@ -176,9 +176,10 @@ def render(scene, renderer: str, params: dict | None, width: int, height: int,
         The CPU renderers, or the plug-in's GPU version (OpenGL compute, :mod:`renderers.gpu`).
     cancel : callable, optional
         ``cancel()`` -> True stops the render with :class:`~renderers.plugin_types.RenderCancelled` (no image):
-        asked before the frame and, on the CPU backend, before every ray cast and every chunk of shaded points
-        (:class:`~renderers.tracer.Tracer`) and between the passes of a progressive renderer; a GPU frame is
-        asked only before it starts (its dispatches are not split). The live window's Escape.
+        asked before the frame; on the CPU backend before every ray cast and every chunk of shaded points
+        (:class:`~renderers.tracer.Tracer`), between inverse-map tiles and between the passes of a progressive
+        renderer; on the GPU backend before every compute dispatch (:meth:`renderers.gpu.frame.Frame.run`). The
+        live window's Escape.
 
     Returns
     -------
@@ -213,6 +214,7 @@ def render(scene, renderer: str, params: dict | None, width: int, height: int,
         run = _load(plugin.gpu)
         reset = _reset_peak()
         tracer = _load("renderers.gpu:device_scene")(sc, full)
+        tracer.cancel = cancel
     else:
         from .tracer import Tracer
 
