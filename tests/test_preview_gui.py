@@ -12,41 +12,39 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from PIL import Image
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "gui"))
-from xvfb import ROOT, Xvfb, missing_tools  # noqa: E402
+from xvfb import ROOT, Xvfb, require_tools  # noqa: E402
+
+from test_live_gui import PROTOCOL as LIVE_PROTOCOL  # noqa: E402
 
 W, H = 96, 54
 
 
 def _protocol(kind: str) -> str:
-    live = kind == "live"
-    stimulus = ("{kind: live, duration_s: 0.6, motion: path, gaze: fixation, fps_check_s: 0.3, min_fps: 60}"
-                if live else f"{{kind: image, render_px: [{W}, {H}]}}")
-    backend = ", backend: cpu" if live else ""
-    return f"""
-schema_version: 1
-name: preview_{kind}
-version: "1"
-family: yes_no
-question: "Acceptable? Y / N"
-display: {{width_px: {W}, height_px: {H}, width_cm: 40.0, distance_cm: 40.0, refresh_hz: 60}}
-fixation: {{x: 0.5, y: 0.5, mark: false}}
-scenes: [cornell, temple]
-conditions:
-  GT: {{renderer: gt{backend}}}
-  LaFR: {{renderer: lafr, params: {{delta: 2.0}}{backend}}}
-stimulus: {stimulus}
-timing: {{black_s: 0.2}}
-design: {{repetitions: 1, trial_order: interleaved}}
-analysis: {{dv: response, unit: trial, test: summary_table}}
-"""
+    """test_live_gui's protocol at 96x54 with a ground truth and LaFR in two scenes: live (CPU, along the path) or
+    pre-rendered still images."""
+    doc = yaml.safe_load(LIVE_PROTOCOL)
+    doc["name"] = f"preview_{kind}"
+    doc["display"].update(width_px=W, height_px=H)
+    doc["scenes"] = ["cornell", "temple"]
+    doc["conditions"] = {"GT": {"renderer": "gt"}, "LaFR": {"renderer": "lafr", "params": {"delta": 2.0}}}
+    if kind == "live":
+        for cond in doc["conditions"].values():
+            cond["backend"] = "cpu"
+        doc["stimulus"] = {"kind": "live", "duration_s": 0.6, "motion": "path", "gaze": "fixation",
+                           "fps_check_s": 0.3, "min_fps": 60}
+    else:
+        doc["stimulus"] = {"kind": "image", "render_px": [W, H]}
+    doc["timing"] = {"black_s": 0.2}
+    return yaml.safe_dump(doc)
 
 
 @pytest.fixture(autouse=True)
-def _gui_tools_installed():
-    assert not missing_tools(), f"GUI tests need {missing_tools()} (Debian: xvfb, xdotool; ./run installs them)"
+def _tools():
+    require_tools()
 
 
 def _preview(x, tmp_path: Path, proto: Path, shots: Path) -> str:
