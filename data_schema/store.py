@@ -520,9 +520,20 @@ class Store:
              "r.chosen_2, r.response, r.rt_s, t.kind FROM responses r JOIN planned_trials t ON "
              "t.participant = r.participant AND t.idx = r.idx JOIN participants p ON p.id = t.participant "
              "WHERE t.kind != 'reference' ORDER BY p.enrol_order, t.idx")
-        rows = [tidy_row(pid, sid, block, scene, idx, fam, self._conditions(pid, idx, conds), chosen, chosen_2, resp,
-                         rt, kind)
-                for pid, sid, block, scene, idx, fam, conds, chosen, chosen_2, resp, rt, kind in self.conn.execute(q)]
+        slow: dict[str, set] = {}  # session -> the conditions run below min_fps with --accept-slow
+
+        def slow_in(sid: str) -> set:
+            if sid not in slow:
+                check = self.fps_check(sid)
+                slow[sid] = set(check["accepted_slow"]) if check else set()
+            return slow[sid]
+
+        rows = []
+        found = self.conn.execute(q).fetchall()  # all first: fps_check reads the same connection
+        for pid, sid, block, scene, idx, fam, conds, chosen, chosen_2, resp, rt, kind in found:
+            shown = self._conditions(pid, idx, conds)
+            rows.append(tidy_row(pid, sid, block, scene, idx, fam, shown, chosen, chosen_2, resp, rt, kind,
+                                 fps_check_slow=bool(slow_in(sid) & set(shown))))
         timing = self.trial_timing()
         for r in rows:
             r.update(timing.get((r["participant"], r["trial"]), {}))
@@ -745,12 +756,15 @@ def _frame_refusal(path, row: dict, field: str, why: str) -> StoreError:
 
 
 def tidy_row(participant: str, session: str, block: str, scene: str, trial: int, family: str,
-             conditions: Sequence[str], chosen: str, chosen_2: str, response, rt_s, kind: str) -> dict:
-    """One row of the tidy log (:data:`ALL_COLUMNS`; ``""`` where a column does not apply to the family)."""
+             conditions: Sequence[str], chosen: str, chosen_2: str, response, rt_s, kind: str,
+             fps_check_slow: bool = False) -> dict:
+    """One row of the tidy log (:data:`ALL_COLUMNS`; ``""`` where a column does not apply to the family).
+    ``fps_check_slow``: a condition shown was below ``min_fps`` in the session's frame-rate check (run with
+    ``--accept-slow``: :meth:`Store.fps_check`'s ``accepted_slow``)."""
     row = dict.fromkeys(ALL_COLUMNS, "")
     row.update(participant=participant, session=session, block=block, scene=scene, trial=trial, family=family,
                chosen=chosen, chosen_2=chosen_2, response=response, rt_s=rt_s,
-               practice=int(kind == "practice"), catch=int(kind == "catch"))
+               practice=int(kind == "practice"), catch=int(kind == "catch"), fps_check_slow=int(fps_check_slow))
     row.update(families.get(family).tidy_columns(conditions))
     return row
 
@@ -999,8 +1013,8 @@ def read_trials(db_path):
     """The tidy trial log of a study database as a pandas DataFrame (columns :data:`ALL_COLUMNS`).
 
     Text columns are strings (``""`` where a column does not apply to the trial family), ``trial``,
-    ``practice`` and ``catch`` are int64, ``response`` is float64 (1.0/0.0 for ``yes_no``, NaN for the other
-    families) and ``rt_s`` float64 (NaN when not measured).
+    ``practice``, ``catch`` and ``fps_check_slow`` are int64, ``response`` is float64 (1.0/0.0 for ``yes_no``,
+    NaN for the other families) and ``rt_s`` float64 (NaN when not measured).
     """
     with open_store(db_path) as st:
         if not st.meta():
@@ -1014,7 +1028,7 @@ def tidy_frame(rows: Sequence[dict]):
     import pandas as pd
 
     df = pd.DataFrame(list(rows), columns=list(ALL_COLUMNS))
-    for c in ("trial", "practice", "catch"):
+    for c in ("trial", "practice", "catch", "fps_check_slow"):
         df[c] = df[c].astype("int64")
     for c in ("response", "rt_s", *TIMING_COLUMNS):
         df[c] = pd.to_numeric(df[c], errors="coerce").astype("float64")

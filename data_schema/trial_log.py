@@ -27,6 +27,8 @@ fps_median, fps_p5        live trials: frames rendered per second, median and 5t
 dropped_share             live trials: share of dropped flips (float)
 latency_p50_ms,           live trials: gaze age at the flip in ms, median and 95th percentile (float)
 latency_p95_ms
+fps_check_slow            live trials: 1 if a condition shown was below ``min_fps`` in the session's frame-rate
+                          check and the run went on with ``--accept-slow`` (a flagged trial), else 0
 ========================  =====================================================================================
 
 The live columns summarise the trial's frames (:mod:`data_schema.timing`); the frames themselves are exported
@@ -46,10 +48,11 @@ REQUIRED = ("participant", "family", "scene")
 #: Family -> the columns it fills (declared by each family, :mod:`data_schema.families`).
 FAMILY_COLUMNS = {name: fam.log_columns for name, fam in _FAMILIES.items()}
 
-OPTIONAL = ("block", "session", "trial", "chosen_2", "rt_s", "practice", "catch", *TIMING_COLUMNS)
+OPTIONAL = ("block", "session", "trial", "chosen_2", "rt_s", "practice", "catch", *TIMING_COLUMNS, "fps_check_slow")
 
 ALL_COLUMNS = ("participant", "session", "block", "scene", "trial", "family", "condition", "condition_a",
-               "condition_b", "conditions", "chosen", "chosen_2", "response", "rt_s", "practice", "catch", *TIMING_COLUMNS)
+               "condition_b", "conditions", "chosen", "chosen_2", "response", "rt_s", "practice", "catch",
+               *TIMING_COLUMNS, "fps_check_slow")
 
 
 

@@ -38,8 +38,8 @@ TILE_PIXELS = 1 << 18
 MAPPING_KERNEL = {"vafr": 0, "lmfr": 1, "lafr": 2}
 
 
-def _row_tiles(width: int, height: int):
-    rows = max(1, TILE_PIXELS // max(1, width))
+def _row_tiles(width: int, height: int, pixels: int = TILE_PIXELS):
+    rows = max(1, pixels // max(1, width))
     for y0 in range(0, height, rows):
         yield y0, min(height, y0 + rows)
 
@@ -217,7 +217,9 @@ def _inverse_map(tracer, layout: LPLayout, lp, aa_post: bool, width: int, height
     # zeros, not empty: the kernel writes every pixel, and a pixel it ever missed would be black, not garbage
     img = np.zeros((height, width, 3), dtype=np.float32)
     halo = max(FOVEAL_RADII) if aa_post else 0
-    for y0, y1 in _row_tiles(width, height):
+    # a cancellable render (the live window) maps smaller tiles, so that Escape is asked every few milliseconds
+    for y0, y1 in _row_tiles(width, height, TILE_PIXELS if tracer.cancel is None else TILE_PIXELS >> 2):
+        tracer.check_cancel()  # the live window's Escape, between tiles
         t0 = time.perf_counter()
         a0, a1 = max(0, y0 - halo), min(height, y1 + halo)
         # Without post-filtering the kernel writes straight into the image rows (no copy).
@@ -304,6 +306,7 @@ def finish(tracer: Tracer, layout: LPLayout, lp, params: dict, width: int, heigh
            shaded=None):
     """LP-buffer anti-aliasing, inverse mapping and post anti-aliasing; ``shaded = (jj, ii)`` of the shaded
     LP pixels (the others are filled from their row before the LP filters)."""
+    tracer.check_cancel()
     t0 = time.perf_counter()
     lp_aa = (params.get("fxaa", False) if layout.method == "vafr" else params.get("aa", False))
     if lp_aa and shaded is not None:

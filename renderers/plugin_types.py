@@ -23,6 +23,10 @@ from data_schema.geometry import ViewingGeometry
 from data_schema.ranges import Range
 
 
+class RenderCancelled(Exception):
+    """A render stopped by its ``cancel`` hook (not an error: the caller asked; no image exists)."""
+
+
 @dataclass(frozen=True)
 class Param:
     """One renderer parameter: ``type`` (bool, int, float, str), ``default``, range ``[low, high]`` (open ends
@@ -191,6 +195,14 @@ class RenderContext:
     exposure: float = 1.0
     extra: dict = field(default_factory=dict)
     previous_camera: Any = None  # the previous frame's camera (screen-space velocity), or None
+    #: ``cancel()`` -> True stops the render (:class:`RenderCancelled`) at the next chunk boundary: the live
+    #: window's Escape (``renderers.registry.render(cancel=...)``); None: never.
+    cancel: Callable[[], bool] | None = None
+
+    def check_cancel(self) -> None:
+        """Raise :class:`RenderCancelled` if the caller asked to stop (between chunks of work)."""
+        if self.cancel is not None and self.cancel():
+            raise RenderCancelled
 
     @property
     def width(self) -> int:

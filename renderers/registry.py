@@ -17,6 +17,7 @@ import importlib
 import math
 import resource
 import time
+from collections.abc import Callable
 from dataclasses import asdict, replace
 
 import numpy as np
@@ -166,7 +167,8 @@ def _peak_mb() -> float:
 
 
 def render(scene, renderer: str, params: dict | None, width: int, height: int,
-           gaze: tuple[float, float] | None = None, camera: dict | None = None, backend: str = "cpu"):
+           gaze: tuple[float, float] | None = None, camera: dict | None = None, backend: str = "cpu",
+           cancel: Callable[[], bool] | None = None):
     """Render ``scene`` with ``renderer``: ``(image (H, W, 3) float32 linear unexposed RGB, stats)``.
 
     Parameters
@@ -187,6 +189,12 @@ def render(scene, renderer: str, params: dict | None, width: int, height: int,
         camera, for renderers that use screen-space velocity).
     backend : {"cpu", "gpu"}
         The CPU renderers, or the plug-in's GPU version (OpenGL compute, :mod:`renderers.gpu`).
+    cancel : callable, optional
+        ``cancel()`` -> True stops the render with :class:`~renderers.plugin_types.RenderCancelled` (no image):
+        asked before the frame; on the CPU backend before every ray cast and every chunk of shaded points
+        (:class:`~renderers.tracer.Tracer`), between inverse-map tiles and between the passes of a progressive
+        renderer; on the GPU backend before every compute dispatch (:meth:`renderers.gpu.frame.Frame.run`). The
+        live window's Escape.
 
     Returns
     -------
@@ -221,17 +229,20 @@ def render(scene, renderer: str, params: dict | None, width: int, height: int,
         run = _load(plugin.gpu)
         reset = _reset_peak()
         tracer = _load("renderers.gpu:device_scene")(sc, full)
+        tracer.cancel = cancel
     else:
         from .tracer import Tracer
 
         run = _load(plugin.run)
         reset = _reset_peak()
         tracer = Tracer(sc, shadows=bool(full.get("shadows", True)), light_cull=float(full.get("light_cull", 0.0)))
+        tracer.cancel = cancel
     # Scene loading and the BVH build (once per scene) are setup, not part of the frame time.
     setup = time.perf_counter() - t_start
     t_start = time.perf_counter()
     ctx = RenderContext(sc, cam, geometry, full, tracer, exposure=sc.exposure,
-                        previous_camera=sc.camera.previous(camera))
+                        previous_camera=sc.camera.previous(camera), cancel=cancel)
+    ctx.check_cancel()
     img = run(ctx)
     c = tracer.counters
     c.seconds["total"] = time.perf_counter() - t_start

@@ -120,7 +120,7 @@ def test_the_live_window_shows_the_named_eye_over_the_window_and_times_both(monk
 
     seen, shown = {}, []
 
-    def fake_render(scene, renderer, params, w, h, gaze=None, camera=None, backend=None):
+    def fake_render(scene, renderer, params, w, h, gaze=None, camera=None, backend=None, cancel=None):
         seen.update(size=(w, h), gaze=gaze, eye=params.get("eye", "left"))
         eyes = [np.full((h, w, 3), 0.25, np.float32), np.full((h, w, 3), 0.75, np.float32)]
         return eyes[params.get("eye") == "right"], {"seconds": {"total": 0.125}, "eye_images": eyes}

@@ -193,3 +193,32 @@ def test_a_record_of_the_check_not_written_by_studyapp_is_refused(tmp_path, deta
         st.event(summary.session, "fps_check", detail)
         with pytest.raises(StoreError, match="the record of its frame-rate check is invalid"):
             st.fps_check(summary.session)
+
+
+def test_accept_slow_flags_every_trial_of_a_slow_condition_in_the_record_export_and_sessions(tmp_path, capsys):
+    """Each trial showing a condition the check found below min_fps (run with --accept-slow) carries
+    ``fps_check_slow`` = 1 in the tidy log (CSV export, Parquet, analysis) and is marked in ``sessions``; a run
+    where every condition was fast enough flags none."""
+    import csv
+
+    from data_schema.store import read_trials
+    from studyapp.cli import main
+
+    p = protocol(tmp_path, "fps_check_s: 0.2")
+    summary, _ = run(tmp_path, p, accept_slow=True)
+    assert main(["export", "--db", str(tmp_path / "s.db"), "--format", "csv", "--out", str(tmp_path / "t.csv")]) == 0
+    rows = list(csv.DictReader((tmp_path / "t.csv").open()))
+    assert [(r["trial"], r["fps_check_slow"]) for r in rows] == [("0", "1"), ("1", "1")]  # LaFR is in both
+    assert read_trials(tmp_path / "s.db")["fps_check_slow"].tolist() == [1, 1]
+    capsys.readouterr()
+    assert main(["sessions", "--db", str(tmp_path / "s.db")]) == 0
+    out = capsys.readouterr().out
+    assert "run with --accept-slow: trials of LaFR flagged (trials 0, 1)" in out
+    per_trial = [s for s in out.splitlines() if s.startswith("  trial ")]
+    assert len(per_trial) == 2 and all(s.endswith("FLAGGED: below min_fps in the frame-rate check (--accept-slow)")
+                                       for s in per_trial), per_trial
+
+    fast = tmp_path / "fast"
+    fast.mkdir()
+    run(fast, p, rates={"GT": 128.0, "LaFR": 64.0})
+    assert read_trials(fast / "s.db")["fps_check_slow"].tolist() == [0, 0]

@@ -1,7 +1,9 @@
 """Keys are never lost in a live trial (issue 26, item 3), in a real window under Xvfb with xdotool, with a
 CPU ground truth slow enough that one render takes over a second: Escape pressed during the first render ends
 the trial before its first frame (no onset), a key pressed before the first frame is not taken as the answer,
-and Escape pressed between flips (during a later render) ends the trial at the next flip, before it."""
+and Escape pressed between flips (during a later render) ends the trial before the next flip. Either way the
+render is cancelled (its ``cancel`` hook asks the keyboard between chunks), so Escape acts within 100 ms of
+the key going down, not at the end of the render."""
 
 from __future__ import annotations
 
@@ -20,6 +22,7 @@ from test_live_gui import PROTOCOL as LIVE_PROTOCOL  # noqa: E402
 
 W, H = 160, 90
 SPP = 100  # about 1.2 s a render at 160 x 90 on this machine's CPU backend (the first adds numba's compile)
+IDLE_RENDER_S = 1.2  # that render's time on the idle machine: how much slower a loaded machine runs
 
 
 def _protocol() -> str:
@@ -91,8 +94,16 @@ def test_escape_and_early_keys_during_slow_live_renders(tmp_path):
     assert out["pauses"] == ["resume", "end"]
     info = [i for i in out["trial_info"] if i["trial"] == 1]
     assert info[0].get("escaped_before_onset") and not info[1].get("escaped_before_onset"), info
-    # Escape acts at the end of the render it was pressed in: at most one render (this run's second frame of
-    # trial 0; its first adds numba's compile) and the pipe's latency pass
+    # The render is cancelled: Escape acts within 100 ms of the key going down (measured in the window's process,
+    # from the key's own time stamp), not after the render (this run's second frame of trial 0: over a second;
+    # the first adds numba's compile). On a machine loaded by other jobs every chunk of the render takes longer
+    # in proportion, so the bound is scaled by how much slower the render ran than on the idle machine. Seen from
+    # here the wait adds xdotool's and the pipe's delays.
     render_s = trials[0]["frames"][1]["render_s"]
+    slower = max(1.0, render_s / IDLE_RENDER_S)
+    latency = [i["escape_latency_s"] for i in info]
+    print(f"Escape latency in the window's process: {latency[0] * 1000:.0f} ms during the first render, "
+          f"{latency[1] * 1000:.0f} ms during a later render (renders {slower:.1f}x slower than idle)")
     assert render_s > 1.0, trials[0]["frames"]  # the renders are as slow as this test needs
-    assert first_wait < render_s + 0.5 and between_wait < render_s + 0.5, (first_wait, between_wait, render_s)
+    assert all(0.0 <= v < 0.1 * slower for v in latency), (latency, slower)
+    assert first_wait < render_s and between_wait < render_s, (first_wait, between_wait, render_s)

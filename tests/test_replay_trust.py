@@ -134,7 +134,7 @@ def test_the_live_window_foveates_both_eyes_at_the_gaze_in_the_eye_it_falls_on(m
 
     seen = {}
 
-    def fake_render(scene, renderer, params, w, h, gaze=None, camera=None, backend=None):
+    def fake_render(scene, renderer, params, w, h, gaze=None, camera=None, backend=None, cancel=None):
         seen.update(size=(w, h), gaze=gaze)
         img = np.zeros((h, w, 3), np.float32)
         return img, {"seconds": {"total": 0.0}, "eye_images": [img, img]}

@@ -12,6 +12,7 @@ import time
 
 import numpy as np
 
+from ..plugin_types import RenderCancelled
 from .context import WAY_OUT, StageTimer
 
 #: GPU counters (index = position). Those named like a Counters field are added to it at the end of a frame.
@@ -98,7 +99,9 @@ class Frame:
     def run(self, name: str, n: int, buffers: dict | None = None, uniforms: dict | None = None,
             defines: dict | None = None, images: dict | None = None, local: int = 64) -> None:
         """Dispatch ``shaders/<name>`` over ``n`` invocations with storage ``buffers`` {binding point: buffer}
-        and ``images`` {image unit: texture} bound next to the scene (image units 0-3) and the counters."""
+        and ``images`` {image unit: texture} bound next to the scene (image units 0-3) and the counters.
+        A render that can be cancelled is asked first (:meth:`check_cancel`)."""
+        self.check_cancel()
         prog = self.dev.program(name, self.defines(defines))
         self.ds.bind_scene()
         self.counter_buf.bind_to_storage_buffer(5)
@@ -106,6 +109,22 @@ class Frame:
         set_uniforms(prog, {**self.ds.scene_uniforms(), **(uniforms or {})})
         self.dev.dispatch(prog, n, local)
         self.dev.barrier()
+
+    def check_cancel(self) -> None:
+        """Stop the render if its ``cancel`` hook says so (the live window's Escape): llvmpipe runs each dispatch
+        to its end in this thread, so between dispatches is where a frame can stop. The window's drawing state is
+        restored before :class:`RenderCancelled` is raised; an open stage timer ends as the exception leaves its
+        scope, and the frame's buffers are the device's pool, kept for the next frame."""
+        cancel = self.ds.cancel
+        if cancel is not None and cancel():
+            self.dev.yield_to_window()
+            raise RenderCancelled
+
+    @property
+    def batch(self) -> int:
+        """Samples per GT batch: :data:`BATCH`, an eighth of it when the render can be cancelled (more dispatches,
+        each asked first; the same pixels)."""
+        return BATCH if self.ds.cancel is None else BATCH >> 3
 
     def upload(self, name: str, data: np.ndarray):
         """``data`` in the pooled buffer ``name`` (grown as needed)."""

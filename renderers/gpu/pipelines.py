@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from .. import pipeline as cpu
-from .frame import B_OUT, BATCH, C, Frame
+from .frame import B_OUT, C, Frame
 from .upload import camera_uniforms
 
 
@@ -26,7 +26,7 @@ def read_image(buf, width: int, height: int) -> np.ndarray:
 def render_gt(fr: Frame, camera, width: int, height: int, spp: int = 1, pixel_filter: str = "box"):
     """GT into the pooled buffer ``image`` (3 floats per pixel); see :func:`renderers.pipeline.render_gt`.
 
-    Rows are rendered in batches of at most :data:`~renderers.gpu.frame.BATCH` samples; with the tent filter
+    Rows are rendered in batches of at most :attr:`~renderers.gpu.frame.Frame.batch` samples; with the tent filter
     the sample rows around a batch boundary are carried over, so that every sample is traced once.
     """
     img = fr.pool.get("image", 12 * width * height)
@@ -34,7 +34,7 @@ def render_gt(fr: Frame, camera, width: int, height: int, spp: int = 1, pixel_fi
     defines = {"SPP": spp, "SPP_SIDE": side, **{k: f"{v}u" for k, v in cpu.GT_HASH.items()}}
     cam = camera_uniforms(camera, width, height)
     origin = camera.position
-    rows = max(1, BATCH // (width * spp))
+    rows = max(1, fr.batch // (width * spp))
     if spp == 1:
         for y0 in range(0, height, rows):
             n = (min(height, y0 + rows) - y0) * width

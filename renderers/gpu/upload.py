@@ -114,6 +114,8 @@ class DeviceScene:
         self.far = 4.0 * scene.scale
         self.light_count = max(up.light_count, 1)
         self.mask_words = (min(self.light_count, MAX_LIGHTS) + 31) // 32
+        #: ``cancel()`` -> True stops the render before its next dispatch (:meth:`.frame.Frame.run`).
+        self.cancel = None
 
     def check_lights(self) -> None:
         """Refuse (one line) a scene with more lights than the built-in GPU renderers shade per point."""

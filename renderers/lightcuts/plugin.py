@@ -346,6 +346,7 @@ def run_sl_gt(ctx):
     hits = None
     acc = None
     for k in range(passes):
+        ctx.check_cancel()
         hits, diffuse = _sl(ctx, int(p["max_lspp"]), p["seed"] * 100003 + k, hits)
         acc = diffuse if acc is None else acc + diffuse
     ctx.extra["passes"] = passes

@@ -155,8 +155,8 @@ def _stimuli_for_run(args, p, db: Path) -> list[str]:
     The missing sets a run needs (:func:`~studyapp.runner.stimuli.split_missing`: ``--simulate`` needs none of a
     condition that declares a quality) are refused in one line naming them and the ``prepare`` command, or with
     ``--prepare`` rendered first; a folder condition's are refused either way, naming the folder and its files.
-    Before either, the database's refusals (:func:`~studyapp.runner.session.check_admission`). Returns the notes
-    to print once the session has started.
+    Before either, the database's refusals (:func:`~studyapp.runner.session.check_admission`; none for
+    ``db`` None: ``--preview``). Returns the notes to print once the session has started.
     """
     from studyapp.runner.session import check_admission
     from studyapp.runner.stimuli import (missing_line, missing_stimuli, prepare, prepare_command, render_function,
@@ -164,7 +164,7 @@ def _stimuli_for_run(args, p, db: Path) -> list[str]:
 
     missing = missing_stimuli(p, args.scale)
     blocking, declared = split_missing(p, missing, args.simulate)
-    if blocking or (missing and args.prepare) or (args.resume and args.seed is None):
+    if db is not None and (blocking or (missing and args.prepare) or (args.resume and args.seed is None)):
         # The database's refusals (another protocol, the participant's state) come before any rendering.
         adm = check_admission(p, args.participant, db, args.seed, args.resume)
         if adm is not None:
@@ -201,6 +201,10 @@ def cmd_run(args) -> int:
 
     from data_schema.atomic import check_target, real_file, real_folder
 
+    if args.preview:
+        return _cmd_preview(args)
+    if not args.participant:
+        raise CLIError("the following arguments are required: --participant (or --preview for a dry run)")
     p, _ = checked_protocol(args, args.stimuli)  # validate's checks, before anything is created or rendered
     db = Path(args.db) if args.db else Path(f"{p.name}.db")
     real_file(db, "--db")  # a FIFO would block SQLite's open, a device node is no database: refuse before
@@ -237,6 +241,25 @@ def cmd_run(args) -> int:
     return 0
 
 
+#: The options of a participant's session, refused with ``run --preview`` (no participant, nothing stored).
+_NOT_WITH_PREVIEW = ("participant", "db", "resume", "seed", "simulate", "accept_slow", "gaze_log")
+
+
+def _cmd_preview(args) -> int:
+    """``run --preview``: every condition of every scene once in the window, nothing stored, then the frame-rate
+    table (:mod:`studyapp.runner.preview`)."""
+    from studyapp.runner.preview import run_preview
+    from studyapp.runner.session import StimulusSet
+
+    given = [f"--{o.replace('_', '-')}" for o in _NOT_WITH_PREVIEW if getattr(args, o, None) not in (None, False)]
+    if given:
+        raise CLIError(f"--preview records nothing and has no participant: drop {', '.join(given)}")
+    p, _ = checked_protocol(args, args.stimuli)
+    _stimuli_for_run(args, p, None)  # a missing set: refused, or rendered first with --prepare
+    run_preview(p, StimulusSet(p, args.scale), _presenter_factory(args, p), args.scale)
+    return 0
+
+
 def cmd_sessions(args) -> int:
     from data_schema.store import open_store
 
@@ -249,8 +272,11 @@ def cmd_sessions(args) -> int:
         frac = _recorded_number(db, proto, "catch", "pass_fraction", 0.75)
         min_fps = _recorded_number(db, proto, "stimulus", "min_fps", None)
         flips = st.trial_flips()
-        trial_session = {(r["participant"], r["trial"]): r["session"] for r in st.tidy_rows()} if flips else {}
         checks = {s["id"]: c for s in sessions if (c := st.fps_check(s["id"])) is not None}
+        tidy = st.tidy_rows() if flips or checks else []
+        trial_session = {(r["participant"], r["trial"]): r["session"] for r in tidy} if flips else {}
+        # trials of a condition below min_fps in the frame-rate check, run with --accept-slow
+        check_slow = {(r["participant"], r["trial"]) for r in tidy if r["fps_check_slow"]}
     print(f"{db}: protocol {meta.get('protocol_name')} {meta.get('protocol_version')} "
           f"(sha256 {meta.get('protocol_hash', '')[:12]})")
     print(f"{'session':<16} {'participant':<12} {'status':<12} {'answers':>7}  {'started (UTC)':<27} resumed from")
@@ -266,14 +292,15 @@ def cmd_sessions(args) -> int:
             catch = f"{r['catch_correct']}/{r['catch_planned']} {verdict}"
         print(f"{r['participant']:<12} {r['answered']:>8} {r['planned']:>8}  {catch}")
     if checks:
-        _print_fps_checks(checks)
+        _print_fps_checks(checks, check_slow, {(r["participant"], r["trial"]): r["session"] for r in tidy})
     if flips:
-        _print_timing_qa(sessions, flips, trial_session, min_fps)
+        _print_timing_qa(sessions, flips, trial_session, min_fps, check_slow)
     return 0
 
 
-def _print_fps_checks(checks: dict) -> None:
-    """Each live session's frame-rate check before its first trial (:mod:`studyapp.runner.fpscheck`)."""
+def _print_fps_checks(checks: dict, check_slow: set, trial_session: dict) -> None:
+    """Each live session's frame-rate check before its first trial (:mod:`studyapp.runner.fpscheck`), and the
+    trials flagged because it was run with ``--accept-slow`` (``check_slow``: (participant, trial))."""
     from studyapp.runner.fpscheck import table_lines
 
     nan = float("nan")
@@ -284,7 +311,9 @@ def _print_fps_checks(checks: dict) -> None:
         for line in lines[1:]:
             print(line)
         if rec["accepted_slow"]:
-            print(f"  run with --accept-slow: trials of {', '.join(rec['accepted_slow'])} flagged")
+            mine = sorted(k[1] for k in check_slow if trial_session.get(k) == sid)
+            print(f"  run with --accept-slow: trials of {', '.join(rec['accepted_slow'])} flagged ("
+                  + (f"trials {', '.join(map(str, mine))})" if mine else "none answered yet)"))
 
 
 def _recorded_number(db: Path, proto: dict, section: str, key: str, default):
@@ -299,7 +328,7 @@ def _recorded_number(db: Path, proto: dict, section: str, key: str, default):
     return float(value)
 
 
-def _print_timing_qa(sessions, flips, trial_session, min_fps) -> None:
+def _print_timing_qa(sessions, flips, trial_session, min_fps, check_slow=frozenset()) -> None:
     """Live trials: frame rate and gaze-to-flip latency per session, pooled over the flips of every trial;
     each trial's frame rate and frame time percentiles from its frame rows; flagged: trials with no frame rate
     (no stimulus with two rendered frames) and trials below the protocol's min_fps."""
@@ -331,7 +360,8 @@ def _print_timing_qa(sessions, flips, trial_session, min_fps) -> None:
                      if ms.size else "fewer than two rendered frames")
             one = summary(*flips[k])
             print(f"  trial {k[1]:<4} {k[0]:<12} fps p50 {format_fps(one['fps_median']):>6} "
-                  f"p5 {format_fps(one['fps_p5']):>6}  {times}")
+                  f"p5 {format_fps(one['fps_p5']):>6}  {times}"
+                  + ("  FLAGGED: below min_fps in the frame-rate check (--accept-slow)" if k in check_slow else ""))
 
 
 def cmd_export(args) -> int:
@@ -410,9 +440,15 @@ def register(subparsers, parser_class) -> None:
                     "running) are checked before anything is rendered. A live protocol renders during its trials, "
                     "at its render size times --scale; before its first trial each condition x scene is rendered "
                     "for stimulus.fps_check_s seconds (default 2) in the window and a condition below min_fps stops "
-                    "the session (unless --accept-slow); --simulate has no such check.")
+                    "the session (unless --accept-slow); --simulate has no such check. --preview is a windowed "
+                    "dry run: every condition of every scene once, labelled, nothing stored, then the frame-rate "
+                    "table.")
     r.add_argument("protocol", metavar="PROTOCOL")
-    r.add_argument("--participant", required=True, metavar="ID", help="pseudonymous participant id")
+    r.add_argument("--participant", metavar="ID", help="pseudonymous participant id (required, except with --preview)")
+    r.add_argument("--preview", action="store_true",
+                   help="a windowed dry run: every condition of every scene once, labelled, in the window "
+                        "(pre-rendered or live, at --scale), then a live protocol's frame-rate table; no "
+                        "participant, no answers collected, no database opened or created")
     r.add_argument("--db", metavar="FILE", help="study database (default: <protocol name>.db)")
     r.add_argument("--simulate", action="store_true",
                    help="simulated observer, no window; it needs no images of a condition that declares a quality "

@@ -16,11 +16,14 @@ The camera follows the protocol's path, or the participant's keys (W/S/A/D move,
 drag when exploring. Answer and switch keys work as in pre-rendered trials; a switch shows the other condition
 at the same place (explore) or restarts its path (path).
 
-Keys are never lost (psychtoolbox queues them in its own thread while a render blocks this one): Escape is
-also polled just before and just after every render, so it ends the trial before the next flip instead of
-after it, and before the first frame at once (a first render at native size can take many seconds). Keys
-pressed before the trial's first frame are dropped, Escape excepted: before it every key is taken from the
-queue, after it a key that went down before the onset flip (negative time from onset) is ignored.
+Keys are never lost (psychtoolbox queues them in its own thread while a render blocks this one). Escape is
+polled before, during and after every render: the render's ``cancel`` hook (:func:`renderers.registry.render`)
+asks the keyboard every :data:`ESCAPE_POLL_S` between chunks of work, so a render of many seconds stops
+within about one chunk (tens of milliseconds) and the trial ends without showing that frame (the texture is
+only updated from a finished render), before the first frame at once. Keys pressed before the trial's first
+frame are dropped, Escape excepted: before it every key is taken from the queue, after it a key that went
+down before the onset flip (negative time from onset) is ignored. How long Escape took to act (from the
+key going down to the trial ending) is recorded in the presenter's ``trial_info`` (``escape_latency_s``).
 """
 
 from __future__ import annotations
@@ -32,10 +35,15 @@ import time
 import numpy as np
 
 from data_schema.geometry import EYES, eye_at
+from renderers.plugin_types import RenderCancelled
 from studyapp.runner.live import FramePacer, FrameRecord, GazeDelay
 from studyapp.runner.protocol import EXPLORE_KEYS
 
 from .base import ESCAPE, PresentationError, TrialDisplay
+
+#: How often a render asks the keyboard whether Escape went down (seconds): far inside the 100-ms bound of
+#: issue 26 item 3, rare enough to cost nothing (a poll takes microseconds).
+ESCAPE_POLL_S = 0.01
 
 # psychtoolbox key names of exploration -> pyglet key codes (held-key state comes from pyglet)
 _PYGLET_KEYS = {"w": "W", "s": "S", "a": "A", "d": "D", "left": "LEFT", "right": "RIGHT", "up": "UP",
@@ -119,6 +127,42 @@ class _Input:
             self._handle.remove_handler("on_mouse_drag", self._handlers[1])
 
 
+class _Escape:
+    """Escape in a live trial: asked before and after every render, during it (:meth:`cancel`, the renderer's
+    hook, at most every :data:`ESCAPE_POLL_S`) and after every flip; :attr:`latency_s` is how long it took from
+    the key going down to being acted on.
+
+    Before the first frame (``started`` False) every wanted key is taken from the queue and all but Escape
+    dropped (none is an answer or a switch); after it only Escape is taken, the other keys stay queued for the
+    poll after the flip."""
+
+    def __init__(self, clock, poll_keys, keys_wanted):
+        self.clock, self.poll_keys, self.keys_wanted = clock, poll_keys, keys_wanted
+        self.started = False
+        self.latency_s: float | None = None
+        self._next = 0.0
+
+    def acted(self, key) -> None:
+        """Record the latency of ``key`` (an Escape press: its ``rt`` and the clock share their reset)."""
+        self.latency_s = float(self.clock.getTime() - key.rt) if key.rt is not None else None
+
+    def pressed(self) -> bool:
+        """Whether Escape went down since the last poll."""
+        keys = self.poll_keys(self.keys_wanted if not self.started else [ESCAPE])
+        esc = [k for k in keys if k.name == ESCAPE]
+        if esc:
+            self.acted(esc[0])
+        return bool(esc)
+
+    def cancel(self) -> bool:
+        """The render's ``cancel`` hook: :meth:`pressed`, at most every :data:`ESCAPE_POLL_S`."""
+        now = time.perf_counter()
+        if now < self._next:
+            return False
+        self._next = now + ESCAPE_POLL_S
+        return self.pressed()
+
+
 class LiveTrial:
     """One live trial in the presenter's window; :meth:`run` returns ``(answer state, onset, frames, dropped,
     escaped)``."""
@@ -152,8 +196,10 @@ class LiveTrial:
             return now, self.window[0] / 2, self.window[1] / 2
         return now, fix[0] * self.window[0] / lv.render_size[0], fix[1] * self.window[1] / lv.render_size[1]
 
-    def _render(self, i: int, t_stim: float, gaze_window, held, drag):
-        """Render stimulus ``i`` for all its eyes at the gaze; upload; return (render seconds, pose)."""
+    def _render(self, i: int, t_stim: float, gaze_window, held, drag, cancel=None):
+        """Render stimulus ``i`` for all its eyes at the gaze; upload; return (render seconds, pose). ``cancel``:
+        the render's hook (:class:`_Escape`); a cancelled render raises
+        :class:`~renderers.plugin_types.RenderCancelled` before anything is uploaded."""
         from renderers.registry import render
         from renderers.stimuli import to_srgb8
 
@@ -168,7 +214,7 @@ class LiveTrial:
         t0 = time.perf_counter()
         try:
             img, stats = render(lv.scene, lv.renderer, params, w, h, gaze=gaze, camera=pose.camera(lv.fov_y_deg),
-                                backend=lv.backend)
+                                backend=lv.backend, cancel=cancel)
         except ValueError as exc:  # a user-facing problem (no OpenGL 4.3, ...): one line, as everywhere
             raise PresentationError(f"cannot render {lv.condition} live: {str(exc).splitlines()[0]}") from None
         both = stats.get("eye_images")
@@ -178,13 +224,6 @@ class LiveTrial:
             surf.update(to_srgb8(im, exposure))
         seconds = stats["seconds"].get("total", time.perf_counter() - t0)
         return float(seconds), pose
-
-    @staticmethod
-    def _escape_pressed(poll_keys, keys_wanted, started: bool) -> bool:
-        """Whether Escape went down since the last poll. Before the first frame (``started`` False) every
-        wanted key is taken from the queue and all but Escape dropped (none is an answer or a switch); after
-        it only Escape is taken, the other keys stay queued for the poll after the flip."""
-        return any(k.name == ESCAPE for k in poll_keys(keys_wanted if not started else [ESCAPE]))
 
     def run(self, state, keys_wanted, timed_once: bool, poll_keys, on_switch):
         p, trial = self.p, self.trial
@@ -198,6 +237,7 @@ class LiveTrial:
         last_dropped = dropped0
         next_flip = p._now() + p._frame_period
         escaped, playback_over = False, False
+        esc = _Escape(p.kb.clock, poll_keys, keys_wanted)
         try:
             while True:
                 i = state.current
@@ -215,12 +255,15 @@ class LiveTrial:
                     if not timed_once and self.live[i].motion == "path":
                         t_stim = t_stim % self.live[i].duration_s
                     if self.pacers[i].due(t_est) or i not in self.surfaces:
-                        if self._escape_pressed(poll_keys, keys_wanted, onset is not None):
-                            escaped = True
-                            break
-                        render_s, pose = self._render(i, t_stim, None if used is None else used[1:],
-                                                      inp.held(), inp.take_drag())
-                        if self._escape_pressed(poll_keys, keys_wanted, onset is not None):
+                        esc.started = onset is not None
+                        try:
+                            if esc.pressed():
+                                raise RenderCancelled
+                            render_s, pose = self._render(i, t_stim, None if used is None else used[1:],
+                                                          inp.held(), inp.take_drag(), cancel=esc.cancel)
+                            if esc.pressed():
+                                raise RenderCancelled  # the frame is rendered but never shown
+                        except RenderCancelled:
                             escaped = True
                             break
                     for surf in self.surfaces[i]:
@@ -253,6 +296,7 @@ class LiveTrial:
                         continue  # went down before the first frame: not an answer, not a switch
                     event = state.press(key.name, key.rt, can_switch=not playback_over)
                     if event == "escape":
+                        esc.acted(key)
                         escaped = True
                         break
                     if event == "switch":
@@ -266,6 +310,8 @@ class LiveTrial:
                     break
             if escaped and onset is None:
                 p._info["escaped_before_onset"] = True
+            if escaped and esc.latency_s is not None:
+                p._info["escape_latency_s"] = round(esc.latency_s, 4)
         finally:
             win.recordFrameIntervals = False
             inp.close()
