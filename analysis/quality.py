@@ -21,13 +21,13 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from data_schema.errors import UserError
-from data_schema.geometry import PIXELS
+from data_schema.geometry import FOVEA_DEG, PIXELS, RegionMasks  # RegionMasks: re-exported, its home is there
 from data_schema.ranges import Range
 
 __all__ = [
@@ -58,15 +58,6 @@ _NOTE_EMPTY = "no pixels in this region: metrics left empty"
 _NOTE_SSIM_BORDER = (f"region lies within {_SSIM_PAD} px of the image border: SSIM left empty "
                      "(the SSIM window radius is excluded there)")
 _NOTE_IDENTICAL = "identical in this region: MSE 0, PSNR +inf"
-
-
-class RegionMasks(NamedTuple):
-    """Boolean masks of shape ``(height, width)`` that partition the display."""
-
-    fovea: np.ndarray
-    """Pixels whose centre has eccentricity ``e <= fovea_deg``."""
-    periphery: np.ndarray
-    """Every other pixel (``e > fovea_deg``)."""
 
 
 # --- validation ---------------------------------------------------------------------------------------------
@@ -193,7 +184,7 @@ def fovea_radius_px(height: int, fov_y_deg: float, fovea_deg: float = 5.0) -> fl
     float
         Distance from the gaze at which the eccentricity equals ``fovea_deg``.
     """
-    ef = _open_interval("fovea_deg", fovea_deg, 0.0, 90.0)
+    ef = FOVEA_DEG.check("fovea_deg", fovea_deg)
     return float(_geometry(1, height, fov_y_deg).radius(ef))
 
 
@@ -211,14 +202,13 @@ def region_masks(width: int, height: int, fov_y_deg: float, gaze: Any = None, fo
     Returns
     -------
     RegionMasks
+        :meth:`data_schema.geometry.ViewingGeometry.region_masks` of the checked geometry.
         ``fovea``: pixel centres with :math:`e \\le e_f`; ``periphery``: :math:`e > e_f`.
         Both boolean, shape ``(height, width)``; they partition the display (every pixel is in
         exactly one). Either may be empty, e.g. the fovea when the gaze lies far outside the
         display, or the periphery when ``fovea_deg`` exceeds the largest eccentricity.
     """
-    ef = _open_interval("fovea_deg", fovea_deg, 0.0, 90.0)
-    fovea = eccentricity_map(width, height, fov_y_deg, gaze) <= ef
-    return RegionMasks(fovea=fovea, periphery=~fovea)
+    return _geometry(width, height, fov_y_deg, gaze).region_masks(fovea_deg)
 
 
 # --- metrics ------------------------------------------------------------------------------------------------

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -34,6 +35,8 @@ DEG_PER_RAD = 180.0 / math.pi
 PIXELS = Range(1, 32768, integer=True)
 DISPLAY_PIXELS = Range(16, 16384, integer=True)
 FOV = Range(0.0, 180.0, low_open=True, high_open=True)
+#: A fovea radius in degrees of eccentricity (image quality's regions, lightcuts' tables).
+FOVEA_DEG = Range(0.0, 90.0, low_open=True, high_open=True)
 
 
 def fov_from_size(height_cm: float, distance_cm: float) -> float:
@@ -51,6 +54,15 @@ def check_gaze(gaze, width: int, height: int) -> tuple[float, float]:
         raise UserError(f"gaze=({gx:g}, {gy:g}) is outside the display: allowed x in [0, {width}], "
                         f"y in [0, {height}]")
     return gx, gy
+
+
+class RegionMasks(NamedTuple):
+    """Boolean masks of shape ``(height, width)`` that partition an image (:meth:`ViewingGeometry.region_masks`)."""
+
+    fovea: np.ndarray
+    """Pixels whose centre has eccentricity ``e <= fovea_deg``."""
+    periphery: np.ndarray
+    """Every other pixel (``e > fovea_deg``)."""
 
 
 @dataclass(frozen=True)
@@ -131,6 +143,16 @@ class ViewingGeometry:
         x = np.arange(self.width, dtype=np.float64) + 0.5 - self.gaze_x
         y = np.arange(self.height, dtype=np.float64)[rows] + 0.5 - self.gaze_y
         return self.eccentricity(np.hypot(x[None, :], y[:, None]))
+
+    def region_masks(self, fovea_deg: float = 5.0) -> RegionMasks:
+        """Fovea and periphery of the image: pixel centres with ``e <= fovea_deg`` and the rest (seed 001 Eq 3).
+
+        ``fovea_deg`` must lie in (0, 90). Either mask may be empty (the gaze far off the image, or a fovea
+        larger than the largest eccentricity); together they cover every pixel exactly once.
+        """
+        ef = FOVEA_DEG.check("fovea_deg", fovea_deg)
+        fovea = self.eccentricity_map() <= ef
+        return RegionMasks(fovea=fovea, periphery=~fovea)
 
     def dr_de(self, e_deg):
         """Radial pixels per degree at eccentricity ``e``: the inverse of seed 001 Eq 7."""

@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from data_schema.errors import UserError
 from data_schema.geometry import Display, ViewingGeometry, fov_from_size
 
 
@@ -43,3 +44,13 @@ def test_a_smaller_render_subtends_the_same_angle(w, h, fov, scale):
 def test_fov_from_size_of_the_seed_replications():
     # 53 cm x 29.8 cm at 45 cm: the shipped protocols' 36.6 degrees
     assert fov_from_size(53.0 * 1080 / 1920, 45.0) == pytest.approx(36.65, abs=0.01)
+
+
+def test_region_masks_are_the_fovea_circle_counted_by_hand():
+    # c_r = 2 tan 45 / 100 = 0.02; r = tan 5 deg / 0.02 = 4.3744 px from the corner (0, 0): 15 pixel centres
+    # (columns 0-2 take rows 0-3, column 3 rows 0-2). The masks partition the image.
+    m = ViewingGeometry.create(100, 100, 90.0, (0.0, 0.0)).region_masks(5.0)
+    assert int(m.fovea.sum()) == 15 and m.fovea[:4, :4].sum() == 15 and not m.fovea[3, 3]
+    np.testing.assert_array_equal(m.periphery, ~m.fovea)
+    with pytest.raises(UserError, match=r"fovea_deg=90 is out of range: allowed \(0, 90\)"):
+        ViewingGeometry.create(8, 8, 90.0).region_masks(90.0)

@@ -28,7 +28,7 @@ peripheral MSE is at most Ours'. SL_e depends on the budget accounting (``budget
   (``light_samples + glossy_rays``) and the multi-resolution gain is the ratio of light-tree traversals
   (the work reuse saves; both variants draw the same samples).
 
-Regions: ``analysis.quality.region_masks`` (fovea radius ``fovea_deg`` of eccentricity around the gaze).
+Regions: ``data_schema.geometry.ViewingGeometry.region_masks`` (fovea radius ``fovea_deg`` of eccentricity around the gaze).
 Frame times are the registry's ``seconds.total``, the minimum over ``repeats`` renders for Table 3, on the
 ``backend`` chosen (``"cpu"``, or ``"gpu"``: the GPU versions of the plug-ins, :mod:`renderers.gpu.lightcuts`).
 """
@@ -42,6 +42,7 @@ from collections.abc import Callable
 import numpy as np
 
 from data_schema.errors import UserError
+from data_schema.geometry import ViewingGeometry
 from data_schema.ranges import check as check_range_of
 
 from .options import BUDGETS
@@ -89,7 +90,6 @@ def lightcut_tables(scene, width: int, height: int, *, alphas=(0.025, 0.05, 0.1,
     accounting of SL_e and of the speed-ups (``BUDGETS``), ``repeats`` the renders per Table 3 time (minimum),
     ``backend`` the renderers' backend (every render, the GT included).
     """
-    from analysis.quality import region_masks
     from renderers import registry
     from renderers.catalog import resolve
 
@@ -102,7 +102,7 @@ def lightcut_tables(scene, width: int, height: int, *, alphas=(0.025, 0.05, 0.1,
     sc = resolve(scene)
     cam = sc.camera.override(camera)
     say = progress or (lambda msg: None)
-    regions = region_masks(width, height, cam.fov_y, None, fovea_deg)
+    regions = ViewingGeometry.create(width, height, cam.fov_y).region_masks(fovea_deg)
     masks = {"fovea": regions.fovea, "periphery": regions.periphery, "all": np.ones((height, width), bool)}
     records: list[dict] = []
 
