@@ -1,13 +1,36 @@
-"""Architecture rules that code review alone does not keep: no import cycles, one home per concept."""
+"""Architecture rules that code review alone does not keep (docs/architecture.md): the layers, no import cycles,
+the homes of the heavy libraries, no module importing a benchmark script."""
 
 from __future__ import annotations
 
 import ast
+import functools
+import re
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+
+#: The layers of docs/architecture.md: each package and the packages it may import (function-level imports
+#: count). ``test_the_document_states_these_layers`` keeps the document's table equal to this.
+LAYERS: dict[str, set[str]] = {
+    "data_schema": set(),
+    "renderers": {"data_schema"},
+    "analysis": {"data_schema"},
+    "studyapp": {"data_schema", "renderers", "analysis"},
+}
+#: Heavy or device libraries and the only places (path prefixes) that import them.
+LIBRARY_HOMES: dict[str, tuple[str, ...]] = {
+    "moderngl": ("renderers/gpu/",),  # the GPU backend; nothing else opens an OpenGL context
+    "psychopy": ("studyapp/presentation/",),  # the window; the runner talks to a Presenter
+    "dask": ("studyapp/cluster.py",),
+    "distributed": ("studyapp/cluster.py",),
+    "numba": ("renderers/",),  # compiled kernels: renderers only (`import analysis` stays light)
+    "embreex": ("renderers/",),
+    "pyvista": ("renderers/",),
+    "vtk": ("renderers/",),
+}
 
 
 def _module_name(path: Path) -> str:
@@ -85,11 +108,75 @@ def test_the_cycle_finder_finds_cycles():
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
 
-def test_data_schema_is_a_leaf():
-    """The shared layer (errors, ranges, geometry, schemas, store) imports none of the packages built on it."""
-    for path in (ROOT / "data_schema").rglob("*.py"):
-        bad = {i.split(".")[0] for i in _imports(path)} & {"studyapp", "renderers", "analysis"}
-        assert not bad, f"{path.name} imports {bad}"
+@functools.cache
+def _tops(path: Path) -> frozenset[str]:
+    """The top-level names ``path`` imports anywhere in the file (parsed once per test session)."""
+    return frozenset(i.split(".")[0] for i in _imports(path))
+
+
+def _product_files():
+    for package in LAYERS:
+        yield package, sorted((ROOT / package).rglob("*.py"))
+
+
+@pytest.mark.parametrize("package", list(LAYERS))
+def test_each_package_imports_only_its_layers(package):
+    """``data_schema`` (the shared layer) imports none of the others; ``renderers`` and ``analysis`` only
+    ``data_schema`` (renderers never import analysis, nor analysis renderers); ``studyapp`` all three; no product
+    module imports ``benchmarks`` or ``tests``."""
+    ours = set(LAYERS) | {"benchmarks", "tests"}
+    bad = []
+    for path in sorted((ROOT / package).rglob("*.py")):
+        tops = _tops(path) & ours
+        if tops - LAYERS[package] - {package}:
+            bad.append(f"{path.relative_to(ROOT)} imports {sorted(tops - LAYERS[package] - {package})}")
+    assert bad == []
+
+
+def test_the_cpu_renderers_never_import_the_gpu_backend():
+    """The GPU backend builds on the CPU modules (projection, scene tables, kernels turned into GLSL); the CPU side
+    reaches a GPU version only through the plug-in's ``gpu="module:function"`` string, loaded by the registry."""
+    gpu = ROOT / "renderers" / "gpu"
+    bad = [f"{p.relative_to(ROOT)}" for p in sorted((ROOT / "renderers").rglob("*.py"))
+           if gpu not in p.parents and any(i == "renderers.gpu" or i.startswith("renderers.gpu.")
+                                           for i in _imports(p, {"renderers.gpu"}))]
+    assert bad == []
+
+
+@pytest.mark.parametrize("library", list(LIBRARY_HOMES))
+def test_heavy_libraries_are_imported_in_their_home_only(library):
+    bad = []
+    for _, files in _product_files():
+        for path in files:
+            rel = path.relative_to(ROOT).as_posix()
+            if library in _tops(path) and not rel.startswith(LIBRARY_HOMES[library]):
+                bad.append(rel)
+    assert bad == []
+
+
+def test_no_module_imports_a_benchmark_script():
+    """Benchmark scripts share code through ``benchmarks/harness.py`` only; no script imports another and no
+    product module imports any (``tests/`` may import a script to test it)."""
+    scripts = {_module_name(p) for p in (ROOT / "benchmarks").glob("*.py")} - {"benchmarks.harness",
+                                                                                  "benchmarks"}
+    bad = []
+    for path in sorted((ROOT / "benchmarks").glob("*.py")) + [p for _, fs in _product_files() for p in fs]:
+        if "benchmarks" not in _tops(path):
+            continue
+        got = (_imports(path, scripts) & scripts) - {_module_name(path)}  # a script may name itself (Dask tasks)
+        if got:
+            bad.append(f"{path.relative_to(ROOT)} imports {sorted(got)}")
+    assert scripts and bad == []
+
+
+def test_the_document_states_these_layers():
+    """docs/architecture.md's package table says what LAYERS enforces, row by row."""
+    rows = {}
+    for line in (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8").splitlines():
+        m = re.match(r"\| `(\w+)/` \|.*\| ([^|]*) \|$", line)
+        if m and m.group(1) in LAYERS:
+            rows[m.group(1)] = set(re.findall(r"`(\w+)`", m.group(2))) & set(LAYERS)
+    assert rows == LAYERS
 
 
 def test_the_wheel_ships_the_protocols_and_schemas(tmp_path):
