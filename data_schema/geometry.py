@@ -57,7 +57,7 @@ def check_gaze(gaze, width: int, height: int) -> tuple[float, float]:
 
 
 class RegionMasks(NamedTuple):
-    """Boolean masks of shape ``(height, width)`` that partition an image (:meth:`ViewingGeometry.region_masks`)."""
+    """Boolean masks ``(height, width)`` that partition an image (:meth:`ViewingGeometry.region_masks`)."""
 
     fovea: np.ndarray
     """Pixels whose centre has eccentricity ``e <= fovea_deg``."""
@@ -145,7 +145,7 @@ class ViewingGeometry:
         return self.eccentricity(np.hypot(x[None, :], y[:, None]))
 
     def region_masks(self, fovea_deg: float = 5.0) -> RegionMasks:
-        """Fovea and periphery of the image: pixel centres with ``e <= fovea_deg`` and the rest (seed 001 Eq 3).
+        """Fovea and periphery: pixel centres with ``e <= fovea_deg`` and the rest (seed 001 Eq 3).
 
         ``fovea_deg`` must lie in (0, 90). Either mask may be empty (the gaze far off the image, or a fovea
         larger than the largest eccentricity); together they cover every pixel exactly once.

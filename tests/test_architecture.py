@@ -1,5 +1,5 @@
-"""Architecture rules that code review alone does not keep (docs/architecture.md): the layers, no import cycles,
-the homes of the heavy libraries, no module importing a benchmark script."""
+"""Architecture rules that code review alone does not keep (docs/architecture.md): the layers, no import
+cycles, the homes of the heavy libraries, no module importing a benchmark script."""
 
 from __future__ import annotations
 
@@ -122,8 +122,8 @@ def _product_files():
 @pytest.mark.parametrize("package", list(LAYERS))
 def test_each_package_imports_only_its_layers(package):
     """``data_schema`` (the shared layer) imports none of the others; ``renderers`` and ``analysis`` only
-    ``data_schema`` (renderers never import analysis, nor analysis renderers); ``studyapp`` all three; no product
-    module imports ``benchmarks`` or ``tests``."""
+    ``data_schema`` (renderers never import analysis, nor analysis renderers); ``studyapp`` all three; no
+    product module imports ``benchmarks`` or ``tests``."""
     ours = set(LAYERS) | {"benchmarks", "tests"}
     bad = []
     for path in sorted((ROOT / package).rglob("*.py")):
@@ -134,8 +134,9 @@ def test_each_package_imports_only_its_layers(package):
 
 
 def test_the_cpu_renderers_never_import_the_gpu_backend():
-    """The GPU backend builds on the CPU modules (projection, scene tables, kernels turned into GLSL); the CPU side
-    reaches a GPU version only through the plug-in's ``gpu="module:function"`` string, loaded by the registry."""
+    """The GPU backend builds on the CPU modules (projection, scene tables, kernels turned into GLSL); the CPU
+    side reaches a GPU version only through the plug-in's ``gpu="module:function"`` string, which the registry
+    loads."""
     gpu = ROOT / "renderers" / "gpu"
     bad = [f"{p.relative_to(ROOT)}" for p in sorted((ROOT / "renderers").rglob("*.py"))
            if gpu not in p.parents and any(i == "renderers.gpu" or i.startswith("renderers.gpu.")
@@ -163,7 +164,8 @@ def test_no_module_imports_a_benchmark_script():
     for path in sorted((ROOT / "benchmarks").glob("*.py")) + [p for _, fs in _product_files() for p in fs]:
         if "benchmarks" not in _tops(path):
             continue
-        got = (_imports(path, scripts) & scripts) - {_module_name(path)}  # a script may name itself (Dask tasks)
+        # a script may name itself (bench_render hands Dask its own functions)
+        got = (_imports(path, scripts) & scripts) - {_module_name(path)}
         if got:
             bad.append(f"{path.relative_to(ROOT)} imports {sorted(got)}")
     assert scripts and bad == []

@@ -28,7 +28,8 @@ peripheral MSE is at most Ours'. SL_e depends on the budget accounting (``budget
   (``light_samples + glossy_rays``) and the multi-resolution gain is the ratio of light-tree traversals
   (the work reuse saves; both variants draw the same samples).
 
-Regions: ``data_schema.geometry.ViewingGeometry.region_masks`` (fovea radius ``fovea_deg`` of eccentricity around the gaze).
+Regions: ``data_schema.geometry.ViewingGeometry.region_masks`` (fovea radius ``fovea_deg`` of eccentricity
+around the gaze).
 Frame times are the registry's ``seconds.total``, the minimum over ``repeats`` renders for Table 3, on the
 ``backend`` chosen (``"cpu"``, or ``"gpu"``: the GPU versions of the plug-ins, :mod:`renderers.gpu.lightcuts`).
 """
