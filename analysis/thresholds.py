@@ -43,7 +43,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-__all__ = ["FIT_COLUMNS", "GROUP_COLUMNS", "MIN_TRIALS", "POOLED", "PRIOR_TEXT", "Axis", "FitSettings",
+__all__ = ["FIT_COLUMNS", "GROUP_COLUMNS", "MIN_TRIALS", "PARETO_COLUMNS", "POOLED", "PRIOR_TEXT", "Axis", "FitSettings",
+           "detection", "pareto",
            "fit_thresholds", "group_table", "psychometric"]
 
 #: The participant label of the fit pooled over participants.
@@ -397,3 +398,77 @@ def group_table(fits: pd.DataFrame, n_boot: int = 2000, seed: int = 0, axes: Map
                      "ci_low": float(lv_lo), "ci_high": float(lv_hi),
                      "n_boot": int(n_boot)})
     return pd.DataFrame(rows, columns=list(GROUP_COLUMNS))
+
+
+#: Columns of :func:`pareto`'s table.
+PARETO_COLUMNS = ("condition", "scene", "varied", "threshold", "ci_low", "ci_high", "p_detect", "cost",
+                  "cost_ci_low", "cost_ci_high", "gt_cost", "relative_cost", "relative_cost_ci_low",
+                  "relative_cost_ci_high", "speedup")
+
+
+def detection(p, guess: float):
+    """Probability of detection from the proportion correct (high-threshold correction for guessing):
+    ``(p - gamma) / (1 - gamma)``, clipped to [0, 1] (2AFC ``gamma = 0.5``; yes/no: the fitted false-alarm
+    rate)."""
+    return np.clip((np.asarray(p, dtype=float) - guess) / (1.0 - guess), 0.0, 1.0)
+
+
+def pareto(fits: pd.DataFrame, group: pd.DataFrame, axes: Mapping[str, Axis],
+           cost: Callable[[str, str, float], float], gt_cost: Callable[[str], float],
+           n_points: int = 41) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The perceptual Pareto front: what each renderer costs at its threshold, against the ground truth.
+
+    Parameters
+    ----------
+    fits, group : DataFrame
+        :func:`fit_thresholds` (its pooled rows give the curves) and :func:`group_table` (the thresholds and
+        their CIs).
+    axes : mapping
+        Condition -> :class:`Axis` (the curve spans its domain, else the pooled fit's interval).
+    cost : callable
+        ``cost(condition, scene, level)``: a device-independent count (shading points, rays, light samples)
+        of rendering the condition with its varied parameter at ``level``; must be monotone in the level.
+    gt_cost : callable
+        ``gt_cost(scene)``: the same count for the ground truth.
+
+    Returns
+    -------
+    table : DataFrame (:data:`PARETO_COLUMNS`)
+        Per condition x scene: the group threshold and CI, the probability of detection there, the cost at the
+        threshold and at the CI's ends (the interval carried through), relative to GT's, and the speed-up
+        ``gt_cost / cost``.
+    curves : DataFrame
+        ``condition, scene, level, relative_cost, p_detect``: the pooled fit over the domain.
+    """
+    pooled = fits[(fits["participant"] == POOLED) & fits["estimable"].astype(bool)]
+    rows, curve_rows = [], []
+    for _, g in group.iterrows():
+        c, s = g["condition"], g["scene"]
+        ref = float(gt_cost(s))
+        pf = pooled[(pooled["condition"] == c) & (pooled["scene"] == s)]
+        guess = float(pf["guess"].iloc[0]) if len(pf) else 0.5
+        crit = float(fits.loc[fits["condition"] == c, "criterion"].iloc[0])
+
+        def at(level):
+            return float(cost(c, s, float(level))) if np.isfinite(level) and level > 0 else math.nan
+
+        k, klo, khi = at(g["threshold"]), at(g["ci_low"]), at(g["ci_high"])
+        klo, khi = (min(klo, khi), max(klo, khi)) if np.isfinite(klo) and np.isfinite(khi) else (klo, khi)
+        rows.append({"condition": c, "scene": s, "varied": g["varied"], "threshold": g["threshold"],
+                     "ci_low": g["ci_low"], "ci_high": g["ci_high"], "p_detect": float(detection(crit, guess)),
+                     "cost": k, "cost_ci_low": klo, "cost_ci_high": khi, "gt_cost": ref,
+                     "relative_cost": k / ref, "relative_cost_ci_low": klo / ref,
+                     "relative_cost_ci_high": khi / ref, "speedup": ref / k if k else math.nan})
+        if len(pf):
+            r = pf.iloc[0]
+            ax = axes[c]
+            ends = ax.to_x(np.asarray(ax.bounds)) if ax.bounds is not None else np.array(
+                [r["x_ci_low"] - 2 * r["width"], r["x_ci_high"] + 2 * r["width"]])
+            xs = np.linspace(float(np.min(ends)), float(np.max(ends)), n_points)
+            p = detection(psychometric(xs, r["x_threshold"], r["width"], r["guess"], r["lapse"], crit), guess)
+            for x, pd_ in zip(xs, p):
+                lv = float(ax.to_level(x))
+                curve_rows.append({"condition": c, "scene": s, "level": lv, "relative_cost": at(lv) / ref,
+                                   "p_detect": float(pd_)})
+    return (pd.DataFrame(rows, columns=list(PARETO_COLUMNS)),
+            pd.DataFrame(curve_rows, columns=["condition", "scene", "level", "relative_cost", "p_detect"]))
