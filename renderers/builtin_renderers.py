@@ -18,7 +18,7 @@ from data_schema.geometry import ViewingGeometry
 
 from . import pipeline as pl
 from .foveation import DEFAULT_PIVOTS, PRESETS, mapping_for
-from .plugin_types import Param, RendererPlugin
+from .plugin_types import Param, RendererPlugin, StrengthSpec
 
 COMMON = {
     "shadows": Param(bool, True, help="cast shadow rays"),
@@ -60,7 +60,7 @@ def run_gt(ctx):
 
 def _mapping_params(method: str, p: dict) -> dict:
     if method == "vafr":
-        return {"preset": p["preset"], "e_max": p["e_max"]}
+        return {"preset": p["preset"], "e_max": p["e_max"], "acuity_scale": p["acuity_scale"]}
     if method == "lmfr":
         return {"delta": p["delta"], "alpha": p["alpha"]}
     return {"delta": p["delta"], "alpha": p["alpha"], "beta": p["beta"], "a": p["a"]}
@@ -137,6 +137,12 @@ def run_foveated(method: str):
 #: A capped curve (``auto``: the display's Nyquist rate) needs more; the mapping checks that per display.
 E_MAX_LOW = 0.5 / (2.0 * max(cpd for _, cpd in DEFAULT_PIVOTS))
 
+#: The range of VaFR's ``acuity_scale`` (:func:`renderers.foveation.acuity.scale_falloff`). Below: the LP columns
+#: of a steep enough fall-off spread too thinly to cover the display (``check_coverage`` refuses 0.02 on a
+#: 7680 x 4320 display at 110 deg, 0.005 at 1920 x 1080 and 20 deg); at 0.05 about 6,100 points are shaded (0.6 %
+#: of the seed's 1,061,630), at 2 (the MAR slope halved) 3.0 million, the largest load accepted.
+ACUITY_SCALE = (0.05, 2.0)
+
 
 def _vafr_preview(params: dict) -> dict:
     """VaFR's shading load follows visual acuity, not the image: about a million LP pixels whatever the size
@@ -161,16 +167,20 @@ VAFR = RendererPlugin(
                      "(right eye reprojected from the left LP buffer)"),
      "fxaa": Param(bool, True, help="FXAA 3.11 (preset 12) in the LP buffer"),
      "preset": Param(str, "default", choices=tuple(PRESETS), help="acuity curve"),
-     "e_max": Param(float, 60.0, E_MAX_LOW, 90.0, high_open=True, help="largest eccentricity (deg)")},
+     "e_max": Param(float, 60.0, E_MAX_LOW, 90.0, high_open=True, help="largest eccentricity (deg)"),
+     "acuity_scale": Param(float, 1.0, *ACUITY_SCALE, help="scale of the acuity fall-off (seed 001 Eq 2's MAR "
+                           "slope / acuity_scale): 1 the seed's curve, below 1 fewer shading points outside the "
+                           "fovea")},
     run_foveated("vafr"), bytes_per_pixel=40.0, check=_checker("vafr"), preview=_vafr_preview,
-    gpu="renderers.gpu.runners:run_vafr")
+    gpu="renderers.gpu.runners:run_vafr", strength=StrengthSpec("acuity_scale", "lower"))
 _AA = {"aa": Param(bool, True, help="LMFR anti-aliasing: 3x3 Gaussian in the LP buffer + foveal Gaussian")}
 LMFR = RendererPlugin(
     "lmfr", "kernel log-polar foveated rendering (Meng et al.), u = w z^alpha",
     {**COMMON, **FOVEATED, **_AA,
      "delta": Param(float, 1.8, 1.0, 16.0, low_open=True, help="LP buffer = screen / delta per axis"),
      "alpha": Param(float, 4.0, 0.0, 16.0, low_open=True, help="kernel exponent")},
-    run_foveated("lmfr"), bytes_per_pixel=40.0, check=_checker("lmfr"), gpu="renderers.gpu.runners:run_lmfr")
+    run_foveated("lmfr"), bytes_per_pixel=40.0, check=_checker("lmfr"), gpu="renderers.gpu.runners:run_lmfr",
+    strength=StrengthSpec("delta", "higher"))
 LAFR = RendererPlugin(
     "lafr", "locomotion-aware foveated rendering (Shi et al.), two-part kernel",
     {**COMMON, **FOVEATED, **_AA,
@@ -178,6 +188,7 @@ LAFR = RendererPlugin(
      "alpha": Param(float, 0.85, 0.0, 1.0, low_open=True, high_open=True, help="foveal kernel parameter"),
      "beta": Param(float, 0.7, 0.0, 10.0, low_open=True, help="peripheral kernel parameter"),
      "a": Param(float, 0.25, 0.0, 1.0, low_open=True, high_open=True, help="LMFR exponent in LaFR convention")},
-    run_foveated("lafr"), bytes_per_pixel=40.0, check=_checker("lafr"), gpu="renderers.gpu.runners:run_lafr")
+    run_foveated("lafr"), bytes_per_pixel=40.0, check=_checker("lafr"), gpu="renderers.gpu.runners:run_lafr",
+    strength=StrengthSpec("delta", "higher"))
 
 

@@ -206,7 +206,7 @@ class LPLayout:
 
 def _params_text(mapping) -> str:
     return ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v!r}" for k, v in mapping.params().items()
-                     if k in ("e_max", "preset", "delta", "alpha", "beta", "a"))
+                     if k in ("e_max", "preset", "acuity_scale", "delta", "alpha", "beta", "a"))
 
 
 def _inverse_map(tracer, layout: LPLayout, lp, aa_post: bool, width: int, height: int) -> np.ndarray:

@@ -16,7 +16,7 @@ renderer that the output does not depend on the scene's exposure.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable
+from typing import Any, Callable, Literal
 
 from data_schema.errors import UserError
 from data_schema.geometry import ViewingGeometry
@@ -73,6 +73,63 @@ class Param:
         return value
 
 
+#: The directions a foveation strength can grow in (:class:`StrengthSpec`).
+STRONGER = ("higher", "lower")
+#: The device-independent counts a strength lowers: stats keys of :func:`renderers.registry.render`.
+WORK_COUNTS = ("shading_points", "light_samples")
+
+
+@dataclass(frozen=True)
+class StrengthSpec:
+    """A renderer's continuous foveation strength: the parameter an adaptive design varies (issue 28).
+
+    A plug-in declares ``StrengthSpec(param, stronger, count)``; :func:`renderers.registry.foveation_strength`
+    returns it with ``range`` and ``default`` filled in from the parameter's :class:`Param` (the one home of the
+    allowed range).
+
+    Attributes
+    ----------
+    param : str
+        The parameter (numeric) of the plug-in.
+    stronger : {"higher", "lower"}
+        Which way foveation grows: ``"higher"`` (LaFR/LMFR ``delta``, FSL ``alpha``) or ``"lower"`` (VaFR
+        ``acuity_scale``, the lightcuts baselines' samples per pixel).
+    count : {"shading_points", "light_samples"}
+        The render stat the strength lowers: it never increases as foveation gets stronger
+        (tests/test_strength.py).
+    range : Range
+        The parameter's allowed values (filled in by the registry).
+    default : float
+        The parameter's default (filled in by the registry).
+    """
+
+    param: str
+    stronger: Literal["higher", "lower"]
+    count: Literal["shading_points", "light_samples"] = "shading_points"
+    range: Range | None = None
+    default: float | None = None
+
+    def __post_init__(self):
+        if self.stronger not in STRONGER:
+            raise ValueError(f"StrengthSpec.stronger={self.stronger!r}: allowed {', '.join(STRONGER)}")
+        if self.count not in WORK_COUNTS:
+            raise ValueError(f"StrengthSpec.count={self.count!r}: allowed {', '.join(WORK_COUNTS)}")
+
+    def stronger_than(self, a: float, b: float) -> bool:
+        """Whether value ``a`` foveates more strongly than ``b``."""
+        return a > b if self.stronger == "higher" else a < b
+
+    def weakest_first(self, values) -> list:
+        """``values`` sorted from the weakest foveation to the strongest."""
+        return sorted(values, reverse=self.stronger == "lower")
+
+    def describe(self) -> str:
+        """``delta (stronger = higher, allowed (1, 16], default 1.8)``."""
+        rng = f", allowed {self.range.describe()}" if self.range is not None else ""
+        dft = f", default {self.default:g}" if self.default is not None else ""
+        return f"{self.param} (stronger = {self.stronger}{rng}{dft})"
+
+
 @dataclass(frozen=True)
 class RendererPlugin:
     """A renderer: name, description, parameter table, and its implementations.
@@ -99,6 +156,13 @@ class RendererPlugin:
     #: ``preview(params) -> params`` for a thumbnail render (the simulated observer's 64-pixel frames): the
     #: same method without work such a small image cannot show (``None``: the params unchanged).
     preview: Callable[[dict], dict] | None = None
+    #: The continuous foveation strength (:class:`StrengthSpec`), or ``None`` (a ground truth, not foveated).
+    strength: StrengthSpec | None = None
+
+    def __post_init__(self):
+        s = self.strength
+        if s is not None and (s.param not in self.params or self.params[s.param].type not in (int, float)):
+            raise ValueError(f"renderer {self.name!r}: strength parameter {s.param!r} is not a numeric parameter")
 
     def preset(self, name: str) -> RendererPlugin:
         """The plug-in of preset ``name``: this one, renamed, with the preset's defaults."""

@@ -17,17 +17,17 @@ import importlib
 import math
 import resource
 import time
-from dataclasses import asdict
+from dataclasses import asdict, replace
 
 import numpy as np
 
 from data_schema.errors import UserError
 from data_schema.geometry import ViewingGeometry, check_gaze
 
-from .plugin_types import Param, RenderContext, RendererPlugin
+from .plugin_types import Param, RenderContext, RendererPlugin, StrengthSpec
 
-__all__ = ["ENTRY_POINT_GROUP", "Param", "RenderContext", "RendererPlugin", "available", "get", "render",
-           "resolve_params", "check_resolution", "check_geometry", "BACKENDS"]
+__all__ = ["ENTRY_POINT_GROUP", "Param", "RenderContext", "RendererPlugin", "StrengthSpec", "available", "get",
+           "render", "resolve_params", "check_resolution", "check_geometry", "foveation_strength", "BACKENDS"]
 
 ENTRY_POINT_GROUP = "studyapp.renderers"
 BACKENDS = ("cpu", "gpu")
@@ -68,6 +68,21 @@ def get(name: str) -> RendererPlugin:
     if name not in plugins:
         raise UserError(f"renderer={name!r} is unknown: allowed {', '.join(sorted(plugins))}")
     return plugins[name]
+
+
+def foveation_strength(method: str) -> StrengthSpec | None:
+    """The continuous foveation strength of renderer ``method``, or ``None`` when it has none (``gt``, ``sl_gt``).
+
+    The plug-in's :class:`~renderers.plugin_types.StrengthSpec` (its one declaration, on the plug-in) with
+    ``range`` and ``default`` taken from the parameter's :class:`Param`: e.g. ``vafr`` -> ``acuity_scale``,
+    stronger = ``"lower"``; ``lafr`` -> ``delta``, stronger = ``"higher"``. An unknown ``method`` is a
+    :class:`UserError` (one line)."""
+    plugin = get(method)
+    spec = plugin.strength
+    if spec is None:
+        return None
+    param = plugin.params[spec.param]
+    return replace(spec, range=param.range, default=param.default)
 
 
 def _load(ref):

@@ -63,6 +63,28 @@ def validate_pivots(pivots) -> tuple[tuple[float, float], ...]:
     return pts
 
 
+def scale_falloff(pivots, acuity_scale: float) -> tuple[tuple[float, float], ...]:
+    """The pivots of the acuity curve with its eccentricity fall-off scaled by ``acuity_scale`` (``s``).
+
+    Seed 001 Eq 2, ``omega(e) = m e + omega_0``, with every segment's MAR slope divided by ``s`` (Eq 12's
+    ``m_k -> m_k / s``) and the foveal MAR ``omega_0`` kept:
+
+        omega_s(e) = omega_0 + (omega(e) - omega_0) / s,   i.e. f_k' = 1 / (omega_0 + (1 / f_k - omega_0) / s)
+
+    at every pivot ``(e_k, f_k)``. ``s = 1`` is the seed's curve, returned unchanged (bit for bit); ``s < 1``
+    lowers the acuity, and with it ``du/de = 2 f`` (Eq 4), at every eccentricity beyond the fovea, the more the
+    farther out: fewer LP columns and shorter ones, fewer shading points. Guenter et al. 2012 fitted this slope
+    (1.32-1.65 arcmin per degree) from a study of foveation levels; ``s`` is the factor a threshold study varies.
+    """
+    pts = validate_pivots(pivots)
+    s = check_range("acuity_scale", acuity_scale, 0.0, None)
+    if s == 1.0:
+        return pts
+    w0 = 1.0 / pts[0][1]
+    scaled = tuple((e, 1.0 / (w0 + (1.0 / f - w0) / s)) for e, f in pts)
+    return validate_pivots(scaled)  # a rising curve (f_k > f_0) scaled far enough has no positive MAR: refused
+
+
 @dataclass(frozen=True)
 class Segment:
     e0: float      # start eccentricity (deg)

@@ -37,7 +37,7 @@ from data_schema.geometry import ViewingGeometry
 from data_schema.ranges import check_range
 
 from . import _kernels as K
-from .acuity import DEFAULT_PIVOTS, AcuityMapping
+from .acuity import DEFAULT_PIVOTS, AcuityMapping, scale_falloff
 from .base import FoveationMapping
 
 #: Seed 001 §3.3 / Fig 3 acuity curves; "auto" caps at the display's own radial Nyquist rate.
@@ -67,21 +67,25 @@ class VaFRMapping(FoveationMapping):
         Explicit constant cap (overrides the preset's).
     tangential_factor : float or callable, optional
         ``Delta(e)`` of Eq 19 (> 0); a callable receives eccentricities in degrees (numpy array).
+    acuity_scale : float, optional
+        Scale ``s`` of the acuity fall-off (:func:`.acuity.scale_falloff`: Eq 2's MAR slope divided by ``s``,
+        before the caps); 1 (default) is the seed's curve, below 1 shades fewer points in the periphery.
     """
 
     method = "vafr"
     _kernel = K.VAFR
-    coverage_params = ("e_max", "preset")
+    coverage_params = ("e_max", "preset", "acuity_scale")
 
     def __init__(self, display: ViewingGeometry, *, pivots=None, e_max: float | None = None,
                  preset: str = "default", cap_cpd: float | None = None,
-                 tangential_factor: float | Callable = 1.0):
+                 tangential_factor: float | Callable = 1.0, acuity_scale: float = 1.0):
         super().__init__(display)
         if preset not in PRESETS:
             raise UserError(f"preset={preset!r} is invalid: allowed {', '.join(sorted(PRESETS))}")
         spec = PRESETS[preset]
         self.preset = preset
-        pivots = spec["pivots"] if pivots is None else pivots
+        pivots = scale_falloff(spec["pivots"] if pivots is None else pivots, acuity_scale)
+        self.acuity_scale = float(acuity_scale)
         cap = spec["cap_cpd"] if cap_cpd is None else cap_cpd
         self.acuity = AcuityMapping(pivots, c_r=display.c_r, cap_cpd=cap, nyquist_cap=spec["nyquist_cap"])
         last = self.acuity.pivots[-1][0]
@@ -112,7 +116,7 @@ class VaFRMapping(FoveationMapping):
 
     def params(self) -> dict:
         tf = self._tangential_factor
-        return {"preset": self.preset, "pivots": [list(p) for p in self.acuity.pivots], "e_max": self.e_max,
+        return {"preset": self.preset, "acuity_scale": self.acuity_scale, "pivots": [list(p) for p in self.acuity.pivots], "e_max": self.e_max,
                 "cap_cpd": self.acuity.cap_cpd, "nyquist_cap": self.acuity.nyquist_cap,
                 "tangential_factor": tf if not callable(tf) else getattr(tf, "__name__", "callable")}
 

@@ -35,7 +35,7 @@ import numpy as np
 from numba import njit, prange
 
 from renderers._shade import texture_weight
-from renderers.plugin_types import Param, RendererPlugin
+from renderers.plugin_types import Param, RendererPlugin, StrengthSpec
 
 from .foveated import foveated_lightcuts
 from .fpsm import (ALPHA, FPSM_READINGS, acuity_map, eccentricity_map, light_budget, screen_velocity,
@@ -396,7 +396,8 @@ FSL = RendererPlugin(
                                 "edges first, flat regions incl. the fovea least) or retained (map = (M - alpha) / "
                                 "(1 - alpha), no rho); docs/lightcuts.md"),
      **_SEED},
-    run_fsl, bytes_per_pixel=_BPP, gpu="renderers.gpu.lightcuts:run_fsl")
+    run_fsl, bytes_per_pixel=_BPP, gpu="renderers.gpu.lightcuts:run_fsl",
+    strength=StrengthSpec("alpha", "higher", "light_samples"))
 #: Uniform counts; the presets differ only in how seed 003's tables choose the counts for a comparison with
 #: fsl: equal time (sl_e), equal foveal MSE (sl_f), equal peripheral MSE (sl_p).
 SL = RendererPlugin(
@@ -404,12 +405,14 @@ SL = RendererPlugin(
     {"lspp": Param(int, 8, 1, 4096, help="light samples (cut nodes) per pixel"),
      "rspp": Param(int, 8, 0, 4096, help="glossy rays per glossy pixel"), **_SEED},
     run_sl_uniform, bytes_per_pixel=_BPP, gpu="renderers.gpu.lightcuts:run_sl_uniform",
+    strength=StrengthSpec("lspp", "lower", "light_samples"),
     presets={"sl_e": ("stochastic lightcuts, uniform counts (equal time to fsl)", {}),
              "sl_f": ("stochastic lightcuts, uniform counts (equal foveal MSE to fsl)", {}),
              "sl_p": ("stochastic lightcuts, uniform counts (equal peripheral MSE to fsl)", {})})
 SL_AS = RendererPlugin("sl_as", "stochastic lightcuts driven by Stengel's adaptive foveated sampling map",
                        {**_MAXES, **_SEED}, run_sl_as, bytes_per_pixel=_BPP,
-                       gpu="renderers.gpu.lightcuts:run_sl_as")
+                       gpu="renderers.gpu.lightcuts:run_sl_as",
+                       strength=StrengthSpec("max_lspp", "lower", "light_samples"))
 SL_GT = RendererPlugin(
     "sl_gt", "ground truth: 2048 light samples + 2048 glossy rays per pixel, progressive",
     {"lspp": Param(int, 2048, 1, 1 << 20, help="light samples per pixel"),
