@@ -126,7 +126,7 @@ def _strength_xaxis(ax, axis_unit: str, stronger: str) -> None:
         ax.set_xscale("log")
         ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
         ax.xaxis.set_minor_formatter(NullFormatter())
-    if stronger == "down":
+    if stronger == "lower":
         ax.invert_xaxis()
 
 

@@ -76,23 +76,24 @@ class Axis:
     ----------
     scale : {"log", "linear"}
         ``log``: ``x = log10(level)`` (levels must be > 0); ``linear``: ``x = level``.
-    stronger : {"up", "down"}
-        ``up``: a higher level is stronger foveation (detection grows with the level); ``down``: a lower level is
-        (VaFR's acuity scale, samples per pixel); the axis is then negated.
+    stronger : {"higher", "lower"}
+        ``higher``: a higher level is stronger foveation (detection grows with the level); ``lower``: a lower
+        level is (VaFR's acuity scale, samples per pixel); the axis is then negated. The same axis as the
+        procedures' intensity (``studyapp.runner.adaptive.intensity``), which analysis may not import.
     bounds : tuple of float, optional
         The procedure's domain (levels); psignifit's stimulus range and priors are set from it. Default: the
         levels tested.
     """
 
     scale: str = "log"
-    stronger: str = "up"
+    stronger: str = "higher"
     bounds: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         if self.scale not in ("log", "linear"):
             raise ValueError(f"axis scale {self.scale!r}: expected log or linear")
-        if self.stronger not in ("up", "down"):
-            raise ValueError(f"axis direction {self.stronger!r}: expected up or down")
+        if self.stronger not in ("higher", "lower"):
+            raise ValueError(f"axis direction {self.stronger!r}: expected higher or lower")
 
     @property
     def unit(self) -> str:
@@ -103,12 +104,12 @@ class Axis:
         """Level(s) -> strength axis."""
         v = np.asarray(level, dtype=float)
         x = np.log10(v) if self.scale == "log" else v
-        return -x if self.stronger == "down" else x
+        return -x if self.stronger == "lower" else x
 
     def to_level(self, x):
         """Strength axis -> level(s) (inverse of :meth:`to_x`)."""
         v = np.asarray(x, dtype=float)
-        v = -v if self.stronger == "down" else v
+        v = -v if self.stronger == "lower" else v
         return np.power(10.0, v) if self.scale == "log" else v
 
     def x_range(self, levels: np.ndarray) -> tuple[float, float]:
@@ -251,7 +252,7 @@ def _infer_axis(levels: np.ndarray, correct: np.ndarray) -> Axis:
     scale = "log" if np.all(levels > 0) else "linear"
     x = np.log10(levels) if scale == "log" else levels
     r = np.corrcoef(x, correct)[0, 1] if np.std(x) > 0 and np.std(correct) > 0 else 1.0
-    return Axis(scale, "up" if not r < 0 else "down")
+    return Axis(scale, "higher" if not r < 0 else "lower")
 
 
 def _fit_task(task: tuple) -> dict:
@@ -336,7 +337,7 @@ def fit_thresholds(df: pd.DataFrame, *, criterion: float, experiment_type: str,
     for _, r in out.iterrows():
         ax = axes[r["condition"]]
         lv = ax.to_level([r["x_threshold"], r["x_ci_low"], r["x_ci_high"]])
-        lo, hi = np.sort(lv[1:])  # a "down" axis swaps the interval's ends
+        lo, hi = np.sort(lv[1:])  # a "lower" axis swaps the interval's ends
         ends.append((lv[0], lo, hi))
     out[["threshold", "ci_low", "ci_high"]] = pd.DataFrame(ends, index=out.index, dtype=float) if ends else np.nan
     return out.loc[:, list(FIT_COLUMNS)].reset_index(drop=True) if len(out) else pd.DataFrame(
