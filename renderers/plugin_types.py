@@ -76,7 +76,10 @@ class Param:
 #: The directions a foveation strength can grow in (:class:`StrengthSpec`).
 STRONGER = ("higher", "lower")
 #: The device-independent counts a strength lowers: stats keys of :func:`renderers.registry.render`.
-WORK_COUNTS = ("shading_points", "light_samples")
+#: ``rays_primary`` of a log-polar renderer is its LP pixels traced (ray-casting pipeline: one primary ray per
+#: shaded LP pixel on or bordering the display, hit or miss); ``shading_points`` counts only the hits, which a
+#: coarser buffer can raise by a few when its samples land on geometry (LMFR at 48 x 27: 17 -> 20).
+WORK_COUNTS = ("rays_primary", "light_samples")
 
 
 @dataclass(frozen=True)
@@ -94,8 +97,8 @@ class StrengthSpec:
     stronger : {"higher", "lower"}
         Which way foveation grows: ``"higher"`` (LaFR/LMFR ``delta``, FSL ``alpha``) or ``"lower"`` (VaFR
         ``acuity_scale``, the lightcuts baselines' samples per pixel).
-    count : {"shading_points", "light_samples"}
-        The render stat the strength lowers: it never increases as foveation gets stronger
+    count : {"rays_primary", "light_samples"}
+        The render stat the strength lowers (:data:`WORK_COUNTS`): it never increases as foveation gets stronger
         (tests/test_strength.py).
     range : Range
         The parameter's allowed values (filled in by the registry).
@@ -105,7 +108,7 @@ class StrengthSpec:
 
     param: str
     stronger: Literal["higher", "lower"]
-    count: Literal["shading_points", "light_samples"] = "shading_points"
+    count: Literal["rays_primary", "light_samples"] = "rays_primary"
     range: Range | None = None
     default: float | None = None
 

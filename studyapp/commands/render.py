@@ -121,10 +121,12 @@ def unit_name(metres: float) -> str:
 
 
 def cmd_renderers(args) -> int:
-    from renderers.registry import available
+    from renderers.registry import available, foveation_strength
 
     for name, plugin in sorted(available().items()):
         print(f"{name}: {plugin.description}")
+        strength = foveation_strength(name)
+        print(f"    foveation strength: {strength.describe() + f'; lowers {strength.count}' if strength else 'none'}")
         for k, p in plugin.params.items():
             print(f"    {k} ({p.type.__name__}, default {p.default}; allowed {p.allowed()}): {p.help}")
     return 0
