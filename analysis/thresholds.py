@@ -473,3 +473,41 @@ def pareto(fits: pd.DataFrame, group: pd.DataFrame, axes: Mapping[str, Axis],
                                    "p_detect": float(pd_)})
     return (pd.DataFrame(rows, columns=list(PARETO_COLUMNS)),
             pd.DataFrame(curve_rows, columns=["condition", "scene", "level", "relative_cost", "p_detect"]))
+
+
+@dataclass
+class ThresholdAnalysis:
+    """A threshold study's analysis (what :func:`analysis.report.write_threshold_report` writes).
+
+    ``trials``: the adaptive trials fitted (participant, condition, scene, level, correct); ``fits``,
+    ``group``: :func:`fit_thresholds`, :func:`group_table`; ``pareto``, ``curves``: :func:`pareto` (None without a
+    cost); ``cost_label``: what the cost counts; ``family``, ``criterion``: the threshold's definition;
+    ``settings``: :meth:`FitSettings.describe`; ``notes``: lines for the report.
+    """
+
+    trials: pd.DataFrame
+    fits: pd.DataFrame
+    group: pd.DataFrame
+    family: str
+    criterion: float
+    settings: str
+    pareto: pd.DataFrame | None = None
+    curves: pd.DataFrame | None = None
+    cost_label: str = ""
+    notes: list[str] | None = None
+    n_boot: int = 0
+
+
+def adaptive_trials(df: pd.DataFrame) -> pd.DataFrame:
+    """The answered adaptive trials of a tidy log, with ``condition`` and ``scene`` taken from the procedure id
+    (``COND@scene``: the varied condition, not the level condition ``COND(level)`` the trial showed)."""
+    if "procedure" not in df.columns or "correct" not in df.columns:
+        return df.iloc[0:0].assign(level=[], correct=[])
+    d = df[df["procedure"].fillna("").astype(str).str.contains("@") & df["correct"].notna()].copy()
+    if "practice" in d.columns:
+        d = d[~d["practice"].fillna(False).astype(bool)]
+    parts = d["procedure"].astype(str).str.partition("@")
+    d["condition"], d["scene"] = parts[0], parts[2]
+    d["level"] = d["level"].astype(float)
+    d["correct"] = d["correct"].astype(float)
+    return d.reset_index(drop=True)

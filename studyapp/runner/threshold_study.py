@@ -1,0 +1,163 @@
+"""A threshold study's analysis from its protocol: the strength axes, the family's criterion, the psychometric
+fits, the group table and the speed at threshold (the perceptual Pareto front).
+
+The protocol knows what analysis may not import: each varied condition's domain and direction
+(``design.adaptive``), the family's threshold criterion and psignifit experiment type
+(:mod:`data_schema.families`), and how to count a renderer's work (:mod:`renderers.cost`). The statistics are
+:mod:`analysis.thresholds`.
+
+Cost at threshold: the device-independent count the renderer's foveation strength lowers
+(:class:`renderers.plugin_types.StrengthSpec`: primary rays for the ray tracers -- one per shading point --,
+light samples for the lightcuts baselines) of one frame at the study's size, measured at every level of the
+ladder (:func:`renderers.cost.cost_table`, through the stimulus cache) and interpolated linearly in log level and
+log count in between (the count is monotone in the level); GT's count is its ground truth's at the same size.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from data_schema import families
+
+from .protocol import Protocol
+
+#: What the cost counts, per StrengthSpec.count.
+COST_LABELS = {"rays_primary": "primary rays (shading points)", "light_samples": "light samples"}
+
+
+def axes_of(protocol: Protocol) -> dict:
+    """Varied condition -> :class:`analysis.thresholds.Axis` (scale, direction, the ladder's ends)."""
+    from analysis.thresholds import Axis
+
+    return {name: Axis(v.scale, v.stronger, (min(v.levels), max(v.levels)))
+            for name, v in protocol.adaptive.varied.items()}
+
+
+def ladder_cost(protocol: Protocol, scale: float = 1.0, cache_dir: Path | None = None,
+                progress: Callable[[str], None] | None = None) -> tuple[Callable, Callable, str]:
+    """``(cost(condition, scene, level), gt_cost(scene), label)`` of the protocol's ladders at its render size
+    times ``scale`` (module docstring)."""
+    from renderers.cost import cost_table
+    from renderers.registry import foveation_strength
+
+    w, h = (max(8, round(v * scale)) for v in protocol.render_size)
+    camera = {"fov_y": protocol.display.fov_y_deg}
+    ref = protocol.conditions[protocol.adaptive.reference]
+    tables, labels = {}, set()
+
+    def table(cond: str, scene: str):
+        if (cond, scene) not in tables:
+            if progress:
+                progress(f"cost of {cond} on {scene} at {w}x{h}")
+            c = protocol.conditions[cond]
+            v = protocol.adaptive.varied[cond]
+            t = cost_table(protocol.scene_ref(scene), c.renderer, v.levels, w, h, params=c.params,
+                           reference=ref.renderer, reference_params=ref.params, camera=camera, cache_dir=cache_dir)
+            tables[cond, scene] = t.sort_values("level")
+            labels.add(COST_LABELS.get(foveation_strength(c.renderer).count, "work"))
+        return tables[cond, scene]
+
+    def cost(cond: str, scene: str, level: float) -> float:
+        t = table(cond, scene)
+        lv, work = np.log(t["level"].to_numpy(float)), np.log(np.maximum(t["work"].to_numpy(float), 1.0))
+        return float(math.exp(np.interp(math.log(level), lv, work)))
+
+    def gt_cost(scene: str) -> float:
+        cond = next(iter(protocol.adaptive.varied))
+        return float(table(cond, scene)["gt_work"].iloc[0])
+
+    for cond in protocol.adaptive.varied:  # the label is known once the first table is made
+        table(cond, protocol.scenes[0])
+    label = " / ".join(sorted(labels)) + f" per frame at {w}x{h}"
+    return cost, gt_cost, label
+
+
+def analyze_thresholds(df, protocol: Protocol, *, n_boot: int = 2000, seed: int = 0, workers: int = 2,
+                       cost: bool = True, cost_scale: float = 1.0, cache_dir: Path | None = None,
+                       settings=None, progress: Callable[[str], None] | None = None):
+    """The :class:`analysis.thresholds.ThresholdAnalysis` of a tidy log of ``protocol`` (adaptive)."""
+    from analysis.thresholds import (
+        FitSettings,
+        ThresholdAnalysis,
+        adaptive_trials,
+        fit_thresholds,
+        group_table,
+        pareto,
+    )
+    from data_schema.errors import UserError
+
+    if protocol.adaptive is None:
+        raise UserError(f"protocol {protocol.name} has no adaptive design: no thresholds to fit")
+    fam = families.get(protocol.family)
+    settings = settings or FitSettings()
+    trials = adaptive_trials(df)
+    if trials.empty:
+        raise UserError("the log has no answered adaptive trials (columns procedure, level, correct)")
+    axes = axes_of(protocol)
+    say = progress or (lambda msg: None)
+
+    def tick(done, total):
+        say(f"fits {done}/{total}")
+
+    fits = fit_thresholds(trials, criterion=fam.threshold_criterion, experiment_type=fam.psignifit_type,
+                          axes=axes, settings=settings, workers=workers, progress=tick)
+    group = group_table(fits, n_boot=n_boot, seed=seed, axes=axes)
+    notes = [f"Thresholds of {', '.join(f'{c} ({v.param})' for c, v in protocol.adaptive.varied.items())} "
+             f"against {protocol.adaptive.reference} ({fam.title}); 'correct' as the trial log defines it."]
+    res = ThresholdAnalysis(trials=trials, fits=fits, group=group, family=fam.name,
+                            criterion=fam.threshold_criterion, settings=settings.describe(), notes=notes,
+                            n_boot=n_boot)
+    if cost:
+        c, g, label = ladder_cost(protocol, cost_scale, cache_dir, progress=say)
+        res.pareto, res.curves = pareto(fits, group, axes, c, g)
+        res.cost_label = label
+    return res
+
+
+def simulate_adaptive(protocol: Protocol, participants: int | list[str], seed: int = 0,
+                      trials: int | None = None):
+    """Tidy adaptive trials (participant, condition, scene, procedure, varied, level, correct, estimate_mean,
+    estimate_sd) of simulated participants answering every procedure of ``protocol`` from its declared
+    psychometric functions (:func:`studyapp.runner.observer.declared_function`), ``trials`` per procedure
+    (default the protocol's ``stop.trials``; its other stopping rules still apply).
+
+    The procedures run one after the other, not interleaved: a simulated observer's answer depends on the level
+    only, so the order changes nothing but the random draws. Seeded by (seed, participant, procedure).
+    """
+    import pandas as pd
+
+    from data_schema.errors import UserError
+
+    from .adaptive import make_procedure, procedure_id
+    from .observer import _key, declared_function
+
+    ids = [f"P{i + 1:02d}" for i in range(participants)] if isinstance(participants, int) else list(participants)
+    rows = []
+    for pid in ids:
+        for cond, v in protocol.adaptive.varied.items():
+            spec = protocol.adaptive.spec(cond)
+            if trials is not None:
+                spec["stop"] = {**spec["stop"], "trials": int(trials)}
+            for scene in protocol.scenes:
+                f = declared_function(protocol, cond, scene, pid, seed)
+                if f is None:
+                    raise UserError(f"condition {cond}: no declared psychometric function to simulate "
+                                    "(simulation.psychometric)")
+                proc_id = procedure_id(cond, scene)
+                proc = make_procedure(spec, _key("procedure", seed, pid, proc_id) % 2**32)
+                rng = np.random.default_rng(_key("answers", seed, pid, proc_id))
+                k = 0
+                while not proc.finished():
+                    level = proc.next_level()
+                    correct = bool(rng.random() < f.p_correct(f.intensity(level)))
+                    proc.update(level, correct)
+                    est = proc.estimate()
+                    rows.append({"participant": pid, "condition": cond, "scene": scene, "trial": k,
+                                 "procedure": proc_id, "varied": v.param, "level": float(level),
+                                 "correct": int(correct), "estimate_mean": est["mean"], "estimate_sd": est["sd"]})
+                    k += 1
+    return pd.DataFrame(rows)
