@@ -27,6 +27,7 @@ COMMAND_MODULES = (
     "studyapp.commands.study",
     "studyapp.commands.lightcuts",
     "studyapp.commands.replay",
+    "studyapp.commands.power",
 )
 
 

@@ -132,7 +132,7 @@ def simulate_adaptive(protocol: Protocol, participants: int | list[str], seed: i
 
     from data_schema.errors import UserError
 
-    from .adaptive import make_procedure, procedure_id
+    from .adaptive import procedure_id
     from .observer import _key, declared_function
 
     ids = [f"P{i + 1:02d}" for i in range(participants)] if isinstance(participants, int) else list(participants)
@@ -148,16 +148,103 @@ def simulate_adaptive(protocol: Protocol, participants: int | list[str], seed: i
                     raise UserError(f"condition {cond}: no declared psychometric function to simulate "
                                     "(simulation.psychometric)")
                 proc_id = procedure_id(cond, scene)
-                proc = make_procedure(spec, _key("procedure", seed, pid, proc_id) % 2**32)
-                rng = np.random.default_rng(_key("answers", seed, pid, proc_id))
-                k = 0
-                while not proc.finished():
-                    level = proc.next_level()
-                    correct = bool(rng.random() < f.p_correct(f.intensity(level)))
-                    proc.update(level, correct)
-                    est = proc.estimate()
-                    rows.append({"participant": pid, "condition": cond, "scene": scene, "trial": k,
-                                 "procedure": proc_id, "varied": v.param, "level": float(level),
-                                 "correct": int(correct), "estimate_mean": est["mean"], "estimate_sd": est["sd"]})
-                    k += 1
+                _, steps = run_procedure(spec, f, _key("procedure", seed, pid, proc_id))
+                rows += [{"participant": pid, "condition": cond, "scene": scene, "trial": k, "procedure": proc_id,
+                          "varied": v.param, **step} for k, step in enumerate(steps)]
     return pd.DataFrame(rows)
+
+
+def run_procedure(spec: dict, observer, seed: int):
+    """Run one procedure (:func:`studyapp.runner.adaptive.make_procedure`) to its stopping rule against a
+    declared observer (:class:`studyapp.runner.observer.DeclaredFunction`). Returns the finished procedure and
+    its trials: ``level``, ``correct``, ``estimate_mean``, ``estimate_sd`` after each one."""
+    from .adaptive import make_procedure
+
+    proc = make_procedure(spec, seed % 2**32)
+    rng = np.random.default_rng([seed % 2**63, 1])
+    steps = []
+    while not proc.finished():
+        level = proc.next_level()
+        correct = bool(rng.random() < observer.p_correct(observer.intensity(level)))
+        proc.update(level, correct)
+        est = proc.estimate()
+        steps.append({"level": float(level), "correct": int(correct), "estimate_mean": est["mean"],
+                      "estimate_sd": est["sd"]})
+    return proc, steps
+
+
+def power_analysis(protocol: Protocol, participants: int, *, trials: int | None = None, replications: int = 20,
+                   seed: int = 0, cost_scale: float = 0.25, settings=None, workers: int = 2,
+                   progress: Callable[[int, int], None] | None = None):
+    """What a study of ``participants`` simulated participants can expect: ``replications`` simulated studies
+    (:func:`simulate_adaptive`), each fitted as ``studyapp analyze`` fits it (:mod:`analysis.thresholds`).
+
+    Returns
+    -------
+    widths : DataFrame
+        Per condition x scene: the median width of a participant's 95 % credible interval and of the group
+        mean's 95 % bootstrap interval, in strength-axis units (log10 of the level for a log domain), and the
+        share of not-estimable fits.
+    pairs : DataFrame
+        Per pair of varied conditions x scene: the share of replications in which a paired t-test over the
+        participants tells their thresholds apart at the protocol's ``analysis.alpha`` (both on the strength
+        axis where they vary the same parameter on the same axis; else on log10 of the cost at threshold, the
+        ladder's count at ``cost_scale`` times the render size: different parameters have no common unit).
+    """
+    import itertools
+
+    import pandas as pd
+    from scipy import stats
+
+    from analysis.thresholds import POOLED, FitSettings, fit_thresholds, group_table
+
+    fam = families.get(protocol.family)
+    settings = settings or FitSettings()
+    axes = axes_of(protocol)
+    alpha = float(protocol.analysis.get("alpha", 0.05))
+    varied = protocol.adaptive.varied
+    pairs = list(itertools.combinations(varied, 2))
+    cost_fn = None
+    if any((varied[a].param, varied[a].scale, varied[a].stronger) != (varied[b].param, varied[b].scale,
+                                                                        varied[b].stronger) for a, b in pairs):
+        cost_fn, _, _ = ladder_cost(protocol, cost_scale)
+    n_fits = len(varied) * len(protocol.scenes) * participants
+    widths, apart = [], []
+    for r in range(replications):
+        df = simulate_adaptive(protocol, participants, seed=seed * 1_000_003 + r, trials=trials)
+
+        def tick(done, total, r=r):
+            if progress:
+                progress(r * n_fits + done, replications * n_fits)
+
+        fits = fit_thresholds(df, criterion=fam.threshold_criterion, experiment_type=fam.psignifit_type,
+                              axes=axes, settings=settings, pooled=False, workers=workers, progress=tick)
+        group = group_table(fits, n_boot=500, seed=r, axes=axes)
+        fits["ci_width_x"] = (fits["x_ci_high"] - fits["x_ci_low"]).abs()
+        for (c, s), sub in fits.groupby(["condition", "scene"]):
+            g = group[(group["condition"] == c) & (group["scene"] == s)].iloc[0]
+            widths.append({"condition": c, "scene": s, "axis": axes[c].unit,
+                           "participant_ci_width": float(sub["ci_width_x"].median()),
+                           "group_ci_width": float(g["ci_high_x"] - g["ci_low_x"]),
+                           "not_estimable": float((~sub["estimable"].astype(bool)).mean())})
+        ok = fits[fits["estimable"].astype(bool) & (fits["participant"] != POOLED)]
+        for a, b in pairs:
+            same = cost_fn is None or (varied[a].param, varied[a].scale, varied[a].stronger) == (
+                varied[b].param, varied[b].scale, varied[b].stronger)
+            for s in protocol.scenes:
+                xa = ok[(ok["condition"] == a) & (ok["scene"] == s)].set_index("participant")
+                xb = ok[(ok["condition"] == b) & (ok["scene"] == s)].set_index("participant")
+                both = xa.index.intersection(xb.index)
+                if same:
+                    va, vb = xa.loc[both, "x_threshold"], xb.loc[both, "x_threshold"]
+                else:
+                    va = np.log10([cost_fn(a, s, lv) for lv in xa.loc[both, "threshold"]])
+                    vb = np.log10([cost_fn(b, s, lv) for lv in xb.loc[both, "threshold"]])
+                p = float(stats.ttest_rel(va, vb).pvalue) if len(both) >= 2 else math.nan
+                apart.append({"a": a, "b": b, "scene": s, "unit": "strength axis" if same else "log10 cost",
+                              "told_apart": bool(p < alpha) if p == p else False})
+    w = pd.DataFrame(widths).groupby(["condition", "scene", "axis"], sort=False).median().reset_index()
+    pr = pd.DataFrame(apart).groupby(["a", "b", "scene", "unit"], sort=False)["told_apart"].mean().reset_index()
+    pr = pr.rename(columns={"told_apart": "p_told_apart"})
+    pr["alpha"] = alpha
+    return w, pr
