@@ -154,6 +154,17 @@ def simulate_adaptive(protocol: Protocol, participants: int | list[str], seed: i
     return pd.DataFrame(rows)
 
 
+def quest_interval(proc, level: float = 0.95) -> tuple[float, float]:
+    """The central ``level`` credible interval of a QUEST+ procedure's threshold (intensity units), from its
+    posterior marginal on the threshold grid."""
+    t = proc._coords["threshold"]  # the grid QUEST+ was built on (studyapp.runner.adaptive)
+    c = np.cumsum(proc.marginal("threshold"))
+    c /= c[-1]
+    lo = t[min(int(np.searchsorted(c, (1 - level) / 2)), t.size - 1)]
+    hi = t[min(int(np.searchsorted(c, (1 + level) / 2)), t.size - 1)]
+    return float(lo), float(hi)
+
+
 def run_procedure(spec: dict, observer, seed: int):
     """Run one procedure (:func:`studyapp.runner.adaptive.make_procedure`) to its stopping rule against a
     declared observer (:class:`studyapp.runner.observer.DeclaredFunction`). Returns the finished procedure and
