@@ -21,6 +21,10 @@ Tables
                    display order (JSON), expected answer of catch trials, break flag
 ``responses``      one row per answered trial: raw answers (JSON), the derived chosen/chosen_2/response, RT
                    from stimulus onset, onset time, dropped frames, switches, gaze flag, catch correctness
+``adaptive``       one row per trial of an adaptive design, written with its response: the procedure
+                   (``VaFR@temple``), the varied parameter, the level shown, whether the answer was correct
+                   (detected), the procedure's running estimate and state (JSON) after it; ``skipped``: the
+                   procedure had stopped early, nothing was shown (absent from databases written before it)
 ``events``         pause, resume, end, break and error events per session; ``scenes`` (live sessions, written
                    with the session): the protocol folder and each scene's content hash, for ``replay``
                    ``fps_check`` (live sessions in a window): the frame-rate check before the first trial
@@ -57,7 +61,7 @@ from pathlib import Path
 from . import families
 from .atomic import atomic_path, current_umask, input_file, write_text
 from .errors import UserError
-from .trial_log import ALL_COLUMNS, TIMING_COLUMNS
+from .trial_log import ADAPTIVE_COLUMNS, ALL_COLUMNS, TIMING_COLUMNS
 
 STORE_FORMAT = 2
 #: SQLite ``application_id`` of a study database ("stdy"): the marker that tells our files from any other.
@@ -78,11 +82,13 @@ COLUMNS = {
     "responses": ("participant", "idx", "session", "answers", "chosen", "chosen_2", "response", "rt_s",
                   "onset_s", "dropped_frames", "switches", "gaze_left_fovea", "correct", "committed_utc"),
     "events": ("id", "session", "t_utc", "kind", "detail"),
+    "adaptive": ("participant", "idx", "procedure", "varied", "level", "intensity", "correct", "estimate_mean",
+                 "estimate_sd", "state", "skipped"),
     "frames": ("participant", "idx", "frame", "stimulus", "flip_s", "render_s", "gaze_t", "gaze_x", "gaze_y",
                "pos_x", "pos_y", "pos_z", "look_x", "look_y", "look_z", "dropped"),
 }
 PRIMARY_KEYS = {"study": ("key",), "participants": ("id",), "sessions": ("id",), "planned_trials": ("participant", "idx"),
-                "responses": ("participant", "idx"), "events": ("id",),
+                "responses": ("participant", "idx"), "events": ("id",), "adaptive": ("participant", "idx"),
                 "frames": ("participant", "idx", "frame")}
 
 SCHEMA = """
@@ -112,6 +118,12 @@ CREATE TABLE responses (
 CREATE TABLE events (
     id INTEGER PRIMARY KEY, session TEXT NOT NULL REFERENCES sessions(id), t_utc TEXT NOT NULL,
     kind TEXT NOT NULL, detail TEXT NOT NULL, crc TEXT NOT NULL);
+CREATE TABLE adaptive (
+    participant TEXT NOT NULL, idx INTEGER NOT NULL, procedure TEXT NOT NULL, varied TEXT NOT NULL,
+    level REAL NOT NULL, intensity REAL NOT NULL, correct INTEGER, estimate_mean REAL, estimate_sd REAL, state TEXT NOT NULL,
+    skipped INTEGER NOT NULL, crc TEXT NOT NULL,
+    PRIMARY KEY (participant, idx),
+    FOREIGN KEY (participant, idx) REFERENCES responses(participant, idx)) WITHOUT ROWID;
 CREATE TABLE frames (
     participant TEXT NOT NULL, idx INTEGER NOT NULL, frame INTEGER NOT NULL, stimulus INTEGER NOT NULL,
     flip_s REAL NOT NULL, render_s REAL, gaze_t REAL, gaze_x REAL, gaze_y REAL, pos_x REAL, pos_y REAL,
@@ -119,6 +131,25 @@ CREATE TABLE frames (
     PRIMARY KEY (participant, idx, frame),
     FOREIGN KEY (participant, idx) REFERENCES responses(participant, idx)) WITHOUT ROWID;
 """
+
+
+#: Tables a database written before them lacks (read as empty; such a study has no rows for them).
+OPTIONAL_TABLES = ("adaptive",)
+
+
+@dataclass(frozen=True)
+class AdaptiveRow:
+    """What an adaptive trial adds to its response (:meth:`Store.commit_response`; the ``adaptive`` table)."""
+
+    procedure: str
+    varied: str
+    level: float
+    intensity: float  # the level on the procedure's axis (studyapp.runner.adaptive.intensity)
+    correct: bool | None  # None: skipped (the procedure had stopped)
+    estimate_mean: float | None
+    estimate_sd: float | None
+    state: str  # JSON: the procedure's state after this trial
+    skipped: bool = False
 
 
 class StoreError(UserError):
@@ -448,13 +479,14 @@ class Store:
                         chosen_2: str = "", response: int | None = None, rt_s: float | None = None,
                         onset_s: float | None = None, dropped_frames: int = 0, switches: int = 0,
                         gaze_left_fovea: bool | None = None, correct: bool | None = None,
-                        frames: Sequence | None = None) -> None:
+                        frames: Sequence | None = None, adaptive: AdaptiveRow | None = None) -> None:
         """Write one response durably (fsynced commit) before the next trial starts.
 
         ``frames`` (live trials: :class:`studyapp.runner.live.FrameRecord`-like rows, one per flip) are written
         in the same transaction: a crash loses at most the frames of the trial in progress, never an answer.
         The participant's answer and frame counts are updated in the same transaction too, so a row lost from
-        the file later is detected (:func:`verify`)."""
+        the file later is detected (:func:`verify`). ``adaptive`` (a trial of an adaptive design) is written in
+        the same transaction: the level, the answer and the procedure's state are committed with the response."""
         rt = None if rt_s is None or not math.isfinite(rt_s) else float(rt_s)
         onset = None if onset_s is None or not math.isfinite(onset_s) else float(onset_s)
         with self.transaction(f"save the response to trial {idx} of participant {pid!r}") as c:
@@ -462,6 +494,11 @@ class Store:
                                      int(dropped_frames), int(switches),
                                      None if gaze_left_fovea is None else int(gaze_left_fovea),
                                      None if correct is None else int(correct), utc_now()))
+            if adaptive is not None:
+                a = adaptive
+                _insert(c, "adaptive", (pid, idx, a.procedure, a.varied, float(a.level), float(a.intensity),
+                                        None if a.correct is None else int(a.correct), _real(a.estimate_mean),
+                                        _real(a.estimate_sd), a.state, int(a.skipped)))
             for f in frames or ():
                 _insert(c, "frames", (pid, idx, int(f.frame), int(f.stimulus), float(f.flip_s), _real(f.render_s),
                                       _real(f.gaze_t), _real(f.gaze_x), _real(f.gaze_y), *map(float, f.position),
@@ -519,9 +556,34 @@ class Store:
                          rt, kind)
                 for pid, sid, block, scene, idx, fam, conds, chosen, chosen_2, resp, rt, kind in self.conn.execute(q)]
         timing = self.trial_timing()
+        adaptive = {(a["participant"], a["idx"]): a for a in self.adaptive_rows()}
+        out = []
         for r in rows:
             r.update(timing.get((r["participant"], r["trial"]), {}))
-        return rows
+            a = adaptive.get((r["participant"], r["trial"]))
+            if a is not None:
+                if a["skipped"]:  # the procedure had stopped: nothing was shown, nothing answered
+                    continue
+                r.update({c: a[c] for c in ADAPTIVE_COLUMNS if c != "correct"}, correct=int(a["correct"]),
+                         condition=a["procedure"].rsplit("@", 1)[0])  # the varied condition (2afc too)
+            out.append(r)
+        return out
+
+    def adaptive_rows(self, pid: str | None = None) -> list[dict]:
+        """The rows of the ``adaptive`` table (of participant ``pid``), in trial order; ``correct`` and
+        ``skipped`` as bools (``correct`` None when skipped). Empty for a database written before the table."""
+        if "adaptive" not in _tables(self.conn):
+            return []
+        cols = COLUMNS["adaptive"]
+        q = f"SELECT {', '.join(cols)} FROM adaptive" + (" WHERE participant = ?" if pid is not None else "") + \
+            " ORDER BY participant, idx"
+        out = []
+        for row in self.conn.execute(q, () if pid is None else (pid,)):
+            d = dict(zip(cols, row))
+            d["correct"] = None if d["correct"] is None else bool(d["correct"])
+            d["skipped"] = bool(d["skipped"])
+            out.append(d)
+        return out
 
     def trial_flips(self) -> dict[tuple[str, int], tuple[list, list, list, list, list]]:
         """(participant, trial) -> the checked flips of a live trial: flip times, render times (None: the last
@@ -755,9 +817,13 @@ def _connect_ro(path: Path) -> sqlite3.Connection:
     raise StoreError(f"{path}: cannot open the study database: {str(first).splitlines()[0]}")
 
 
+def _tables(conn: sqlite3.Connection) -> set[str]:
+    return {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+
+
 def _check_tables(path: Path, conn: sqlite3.Connection) -> None:
-    have = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
-    missing = [t for t in COLUMNS if t not in have]
+    have = _tables(conn)
+    missing = [t for t in COLUMNS if t not in have and t not in OPTIONAL_TABLES]
     if missing:
         raise StoreError(f"{path}: is an incomplete studyapp study database (missing tables: {', '.join(missing)}); "
                          "it was left untouched")
@@ -788,7 +854,10 @@ def verify(path: Path, conn: sqlite3.Connection) -> None:
         fk = conn.execute("PRAGMA foreign_key_check").fetchone()
         if fk:
             raise _damaged(path, f"a row of {fk[0]} refers to a missing row of {fk[2]}")
+        have = _tables(conn)
         for table, cols in COLUMNS.items():
+            if table not in have:  # an optional table of a database written before it
+                continue
             for row in conn.execute(f"SELECT {', '.join(cols)}, crc FROM {table}"):
                 try:
                     ok = row_crc(table, row[:-1]) == row[-1]
@@ -941,7 +1010,8 @@ def read_trials(db_path):
 
     Text columns are strings (``""`` where a column does not apply to the trial family), ``trial``,
     ``practice`` and ``catch`` are int64, ``response`` is float64 (1.0/0.0 for ``yes_no``, NaN for the other
-    families) and ``rt_s`` float64 (NaN when not measured).
+    families) and ``rt_s`` float64 (NaN when not measured); the adaptive ``level``, ``intensity``, ``correct``
+    (1.0/0.0), ``estimate_mean`` and ``estimate_sd`` are float64, NaN outside adaptive trials.
     """
     with open_store(db_path) as st:
         if not st.meta():
@@ -957,7 +1027,7 @@ def tidy_frame(rows: Sequence[dict]):
     df = pd.DataFrame(list(rows), columns=list(ALL_COLUMNS))
     for c in ("trial", "practice", "catch"):
         df[c] = df[c].astype("int64")
-    for c in ("response", "rt_s", *TIMING_COLUMNS):
+    for c in ("response", "rt_s", *TIMING_COLUMNS, "level", "intensity", "correct", "estimate_mean", "estimate_sd"):
         df[c] = pd.to_numeric(df[c], errors="coerce").astype("float64")
     return df
 

@@ -27,6 +27,15 @@ fps_median, fps_p5        live trials: frames rendered per second, median and 5t
 dropped_share             live trials: share of dropped flips (float)
 latency_p50_ms,           live trials: gaze age at the flip in ms, median and 95th percentile (float)
 latency_p95_ms
+procedure                 adaptive designs: the procedure of the trial, ``CONDITION@SCENE`` (str)
+varied                    adaptive: the varied renderer parameter, e.g. ``acuity_scale`` (str)
+level                     adaptive: the parameter's value shown (float)
+intensity                 adaptive: the level on the procedure's axis, where detection grows: log10 of the level
+                          (or the level, scale: linear), negated where a lower value foveates more (float)
+correct                   adaptive: 1 when the answer was correct -- 2afc: picked the original; yes_no: answered
+                          "not the ground truth" to the test (detected) -- else 0
+estimate_mean,            adaptive: the procedure's running threshold estimate after the trial, in intensity
+estimate_sd               units (QUEST+: posterior mean and SD; staircase: mean and SD of the last reversals)
 ========================  =====================================================================================
 
 The live columns summarise the trial's frames (:mod:`data_schema.timing`); the frames themselves are exported
@@ -46,10 +55,15 @@ REQUIRED = ("participant", "family", "scene")
 #: Family -> the columns it fills (declared by each family, :mod:`data_schema.families`).
 FAMILY_COLUMNS = {name: fam.log_columns for name, fam in _FAMILIES.items()}
 
-OPTIONAL = ("block", "session", "trial", "chosen_2", "rt_s", "practice", "catch", *TIMING_COLUMNS)
+#: The columns of adaptive designs (empty for other trials).
+ADAPTIVE_COLUMNS = ("procedure", "varied", "level", "intensity", "correct", "estimate_mean", "estimate_sd")
+
+OPTIONAL = ("block", "session", "trial", "chosen_2", "rt_s", "practice", "catch", *TIMING_COLUMNS,
+            *ADAPTIVE_COLUMNS)
 
 ALL_COLUMNS = ("participant", "session", "block", "scene", "trial", "family", "condition", "condition_a",
-               "condition_b", "conditions", "chosen", "chosen_2", "response", "rt_s", "practice", "catch", *TIMING_COLUMNS)
+               "condition_b", "conditions", "chosen", "chosen_2", "response", "rt_s", "practice", "catch", *TIMING_COLUMNS,
+               *ADAPTIVE_COLUMNS)
 
 
 

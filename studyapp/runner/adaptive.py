@@ -56,6 +56,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -66,6 +67,8 @@ FUNCTIONS = ("weibull", "logistic")
 RULES = {"1-up-1-down": 1, "1-up-2-down": 2, "1-up-3-down": 3}
 DEFAULT_LAPSE = (0.0, 0.02, 0.05)
 DEFAULT_THRESHOLD_POINTS = 31
+#: yes/no QUEST+: the false-alarm (guess) rates the posterior spans unless the protocol gives its own.
+DEFAULT_YES_NO_GUESS = (0.0, 0.05, 0.1, 0.2)
 _OUTCOMES = ("Correct", "Incorrect")
 
 
@@ -123,7 +126,8 @@ def check_spec(spec: dict) -> None:
     stop = spec.get("stop") or {}
     trials = stop.get("trials")
     if not isinstance(trials, int) or isinstance(trials, bool) or trials < 1:
-        raise AdaptiveSpecError("the stopping rule can never stop: stop.trials (a cap of at least 1) is required")
+        raise AdaptiveSpecError("the stopping rule can never stop: stop.trials (a cap of at least 1 trial per "
+                                "procedure) is required")
     if method == "quest_plus":
         if "reversals" in stop:
             raise AdaptiveSpecError("stop.reversals applies to a staircase, QUEST+ has no reversals: use trials "
@@ -140,7 +144,7 @@ def check_spec(spec: dict) -> None:
                                     "or reversals")
         rev = stop.get("reversals")
         if rev is not None and (not isinstance(rev, int) or rev < 1):
-            raise AdaptiveSpecError("the stopping rule can never stop: stop.reversals must be at least 1")
+            raise AdaptiveSpecError(f"stop.reversals={rev!r} is invalid: must be a whole number >= 1")
         if spec.get("rule", "1-up-2-down") not in RULES:
             raise AdaptiveSpecError(f"rule {spec.get('rule')!r} is not one of {', '.join(RULES)}")
         steps = spec.get("steps", [1])
@@ -375,6 +379,59 @@ def replay(spec: dict, seed: int, history: Iterable[Sequence]) -> Procedure:
     return proc
 
 
+# -- a protocol's adaptive design --------------------------------------------------------------------------------
+def level_condition(condition: str, level: float) -> str:
+    """The name of ``condition`` rendered at ``level`` (a stimulus folder name): ``VaFR(0.316228)``."""
+    return f"{condition}({float(level):.6g})"
+
+
+def procedure_id(condition: str, scene: str) -> str:
+    """The id of the procedure of ``condition`` on ``scene``: ``VaFR@temple`` (the export's ``procedure``)."""
+    return f"{condition}@{scene}"
+
+
+@dataclass(frozen=True)
+class Varied:
+    """A condition's varied parameter: name, scale, direction of stronger foveation, the levels (ladder)."""
+
+    condition: str
+    param: str
+    scale: str
+    stronger: str
+    levels: tuple[float, ...]
+    start: float | None = None
+
+
+@dataclass(frozen=True)
+class AdaptiveDesign:
+    """``design.adaptive`` of a protocol, checked (:func:`studyapp.runner.protocol.load_protocol`)."""
+
+    reference: str
+    varied: dict[str, Varied]
+    procedure: dict = field(default_factory=dict)
+    stop: dict = field(default_factory=dict)
+    guess: tuple[float, ...] = (0.5,)
+
+    @property
+    def cap(self) -> int:
+        """Trials planned per procedure (``stop.trials``)."""
+        return int(self.stop["trials"])
+
+    def spec(self, condition: str) -> dict:
+        """The :func:`make_procedure` spec of ``condition``'s procedures."""
+        v = self.varied[condition]
+        out = {"method": "quest_plus", **self.procedure, "levels": list(v.levels), "scale": v.scale,
+               "stronger": v.stronger, "stop": dict(self.stop),
+               "guess": self.guess[0] if len(self.guess) == 1 else list(self.guess)}
+        if v.start is not None:
+            out["start"] = v.start
+        return out
+
+    def level_conditions(self) -> dict[str, tuple[str, float]]:
+        """Every ``condition(level)`` name -> (condition, level), conditions in order, levels ascending."""
+        return {level_condition(c, lv): (c, lv) for c, v in self.varied.items() for lv in v.levels}
+
+
 # -- interleaving ----------------------------------------------------------------------------------------------
 def pick_interleaved(procedures: dict[str, Procedure], seed: int, trial_index: int) -> str | None:
     """The id of the procedure that runs trial ``trial_index`` of a block: one of the unfinished ones, drawn at
@@ -387,5 +444,6 @@ def pick_interleaved(procedures: dict[str, Procedure], seed: int, trial_index: i
     return open_ids[int(rng.integers(len(open_ids)))]
 
 
-__all__ = ["AdaptiveSpecError", "Procedure", "QuestPlusProcedure", "StaircaseProcedure", "check_spec", "grid",
-           "intensity", "level_of", "make_procedure", "pick_interleaved", "replay"]
+__all__ = ["AdaptiveDesign", "AdaptiveSpecError", "Procedure", "QuestPlusProcedure", "StaircaseProcedure", "Varied",
+           "check_spec", "grid", "intensity", "level_condition", "level_of", "make_procedure", "pick_interleaved",
+           "procedure_id", "replay"]
