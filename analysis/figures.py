@@ -121,9 +121,10 @@ def _strength_xaxis(ax, axis_unit: str, stronger: str) -> None:
     """Levels on a log axis for a log domain; reversed where a lower level is stronger foveation, so that
     foveation always grows to the right."""
     if axis_unit == "log10":
-        from matplotlib.ticker import FuncFormatter, NullFormatter
+        from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
         ax.set_xscale("log")
+        ax.xaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))  # labels within one decade too
         ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
         ax.xaxis.set_minor_formatter(NullFormatter())
     if stronger == "lower":

@@ -256,7 +256,7 @@ def threshold_tables(res) -> dict[str, Table]:
                    _g(r.gt_cost), fmt_num(r.relative_cost, 3),
                    f"{fmt_num(r.relative_cost_ci_low, 3)}–{fmt_num(r.relative_cost_ci_high, 3)}",
                    f"{fmt_num(r.speedup, 2)}x") for r in p.itertuples()),
-            f"Speed at threshold: {res.cost_label} per frame at the group threshold, its 95 % CI carried through "
+            f"Speed at threshold: {res.cost_label} at the group threshold, its 95 % CI carried through "
             "from the threshold's, against the ground truth's")
     return out
 

@@ -69,3 +69,43 @@ def format_power(widths, pairs) -> str:
     for r in pairs.itertuples():
         lines.append(f"{r.a + ' vs ' + r.b:<26} {r.scene:<16} {r.unit:<14} {r.p_told_apart:>13.0%}")
     return "\n".join(lines)
+
+
+#: The demo's threshold study: protocol, simulated participants.
+DEMO_THRESHOLD = ("threshold_foveation", 8)
+
+
+def demo_step(out_dir, progress=None) -> list:
+    """The demo's threshold study: simulated participants (the protocol's declared psychometric observer, no
+    images needed) run ``threshold_foveation`` into a fresh database, then its analysis as ``studyapp analyze``
+    writes it, the cost of each ladder counted at the study's size (frames in ``out_dir/cost_cache``); ends with
+    the Pareto table printed and the Pareto figure's path."""
+    from pathlib import Path
+
+    from data_schema import store
+    from studyapp.runner.observer import SimulatedObserver
+    from studyapp.runner.session import ground_truth_stimuli, run_session
+
+    from .analyze import write_thresholds
+    from .study import SHIPPED, _protocol
+
+    name, n = DEMO_THRESHOLD
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    p = _protocol(str(SHIPPED / f"{name}.yaml"), stimuli=str(out / "stimuli"))
+    db = out / f"{name}.db"
+    for suffix in ("", "-wal", "-shm"):
+        Path(str(db) + suffix).unlink(missing_ok=True)
+    for i in range(1, n + 1):
+        pid = f"P{i:02d}"
+        if progress:
+            progress(f"{name}: simulated participant {pid}")
+        run_session(p, pid, db, lambda st, d, pid=pid: SimulatedObserver(p, pid, 0, ground_truth_stimuli(p, st)),
+                    seed=0, allow_declared=True)
+    written = [db, store.export_csv(db, out / f"{name}_trials.csv")]
+    written += write_thresholds(db, p, out / "analysis", cache=str(out / "cost_cache"), n_boot=1000,
+                                title=f"Simulated threshold study {name} ({n} participants)")
+    table = (out / "analysis" / "tables" / "thresholds_pareto.md").read_text()
+    print("\n" + table, flush=True)
+    print(f"      Pareto figure: {out / 'analysis' / 'figures' / 'pareto.png'}", flush=True)
+    return written
