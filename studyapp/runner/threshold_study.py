@@ -208,6 +208,9 @@ def power_analysis(protocol: Protocol, participants: int, *, trials: int | None 
     from scipy import stats
 
     from analysis.thresholds import POOLED, FitSettings, fit_thresholds, group_table
+    from data_schema.errors import UserError
+
+    from .observer import declared_function
 
     fam = families.get(protocol.family)
     settings = settings or FitSettings()
@@ -215,6 +218,11 @@ def power_analysis(protocol: Protocol, participants: int, *, trials: int | None 
     alpha = float(protocol.analysis.get("alpha", 0.05))
     varied = protocol.adaptive.varied
     pairs = list(itertools.combinations(varied, 2))
+    for c in varied:  # every varied condition declares its observer: refused before any rendering
+        for s in protocol.scenes:
+            if declared_function(protocol, c, s, "P01", seed) is None:
+                raise UserError(f"condition {c}: no declared psychometric function to simulate "
+                                "(simulation.psychometric)")
     cost_fn = None
     if any((varied[a].param, varied[a].scale, varied[a].stronger) != (varied[b].param, varied[b].scale,
                                                                         varied[b].stronger) for a, b in pairs):
