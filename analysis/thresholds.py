@@ -43,9 +43,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-__all__ = ["FIT_COLUMNS", "GROUP_COLUMNS", "MIN_TRIALS", "PARETO_COLUMNS", "POOLED", "PRIOR_TEXT", "Axis", "FitSettings",
-           "detection", "pareto",
-           "fit_thresholds", "group_table", "psychometric"]
+__all__ = ["FIT_COLUMNS", "GROUP_COLUMNS", "MIN_TRIALS", "PARETO_COLUMNS", "POOLED", "PRIOR_TEXT", "Axis",
+           "FitSettings", "ThresholdAnalysis", "adaptive_trials", "detection", "fit_one", "fit_thresholds",
+           "group_table", "pareto", "psychometric"]
 
 #: The participant label of the fit pooled over participants.
 POOLED = "(pooled)"
@@ -138,8 +138,8 @@ class FitSettings:
     def describe(self) -> str:
         grid = (", ".join(f"{k} {v}" for k, v in self.grid_steps) if self.grid_steps else
                 "psignifit's defaults (threshold 40, width 40, lambda 20, gamma 20, eta 20)")
-        return (f"psignifit 4, {self.sigmoid} sigmoid on the strength axis, posterior median at the criterion, {CI_LEVEL:.0%} "
-                f"credible intervals from the posterior grid; fine grid points: {grid}")
+        return (f"psignifit 4, {self.sigmoid} sigmoid on the strength axis, posterior median at the criterion, "
+                f"{CI_LEVEL:.0%} credible intervals from the posterior grid; fine grid points: {grid}")
 
 
 def psychometric(x, threshold_x: float, width: float, guess: float, lapse: float, criterion: float,

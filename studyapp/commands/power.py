@@ -22,7 +22,8 @@ def register(sub, parser_class) -> None:
                    metavar="N", help="participants per simulated study, in [1, 1000]")
     p.add_argument("--trials", type=argtype("--trials", Range(2, 10000, integer=True)), metavar="T",
                    help="trials per procedure (default: the protocol's stop.trials)")
-    p.add_argument("--replications", type=argtype("--replications", Range(1, 10000, integer=True)), default=20, metavar="R",
+    p.add_argument("--replications", type=argtype("--replications", Range(1, 10000, integer=True)), default=20,
+                   metavar="R",
                    help="simulated studies (default 20)")
     p.add_argument("--seed", type=argtype("--seed", SEED), default=0, metavar="S", help="seed (default 0)")
     p.add_argument("--cost-scale", type=argtype("--cost-scale", Range(0.0, 1.0, low_open=True)), default=0.25,
