@@ -261,6 +261,21 @@ def threshold_tables(res) -> dict[str, Table]:
     return out
 
 
+def _map_figures(fn, jobs: list, workers: int = 2):
+    """``fn(*job)`` for every job, in order; in ``workers`` forked processes when there are several (each figure
+    is drawn and saved whole by one process: the files do not depend on the split)."""
+    import multiprocessing as mp
+
+    if workers > 1 and len(jobs) >= 4 and "fork" in mp.get_all_start_methods():
+        import concurrent.futures as cf
+
+        with cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("fork")) as ex:
+            yield from ex.map(fn, *zip(*jobs))
+        return
+    for job in jobs:
+        yield fn(*job)
+
+
 def write_threshold_report(res, out_dir, title: str = "Threshold study", figures: bool = True,
                            progress=None) -> list[Path]:
     """Write a threshold study's analysis (:class:`analysis.thresholds.ThresholdAnalysis`) into ``out_dir``:
@@ -304,13 +319,13 @@ def write_threshold_report(res, out_dir, title: str = "Threshold study", figures
 
         md += ["## Fits", ""]
         who = sorted(set(res.fits["participant"]) - {POOLED}) + [POOLED]
-        for i, pid in enumerate(who):
+        jobs = [(res.trials if pid == POOLED else res.trials[res.trials["participant"] == pid],
+                 res.fits[res.fits["participant"] == pid],
+                 inside(fdir, f"fits_{'pooled' if pid == POOLED else _slug(pid)}.png"),
+                 f"{pid}: proportion correct per level (marker area ∝ trials), fit, threshold and 95 % CI")
+                for pid in who]
+        for i, (pid, p) in enumerate(zip(who, _map_figures(psychometric_figure, jobs))):
             say(f"fit figures {i + 1}/{len(who)}")
-            trials = res.trials if pid == POOLED else res.trials[res.trials["participant"] == pid]
-            name = "pooled" if pid == POOLED else _slug(pid)
-            p = psychometric_figure(trials, res.fits[res.fits["participant"] == pid],
-                                    inside(fdir, f"fits_{name}.png"), f"{pid}: proportion correct per level "
-                                    "(marker area ∝ trials), fit, threshold and 95 % CI")
             written.append(p)
             md += [f"![{pid}]({p.relative_to(out).as_posix()})", ""]
     doc = {"family": res.family, "criterion": res.criterion, "settings": res.settings, "prior": PRIOR_TEXT,

@@ -11,9 +11,8 @@ import pandas as pd
 import pytest
 
 from studyapp.cli import main
-from studyapp.commands.study import SHIPPED, _protocol
-from studyapp.runner.observer import SimulatedObserver, declared_function
-from studyapp.runner.session import ground_truth_stimuli, run_session
+from studyapp.commands.study import SHIPPED, _protocol, simulated_study
+from studyapp.runner.observer import declared_function
 
 
 @pytest.fixture(scope="module")
@@ -27,10 +26,7 @@ def study(tmp_path_factory):
     path = d / "thr.yaml"
     path.write_text(yaml.safe_dump(data))
     p = _protocol(str(path), stimuli=str(d / "stimuli"))
-    db = d / "thr.db"
-    for pid in ("P01", "P02", "P03"):
-        run_session(p, pid, db, lambda st, disp, pid=pid: SimulatedObserver(p, pid, 0, ground_truth_stimuli(p, st)),
-                    seed=0, allow_declared=True)
+    db = simulated_study(p, d / "thr.db", 3, allow_declared=True)
     return p, db, path
 
 

@@ -84,25 +84,15 @@ def demo_step(out_dir, progress=None) -> list:
     from pathlib import Path
 
     from data_schema import store
-    from studyapp.runner.observer import SimulatedObserver
-    from studyapp.runner.session import ground_truth_stimuli, run_session
 
     from .analyze import write_thresholds
-    from .study import SHIPPED, _protocol
+    from .study import SHIPPED, _protocol, simulated_study
 
     name, n = DEMO_THRESHOLD
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     p = _protocol(str(SHIPPED / f"{name}.yaml"), stimuli=str(out / "stimuli"))
-    db = out / f"{name}.db"
-    for suffix in ("", "-wal", "-shm"):
-        Path(str(db) + suffix).unlink(missing_ok=True)
-    for i in range(1, n + 1):
-        pid = f"P{i:02d}"
-        if progress:
-            progress(f"{name}: simulated participant {pid}")
-        run_session(p, pid, db, lambda st, d, pid=pid: SimulatedObserver(p, pid, 0, ground_truth_stimuli(p, st)),
-                    seed=0, allow_declared=True)
+    db = simulated_study(p, out / f"{name}.db", n, progress, allow_declared=True)
     written = [db, store.export_csv(db, out / f"{name}_trials.csv")]
     written += write_thresholds(db, p, out / "analysis", cache=str(out / "cost_cache"), n_boot=1000,
                                 title=f"Simulated threshold study {name} ({n} participants)")
