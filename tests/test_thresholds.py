@@ -162,3 +162,36 @@ def test_figures_are_byte_identical_run_to_run(tmp_path):
     c = pareto_figure(curves, table, tmp_path / "c.png", "Pareto", "rays relative to GT")
     d = pareto_figure(curves, table, tmp_path / "d.png", "Pareto", "rays relative to GT")
     assert c.read_bytes() == d.read_bytes()
+
+
+def test_yes_no_fit_estimates_the_false_alarm_rate_and_the_50_percent_level():
+    """yes/no: "not the ground truth" is correct; the guess rate (false alarms) is fitted, the threshold is
+    where half the answers say "not the ground truth"."""
+    rng = np.random.default_rng(5)
+    ax = Axis("log", "higher", (0.5, 5.0))
+    lv = rng.choice(np.geomspace(0.5, 5.0, 9), 600)
+    pc = psychometric(ax.to_x(lv), np.log10(2.0), 0.6, 0.1, 0.02, 0.5)
+    df = pd.DataFrame({"participant": "P01", "condition": "FSL", "scene": "cornell", "level": lv,
+                       "correct": (rng.random(lv.size) < pc).astype(int)})
+    r = fit_thresholds(df, criterion=0.5, experiment_type="yes/no", axes={"FSL": ax}, pooled=False).iloc[0]
+    assert r["estimable"] and abs(math.log10(r["threshold"] / 2.0)) < 0.08
+    assert r["guess"] == pytest.approx(0.1, abs=0.06) and r["ci_low"] < 2.0 < r["ci_high"]
+
+
+def test_the_simulated_observer_answers_each_family_from_the_drawn_outcome():
+    """An adaptive trial's outcome becomes the family's answer: 2AFC the original's side when correct, yes/no
+    "no" (not the ground truth) when detected."""
+    from types import SimpleNamespace
+
+    from studyapp.runner.observer import DeclaredFunction, SimulatedObserver
+
+    spec = {"scale": "log", "stronger": "higher"}
+    sure = DeclaredFunction("LaFR", spec, -5.0, 5.0, 0.0, 0.5)  # far above threshold: always correct
+    rng = np.random.default_rng(0)
+    for order, expect in ((("GT", "LaFR(2)"), "A"), (("LaFR(2)", "GT"), "B")):
+        trial = SimpleNamespace(family="2afc", level=2.0, stimuli=[SimpleNamespace(condition=c) for c in order])
+        assert SimulatedObserver._psychometric_answer(None, trial, sure, rng)[0] == [expect]
+    trial = SimpleNamespace(family="yes_no", level=2.0, stimuli=[SimpleNamespace(condition="LaFR(2)")])
+    assert SimulatedObserver._psychometric_answer(None, trial, sure, rng)[0] == ["no"]
+    never = DeclaredFunction("LaFR", spec, 5.0, 5.0, 0.0, 0.0)  # yes/no, no false alarms, far below threshold
+    assert SimulatedObserver._psychometric_answer(None, trial, never, rng)[0] == ["yes"]
