@@ -120,7 +120,8 @@ CREATE TABLE events (
     kind TEXT NOT NULL, detail TEXT NOT NULL, crc TEXT NOT NULL);
 CREATE TABLE adaptive (
     participant TEXT NOT NULL, idx INTEGER NOT NULL, procedure TEXT NOT NULL, varied TEXT NOT NULL,
-    level REAL NOT NULL, intensity REAL NOT NULL, correct INTEGER, estimate_mean REAL, estimate_sd REAL, state TEXT NOT NULL,
+    level REAL NOT NULL, intensity REAL NOT NULL, correct INTEGER, estimate_mean REAL, estimate_sd REAL,
+    state TEXT NOT NULL,
     skipped INTEGER NOT NULL, crc TEXT NOT NULL,
     PRIMARY KEY (participant, idx),
     FOREIGN KEY (participant, idx) REFERENCES responses(participant, idx)) WITHOUT ROWID;

@@ -5,10 +5,8 @@ levels of an uninterrupted run; procedures that stop early skip their remaining 
 import json
 import os
 import random
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pandas as pd
@@ -18,6 +16,7 @@ from data_schema.store import open_store, read_trials
 from studyapp.runner.adaptive import replay
 from studyapp.runner.protocol import load_protocol
 from studyapp.runner.simulate import simulate_log
+from sigkill import start_and_kill
 
 ROOT = Path(__file__).resolve().parents[1]
 BASE = ROOT / "studyapp" / "protocols" / "threshold_foveation.yaml"
@@ -104,19 +103,9 @@ def test_sigkill_at_random_points_then_resume_proposes_the_uninterrupted_levels(
     db = tmp_path / "study.db"
     kills = 0
     while kills < KILLS:
-        resume = db.exists()
-        proc = subprocess.Popen(_cmd(proto, db, resume), cwd=tmp_path, env=env, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True)
-        line = proc.stdout.readline()
-        if "started" in line:
-            time.sleep(rng.uniform(0.0, 0.25))
-        if proc.poll() is None:
-            os.kill(proc.pid, signal.SIGKILL)
-            kills += 1
-        proc.wait()
-        proc.stdout.close()
-        proc.stderr.close()
-        if proc.returncode == 0:
+        killed, code = start_and_kill(_cmd(proto, db, db.exists()), tmp_path, env, rng, 0.25)
+        kills += killed
+        if code == 0:
             break
     if db.exists():
         with open_store(db) as st:
@@ -137,3 +126,50 @@ def test_sigkill_at_random_points_then_resume_proposes_the_uninterrupted_levels(
     assert got == want  # levels, answers, estimates and states
     with open_store(db) as st:
         assert len(st.sessions()) > 1
+
+
+def _stopping_factory(protocol, stop_after):
+    """The simulated observer, interrupted (as by Ctrl-C) when asked for trial number ``stop_after + 1``."""
+    from studyapp.runner.observer import SimulatedObserver
+    from studyapp.runner.session import ground_truth_stimuli
+
+    def make(stimuli, display):
+        obs = SimulatedObserver(protocol, "P1", 2, ground_truth_stimuli(protocol, stimuli))
+        answer, asked = obs.present, []
+
+        def present(d):
+            asked.append(d.index)
+            if stop_after is not None and len(asked) > stop_after:
+                raise KeyboardInterrupt
+            return answer(d)
+
+        obs.present = present
+        return obs
+    return make
+
+
+def test_resume_continues_each_procedure_and_refuses_a_lost_adaptive_record(tmp_path):
+    import sqlite3
+
+    from data_schema.store import StoreError
+    from studyapp.runner.session import run_session
+
+    p = load_protocol(_protocol(tmp_path), stimuli_dir=tmp_path / "none")
+    kw = {"seed": 2, "allow_declared": True}
+    run_session(p, "P1", tmp_path / "full.db", _stopping_factory(p, None), **kw)
+    db = tmp_path / "s.db"
+    for stop in (5, 7, 11):  # interrupted three times, then finished
+        with pytest.raises(KeyboardInterrupt):
+            run_session(p, "P1", db, _stopping_factory(p, stop), resume=db.exists(), **kw)
+    run_session(p, "P1", db, _stopping_factory(p, None), resume=True, **kw)
+    assert _adaptive(db) == _adaptive(tmp_path / "full.db")
+    # an answered trial whose adaptive record vanished (a damaged file) is refused, not replayed short
+    db2 = tmp_path / "s2.db"
+    with pytest.raises(KeyboardInterrupt):
+        run_session(p, "P1", db2, _stopping_factory(p, 9), **kw)
+    con = sqlite3.connect(db2)
+    con.execute("DELETE FROM adaptive WHERE idx = (SELECT MAX(idx) FROM adaptive)")
+    con.commit()
+    con.close()
+    with pytest.raises(StoreError, match="adaptive record of an answered trial is missing"):
+        run_session(p, "P1", db2, _stopping_factory(p, None), resume=True, **kw)
