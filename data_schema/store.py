@@ -120,7 +120,8 @@ CREATE TABLE events (
     kind TEXT NOT NULL, detail TEXT NOT NULL, crc TEXT NOT NULL);
 CREATE TABLE adaptive (
     participant TEXT NOT NULL, idx INTEGER NOT NULL, procedure TEXT NOT NULL, varied TEXT NOT NULL,
-    level REAL NOT NULL, intensity REAL NOT NULL, correct INTEGER, estimate_mean REAL, estimate_sd REAL, state TEXT NOT NULL,
+    level REAL NOT NULL, intensity REAL NOT NULL, correct INTEGER, estimate_mean REAL, estimate_sd REAL,
+    state TEXT NOT NULL,
     skipped INTEGER NOT NULL, crc TEXT NOT NULL,
     PRIMARY KEY (participant, idx),
     FOREIGN KEY (participant, idx) REFERENCES responses(participant, idx)) WITHOUT ROWID;
@@ -564,8 +565,7 @@ class Store:
             if a is not None:
                 if a["skipped"]:  # the procedure had stopped: nothing was shown, nothing answered
                     continue
-                r.update({c: a[c] for c in ADAPTIVE_COLUMNS if c != "correct"}, correct=int(a["correct"]),
-                         condition=a["procedure"].rsplit("@", 1)[0])  # the varied condition (2afc too)
+                r.update(adaptive_columns(a))
             out.append(r)
         return out
 
@@ -745,6 +745,16 @@ def check_frame(path, row: dict, n_stimuli: int) -> dict:
 def _frame_refusal(path, row: dict, field: str, why: str) -> StoreError:
     return StoreError(f"{path}: participant {_short(row.get('participant'))}, trial {_short(row.get('idx'))}, "
                       f"frame {_short(row.get('frame'))}: {field}={_short(row[field])} is invalid: {why}{_NOT_OURS}")
+
+
+def adaptive_columns(row) -> dict:
+    """The tidy log's adaptive columns (:data:`ADAPTIVE_COLUMNS`) of an adaptive trial (an :class:`AdaptiveRow`
+    or a row of :meth:`Store.adaptive_rows`), and ``condition``: the varied condition (2afc trials too)."""
+    get = row.get if isinstance(row, dict) else (lambda k: getattr(row, k))
+    out = {c: get(c) for c in ADAPTIVE_COLUMNS}
+    out["correct"] = int(out["correct"])
+    out["condition"] = get("procedure").rsplit("@", 1)[0]
+    return out
 
 
 def tidy_row(participant: str, session: str, block: str, scene: str, trial: int, family: str,

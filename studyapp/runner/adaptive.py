@@ -432,18 +432,6 @@ class AdaptiveDesign:
         return {level_condition(c, lv): (c, lv) for c, v in self.varied.items() for lv in v.levels}
 
 
-# -- interleaving ----------------------------------------------------------------------------------------------
-def pick_interleaved(procedures: dict[str, Procedure], seed: int, trial_index: int) -> str | None:
-    """The id of the procedure that runs trial ``trial_index`` of a block: one of the unfinished ones, drawn at
-    random (uniformly, in sorted id order) from a generator seeded by ``(seed, trial_index)`` alone, so the
-    choice is the same in a resumed run. None when all have finished."""
-    open_ids = sorted(pid for pid, p in procedures.items() if not p.finished())
-    if not open_ids:
-        return None
-    rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, int(trial_index)])
-    return open_ids[int(rng.integers(len(open_ids)))]
-
-
 __all__ = ["AdaptiveDesign", "AdaptiveSpecError", "Procedure", "QuestPlusProcedure", "StaircaseProcedure", "Varied",
-           "check_spec", "grid", "intensity", "level_condition", "level_of", "make_procedure", "pick_interleaved",
-           "procedure_id", "replay"]
+           "check_spec", "grid", "intensity", "level_condition", "level_of", "make_procedure", "procedure_id",
+           "replay"]

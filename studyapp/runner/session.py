@@ -398,17 +398,23 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
 
     if todo:
         presenter.preload(display_of(todo[0]))
+    def advance(k, t):
+        """Count ``t`` as done and preload the next trial."""
+        nonlocal number, shown
+        if t.kind != "reference":
+            number += 1
+        shown += counted(t)
+        displays.pop(t.idx, None)
+        if progress:
+            progress(number, total)
+        if k + 1 < len(todo):
+            presenter.preload(display_of(todo[k + 1]))
+
     for k, t in enumerate(todo):
         if adaptive is not None and adaptive.procedure_of(t) and adaptive.finished(t):
             # the procedure stopped early: the slot is recorded as skipped, nothing is shown
             store.commit_response(pid, t.idx, sid, [], adaptive=adaptive.skip(t))
-            number += 1
-            shown += counted(t)
-            displays.pop(t.idx, None)
-            if progress:
-                progress(number, total)
-            if k + 1 < len(todo):
-                presenter.preload(display_of(todo[k + 1]))
+            advance(k, t)
             continue
         if t.break_before and not first and protocol.breaks:
             br = protocol.breaks
@@ -443,14 +449,7 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
                               adaptive=row)
         for line in _slow_trial(t, result.frames, floor):
             (console or warn_line)(line)
-        if t.kind != "reference":
-            number += 1
-        shown += counted(t)
-        displays.pop(t.idx, None)
-        if progress:
-            progress(number, total)
-        if k + 1 < len(todo):
-            presenter.preload(display_of(todo[k + 1]))
+        advance(k, t)
     store.end_session(sid, "completed")
     presenter.message("Thank you! The session is complete.", 2.0)
     return "completed"
