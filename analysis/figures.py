@@ -185,7 +185,11 @@ def psychometric_figure(trials: pd.DataFrame, fits: pd.DataFrame, path: Path, ti
             ax.tick_params(labelsize=6.5)
             ax.grid(alpha=0.25)
     fig.suptitle(title, fontsize=9)
-    fig.tight_layout()
+    # fixed margins in inches: tight_layout cost as much as drawing the figure, and a report has one per
+    # participant
+    w, h = fig.get_size_inches()
+    fig.subplots_adjust(left=0.62 / w, right=1 - 0.15 / w, bottom=0.45 / h, top=1 - 0.5 / h, wspace=0.32,
+                        hspace=0.5)
     return _save(fig, path)
 
 
