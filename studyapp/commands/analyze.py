@@ -28,7 +28,9 @@ and per-block breakdowns, Thurstone (JOD) / Bradley-Terry / Plackett-Luce scales
 intervals, and logistic GEE odds ratios against the reference (--test ... gee).
 Output: DIR/report.md, DIR/tables/*.md|.tex|.csv, DIR/figures/*.png, DIR/analysis.json. The plan
 comes from the study database (its protocol's analysis block), from --plan, or from the options
-below; options override the plan. The same input gives byte-identical output."""
+below; options override the plan. An adaptive (threshold) protocol gets psignifit 4 fits per participant,
+renderer and scene and pooled, the group table and the speed at threshold (Pareto figure) instead
+(docs/thresholds.md). The same input gives byte-identical output."""
 
 
 def register(sub, parser_class) -> None:
