@@ -148,6 +148,10 @@ def cmd_analyze(args) -> int:
     protocol = adaptive_protocol(log, args.protocol)
     if protocol is not None:  # an adaptive design: psychometric fits and the Pareto front, not the fixed tests
         out = check_dir_target(args.out, marker="analysis.json")
+        if args.cache:
+            from data_schema.atomic import real_folder
+
+            real_folder(args.cache, "--cache")
         paths = write_thresholds(log, protocol, out, figures=not args.no_figures, cost_scale=args.cost_scale,
                                  cache=args.cache, n_boot=args.n_boot, seed=args.seed)
         end_status()

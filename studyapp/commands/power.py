@@ -17,7 +17,8 @@ output."""
 
 def register(sub, parser_class) -> None:
     p = sub.add_parser("power", help=HELP, description=DESCRIPTION)
-    p.add_argument("protocol", metavar="PROTOCOL.yaml", help="an adaptive protocol with simulation.psychometric")
+    p.add_argument("protocol", metavar="PROTOCOL", help="an adaptive protocol file with simulation.psychometric, "
+                   "or a shipped one by name (threshold_foveation)")
     p.add_argument("--participants", type=argtype("--participants", Range(1, 1000, integer=True)), required=True,
                    metavar="N", help="participants per simulated study, in [1, 1000]")
     p.add_argument("--trials", type=argtype("--trials", Range(2, 10000, integer=True)), metavar="T",
@@ -34,12 +35,12 @@ def register(sub, parser_class) -> None:
 
 def cmd_power(args) -> int:
     from studyapp.progress import Bar
-    from studyapp.runner.protocol import load_protocol
     from studyapp.runner.threshold_study import power_analysis
 
     from . import end_status, status
+    from .study import _protocol
 
-    protocol = load_protocol(args.protocol)
+    protocol = _protocol(args.protocol)  # a file, or a shipped protocol by name
     if getattr(protocol, "adaptive", None) is None:
         from data_schema.errors import UserError
 
