@@ -24,7 +24,7 @@ Tables
 ``adaptive``       one row per trial of an adaptive design, written with its response: the procedure
                    (``VaFR@temple``), the varied parameter, the level shown, whether the answer was correct
                    (detected), the procedure's running estimate and state (JSON) after it; ``skipped``: the
-                   procedure had stopped early, nothing was shown (absent from databases written before it)
+                   procedure had stopped early, nothing was shown (created by the first adaptive trial)
 ``events``         pause, resume, end, break and error events per session; ``scenes`` (live sessions, written
                    with the session): the protocol folder and each scene's content hash, for ``replay``
                    ``fps_check`` (live sessions in a window): the frame-rate check before the first trial
@@ -118,13 +118,6 @@ CREATE TABLE responses (
 CREATE TABLE events (
     id INTEGER PRIMARY KEY, session TEXT NOT NULL REFERENCES sessions(id), t_utc TEXT NOT NULL,
     kind TEXT NOT NULL, detail TEXT NOT NULL, crc TEXT NOT NULL);
-CREATE TABLE adaptive (
-    participant TEXT NOT NULL, idx INTEGER NOT NULL, procedure TEXT NOT NULL, varied TEXT NOT NULL,
-    level REAL NOT NULL, intensity REAL NOT NULL, correct INTEGER, estimate_mean REAL, estimate_sd REAL,
-    state TEXT NOT NULL,
-    skipped INTEGER NOT NULL, crc TEXT NOT NULL,
-    PRIMARY KEY (participant, idx),
-    FOREIGN KEY (participant, idx) REFERENCES responses(participant, idx)) WITHOUT ROWID;
 CREATE TABLE frames (
     participant TEXT NOT NULL, idx INTEGER NOT NULL, frame INTEGER NOT NULL, stimulus INTEGER NOT NULL,
     flip_s REAL NOT NULL, render_s REAL, gaze_t REAL, gaze_x REAL, gaze_y REAL, pos_x REAL, pos_y REAL,
@@ -134,7 +127,19 @@ CREATE TABLE frames (
 """
 
 
-#: Tables a database written before them lacks (read as empty; such a study has no rows for them).
+#: The ``adaptive`` table, created by the first adaptive trial's commit (a study without adaptive trials keeps the
+#: file layout it had before the table existed).
+ADAPTIVE_SCHEMA = """
+CREATE TABLE IF NOT EXISTS adaptive (
+    participant TEXT NOT NULL, idx INTEGER NOT NULL, procedure TEXT NOT NULL, varied TEXT NOT NULL,
+    level REAL NOT NULL, intensity REAL NOT NULL, correct INTEGER, estimate_mean REAL, estimate_sd REAL,
+    state TEXT NOT NULL,
+    skipped INTEGER NOT NULL, crc TEXT NOT NULL,
+    PRIMARY KEY (participant, idx),
+    FOREIGN KEY (participant, idx) REFERENCES responses(participant, idx)) WITHOUT ROWID;
+"""
+
+#: Tables a database may lack (written before them, or without adaptive trials): read as empty.
 OPTIONAL_TABLES = ("adaptive",)
 
 
@@ -497,6 +502,7 @@ class Store:
                                      None if correct is None else int(correct), utc_now()))
             if adaptive is not None:
                 a = adaptive
+                c.execute(ADAPTIVE_SCHEMA)
                 _insert(c, "adaptive", (pid, idx, a.procedure, a.varied, float(a.level), float(a.intensity),
                                         None if a.correct is None else int(a.correct), _real(a.estimate_mean),
                                         _real(a.estimate_sd), a.state, int(a.skipped)))
@@ -875,6 +881,7 @@ def verify(path: Path, conn: sqlite3.Connection) -> None:
                     ok = False
                 if not ok:
                     raise _damaged(path, f"a row of {table} fails its checksum")
+        _check_adaptive(path, conn, have)
         for pid, n_planned, n_answered, n_frames in conn.execute(
                 "SELECT id, n_planned, n_answered, n_frames FROM participants"):
             got = tuple(conn.execute(f"SELECT COUNT(*) FROM {t} WHERE participant = ?", (pid,)).fetchone()[0]
@@ -886,6 +893,27 @@ def verify(path: Path, conn: sqlite3.Connection) -> None:
         raise _damaged(path, f"a text value is not UTF-8 ({exc.reason})") from None
     except sqlite3.DatabaseError as exc:
         raise _damaged(path, str(exc).splitlines()[0]) from None
+
+
+def _check_adaptive(path: Path, conn: sqlite3.Connection, have: set[str]) -> None:
+    """Every answered trial of an adaptive design (a planned trial that shows a condition of the recorded
+    protocol's ``design.adaptive.vary``) has its ``adaptive`` row: without it the procedures would replay a
+    shorter history and the export would lose the trial's level."""
+    row = conn.execute("SELECT value FROM study WHERE key = 'protocol_json'").fetchone()
+    proto = _json(row[0]) if row else None
+    adaptive = ((proto or {}).get("design") or {}).get("adaptive") if isinstance(proto, dict) else None
+    varied = set((adaptive or {}).get("vary") or {}) if isinstance(adaptive, dict) else set()
+    if not varied:
+        return
+    recorded = set(conn.execute("SELECT participant, idx FROM adaptive").fetchall()) if "adaptive" in have else set()
+    for pid, idx, conds in conn.execute("SELECT r.participant, r.idx, t.conditions FROM responses r JOIN "
+                                        "planned_trials t ON t.participant = r.participant AND t.idx = r.idx "
+                                        "WHERE t.kind = 'trial'"):
+        shown = _json(conds)
+        if isinstance(shown, list) and varied & {c for c in shown if isinstance(c, str)} and \
+                (pid, idx) not in recorded:
+            raise _damaged(path, f"participant {pid!r}, trial {idx}: an answered adaptive trial has no adaptive "
+                           "record")
 
 
 def open_store(path, mode: str = "read") -> Store:

@@ -171,5 +171,7 @@ def test_resume_continues_each_procedure_and_refuses_a_lost_adaptive_record(tmp_
     con.execute("DELETE FROM adaptive WHERE idx = (SELECT MAX(idx) FROM adaptive)")
     con.commit()
     con.close()
-    with pytest.raises(StoreError, match="adaptive record of an answered trial is missing"):
+    with pytest.raises(StoreError, match="is damaged .*an answered adaptive trial has no adaptive record"):
         run_session(p, "P1", db2, _stopping_factory(p, None), resume=True, **kw)
+    with pytest.raises(StoreError, match="no adaptive record"):  # nor exported without its level
+        read_trials(db2)

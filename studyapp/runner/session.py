@@ -383,8 +383,6 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
     displays = {}
     adaptive = AdaptiveRun(protocol, pid, store.participant(pid)["seed"], store.adaptive_rows(pid),
                            str(store.path)) if protocol.adaptive is not None else None
-    if adaptive is not None:
-        _check_adaptive_rows(store, protocol, pid, planned, answered)
 
     def display_of(t, done=None):
         """The trial's display; ``done`` = counted trials answered before it (default: so far). An adaptive
@@ -453,21 +451,6 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
     store.end_session(sid, "completed")
     presenter.message("Thank you! The session is complete.", 2.0)
     return "completed"
-
-
-def _check_adaptive_rows(store, protocol, pid, planned, answered) -> None:
-    """Every answered adaptive slot has its adaptive row (a row lost from a damaged file would make the
-    procedures replay a shorter history and propose another level): else a one-line refusal."""
-    from .adaptive_run import varied_of
-
-    slots = {t.idx for t in planned if t.kind == "trial" and varied_of(protocol, t.conditions)}
-    have = {r["idx"] for r in store.adaptive_rows(pid)}
-    lost = sorted((slots & set(answered)) - have)
-    if lost or have - slots:
-        where = lost[0] if lost else min(have - slots)
-        raise StoreError(f"{store.path}: participant {pid!r}, trial {where}: the adaptive record of an answered "
-                         "trial is missing or belongs to no adaptive trial (the database is damaged): cannot "
-                         "resume; restore its last good copy")
 
 
 def ground_truth_stimuli(protocol: Protocol, stimuli: StimulusSet) -> dict[str, Stimulus]:
