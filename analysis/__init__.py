@@ -20,6 +20,8 @@ Repeated binary answers
     :func:`logistic_gee` (odds ratios against a reference; statsmodels GEE)
 Image quality against GT, fovea and periphery (scikit-image, imported lazily)
     :func:`image_quality`, :func:`eccentricity_map`, :func:`region_masks`, :func:`error_heatmap`
+Threshold studies (adaptive designs; psignifit 4, imported when a fit runs)
+    :func:`fit_thresholds`, :func:`group_table`, :func:`pareto`, :func:`write_threshold_report`
 A study's whole analysis (``studyapp analyze``)
     :func:`read_log`, :class:`AnalysisPlan` (names from :mod:`analysis.vocabulary`),
     :func:`analyze_log`, :func:`write_report`
@@ -46,9 +48,10 @@ _EXPORTS = {
     "plan": ("AnalysisPlan", "plan_from_mapping"),
     "quality": ("QUALITY_COLUMNS", "RegionMasks", "eccentricity_map", "error_heatmap", "fovea_radius_px",
                 "image_quality", "region_masks", "squared_error_map"),
-    "report": ("report_json", "write_report"),
+    "report": ("report_json", "write_report", "write_threshold_report"),
     "scaling": ("JOD_SIGMA", "ConvergenceError", "bradley_terry", "plackett_luce", "thurstone_jod"),
     "study": ("StudyAnalysis", "analyze_log"),
+    "thresholds": ("Axis", "FitSettings", "ThresholdAnalysis", "fit_thresholds", "group_table", "pareto"),
     "stats": ("KruskalResult", "MannWhitneyResult", "dunn", "format_p", "format_p_cell", "kruskal",
               "mann_whitney", "pairwise_kruskal", "pairwise_matrix", "summary_table"),
 }

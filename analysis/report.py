@@ -25,6 +25,7 @@ from data_schema import families
 from .study import ALL, StudyAnalysis
 from .tables import (
     Table,
+    fmt_num,
     gee_table,
     omnibus_table,
     pairwise_p_table,
@@ -36,7 +37,7 @@ from .tables import (
     votes_table,
 )
 
-__all__ = ["report_json", "write_report"]
+__all__ = ["report_json", "threshold_tables", "write_report", "write_threshold_report"]
 
 _FAMILY_TITLE = {name: fam.title for name, fam in families.FAMILIES.items()}
 
@@ -213,3 +214,125 @@ def group_suffixes(res: StudyAnalysis) -> dict[tuple[str, str], str]:
         owner[name_key(name)] = item
         suffix[item] = "_" + name
     return {(ALL, ALL): "", **{g: suffix[label[g]] for g in groups}}
+
+
+def _g(x: float) -> str:
+    """A threshold or cost: 3 significant digits, ``n/a`` for NaN."""
+    x = float(x)
+    return "n/a" if math.isnan(x) else f"{x:.3g}"
+
+
+def threshold_tables(res) -> dict[str, Table]:
+    """The report's tables of a :class:`analysis.thresholds.ThresholdAnalysis`: the group table, every fit
+    (not-estimable rows with their reason) and, with a cost, the Pareto table."""
+    from .thresholds import POOLED
+
+    # "correct": 2AFC the original picked; yes/no "not the ground truth" said to the test (detected)
+    crit = f"{res.criterion:.0%} correct ({res.family})"
+    g = res.group
+    out = {"thresholds_group": Table(
+        ("condition", "scene", "parameter", "n", "threshold", "95 % CI",
+         f"SD ({g['axis'].iloc[0] if len(g) else ''})", "not estimable"),
+        tuple((r.condition, r.scene, r.varied, str(r.n_participants), _g(r.threshold),
+               f"{_g(r.ci_low)}–{_g(r.ci_high)}", fmt_num(r.sd_x, 3), str(r.n_not_estimable))
+              for r in g.itertuples()),
+        f"Thresholds at {crit}: mean over participants on the strength axis (a log domain: the geometric mean "
+        f"level), between-participant SD, {res.n_boot} bootstrap replicates over participants")}
+    f = res.fits
+    out["thresholds_fits"] = Table(
+        ("participant", "condition", "scene", "trials", "threshold", "95 % CI", "width", "lapse", "guess", "note"),
+        tuple((r.participant, r.condition, r.scene, str(r.n_trials), _g(r.threshold),
+               f"{_g(r.ci_low)}–{_g(r.ci_high)}" if r.estimable else "", fmt_num(r.width, 3) if r.estimable else "",
+               fmt_num(r.lapse, 3) if r.estimable else "", fmt_num(r.guess, 3) if r.estimable else "", r.reason)
+              for r in f.itertuples()),
+        f"psignifit fits per participant and pooled ({POOLED}); threshold at {crit} with its 95 % credible "
+        "interval, width on the strength axis")
+    if res.pareto is not None:
+        p = res.pareto
+        out["thresholds_pareto"] = Table(
+            ("condition", "scene", "threshold", f"{res.cost_label} at threshold", "95 % CI", "GT", "relative",
+             "relative 95 % CI", "speed-up"),
+            tuple((r.condition, r.scene, _g(r.threshold), _g(r.cost), f"{_g(r.cost_ci_low)}–{_g(r.cost_ci_high)}",
+                   _g(r.gt_cost), fmt_num(r.relative_cost, 3),
+                   f"{fmt_num(r.relative_cost_ci_low, 3)}–{fmt_num(r.relative_cost_ci_high, 3)}",
+                   f"{fmt_num(r.speedup, 2)}x") for r in p.itertuples()),
+            f"Speed at threshold: {res.cost_label} at the group threshold, its 95 % CI carried through "
+            "from the threshold's, against the ground truth's")
+    return out
+
+
+def _map_figures(fn, jobs: list, workers: int = 2):
+    """``fn(*job)`` for every job, in order; in ``workers`` forked processes when there are several (each figure
+    is drawn and saved whole by one process: the files do not depend on the split)."""
+    import multiprocessing as mp
+
+    if workers > 1 and len(jobs) >= 4 and "fork" in mp.get_all_start_methods():
+        import concurrent.futures as cf
+
+        with cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("fork")) as ex:
+            yield from ex.map(fn, *zip(*jobs))
+        return
+    for job in jobs:
+        yield fn(*job)
+
+
+def write_threshold_report(res, out_dir, title: str = "Threshold study", figures: bool = True,
+                           progress=None) -> list[Path]:
+    """Write a threshold study's analysis (:class:`analysis.thresholds.ThresholdAnalysis`) into ``out_dir``:
+    report.md, analysis.json, tables/thresholds_*.csv|md|tex, figures/fits_<participant>.png (a panel per
+    fit), figures/pareto.png."""
+    from data_schema.atomic import write_text
+    from data_schema.names import inside
+
+    from .thresholds import POOLED, PRIOR_TEXT
+
+    say = progress or (lambda msg: None)
+    out = Path(out_dir)
+    tdir, fdir = out / "tables", out / "figures"
+    written: list[Path] = []
+    n_p = res.trials["participant"].nunique()
+    md = [f"# {title}", "", f"Log: {len(res.trials):,} adaptive trials from {n_p} participants.", "",
+          f"Fit: {res.settings}.", "", f"Prior: {PRIOR_TEXT}.", ""]
+    md += [f"- {n}" for n in (res.notes or [])] + [""]
+    tables = threshold_tables(res)
+    tidy = {"thresholds_group": res.group, "thresholds_fits": res.fits, "thresholds_pareto": res.pareto,
+            "thresholds_pareto_curves": res.curves}
+    for name in ("thresholds_pareto", "thresholds_group", "thresholds_fits"):
+        if name not in tables:
+            continue
+        written.append(write_text(tdir / f"{name}.md", to_markdown(tables[name])))
+        written.append(write_text(tdir / f"{name}.tex", to_latex(tables[name])))
+        md += [to_markdown(tables[name]), ""]
+        if name == "thresholds_pareto" and figures:
+            from .figures import pareto_figure
+
+            p = pareto_figure(res.curves, res.pareto, fdir / "pareto.png",
+                              "Speed at threshold: cost against probability of detection (pooled fits; "
+                              "points: group thresholds, bars: 95 % CI)", f"{res.cost_label} relative to GT")
+            written.append(p)
+            md += [f"![pareto]({p.relative_to(out).as_posix()})", ""]
+    for name, df in tidy.items():
+        if df is not None:
+            written.append(write_text(tdir / f"{name}.csv", to_csv(df)))
+    if figures:
+        from .figures import psychometric_figure
+
+        md += ["## Fits", ""]
+        who = sorted(set(res.fits["participant"]) - {POOLED}) + [POOLED]
+        jobs = [(res.trials if pid == POOLED else res.trials[res.trials["participant"] == pid],
+                 res.fits[res.fits["participant"] == pid],
+                 inside(fdir, f"fits_{'pooled' if pid == POOLED else _slug(pid)}.png"),
+                 f"{pid}: proportion correct per level (marker area ∝ trials), fit, threshold and 95 % CI")
+                for pid in who]
+        for i, (pid, p) in enumerate(zip(who, _map_figures(psychometric_figure, jobs))):
+            say(f"fit figures {i + 1}/{len(who)}")
+            written.append(p)
+            md += [f"![{pid}]({p.relative_to(out).as_posix()})", ""]
+    doc = {"family": res.family, "criterion": res.criterion, "settings": res.settings, "prior": PRIOR_TEXT,
+           "notes": res.notes or [], "tables": {k: [{c: _json_value(v) for c, v in rec.items()}
+                                                    for rec in df.to_dict("records")]
+                                                for k, df in tidy.items()
+                                                if df is not None and k != "thresholds_pareto_curves"}}
+    written.append(write_text(out / "analysis.json", json.dumps(doc, indent=2) + "\n"))
+    written.append(write_text(out / "report.md", "\n".join(md).rstrip("\n") + "\n"))
+    return written

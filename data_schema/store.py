@@ -21,6 +21,10 @@ Tables
                    display order (JSON), expected answer of catch trials, break flag
 ``responses``      one row per answered trial: raw answers (JSON), the derived chosen/chosen_2/response, RT
                    from stimulus onset, onset time, dropped frames, switches, gaze flag, catch correctness
+``adaptive``       one row per trial of an adaptive design, written with its response: the procedure
+                   (``VaFR@temple``), the varied parameter, the level shown, whether the answer was correct
+                   (detected), the procedure's running estimate and state (JSON) after it; ``skipped``: the
+                   procedure had stopped early, nothing was shown (created by the first adaptive trial)
 ``events``         pause, resume, end, break and error events per session; ``scenes`` (live sessions, written
                    with the session): the protocol folder and each scene's content hash, for ``replay``
                    ``fps_check`` (live sessions in a window): the frame-rate check before the first trial
@@ -57,7 +61,7 @@ from pathlib import Path
 from . import families
 from .atomic import atomic_path, current_umask, input_file, write_text
 from .errors import UserError
-from .trial_log import ALL_COLUMNS, TIMING_COLUMNS
+from .trial_log import ADAPTIVE_COLUMNS, ALL_COLUMNS, TIMING_COLUMNS
 
 STORE_FORMAT = 2
 #: SQLite ``application_id`` of a study database ("stdy"): the marker that tells our files from any other.
@@ -78,11 +82,13 @@ COLUMNS = {
     "responses": ("participant", "idx", "session", "answers", "chosen", "chosen_2", "response", "rt_s",
                   "onset_s", "dropped_frames", "switches", "gaze_left_fovea", "correct", "committed_utc"),
     "events": ("id", "session", "t_utc", "kind", "detail"),
+    "adaptive": ("participant", "idx", "procedure", "varied", "level", "intensity", "correct", "estimate_mean",
+                 "estimate_sd", "state", "skipped"),
     "frames": ("participant", "idx", "frame", "stimulus", "flip_s", "render_s", "gaze_t", "gaze_x", "gaze_y",
                "pos_x", "pos_y", "pos_z", "look_x", "look_y", "look_z", "dropped"),
 }
 PRIMARY_KEYS = {"study": ("key",), "participants": ("id",), "sessions": ("id",), "planned_trials": ("participant", "idx"),
-                "responses": ("participant", "idx"), "events": ("id",),
+                "responses": ("participant", "idx"), "events": ("id",), "adaptive": ("participant", "idx"),
                 "frames": ("participant", "idx", "frame")}
 
 SCHEMA = """
@@ -119,6 +125,37 @@ CREATE TABLE frames (
     PRIMARY KEY (participant, idx, frame),
     FOREIGN KEY (participant, idx) REFERENCES responses(participant, idx)) WITHOUT ROWID;
 """
+
+
+#: The ``adaptive`` table, created by the first adaptive trial's commit (a study without adaptive trials keeps the
+#: file layout it had before the table existed).
+ADAPTIVE_SCHEMA = """
+CREATE TABLE IF NOT EXISTS adaptive (
+    participant TEXT NOT NULL, idx INTEGER NOT NULL, procedure TEXT NOT NULL, varied TEXT NOT NULL,
+    level REAL NOT NULL, intensity REAL NOT NULL, correct INTEGER, estimate_mean REAL, estimate_sd REAL,
+    state TEXT NOT NULL,
+    skipped INTEGER NOT NULL, crc TEXT NOT NULL,
+    PRIMARY KEY (participant, idx),
+    FOREIGN KEY (participant, idx) REFERENCES responses(participant, idx)) WITHOUT ROWID;
+"""
+
+#: Tables a database may lack (written before them, or without adaptive trials): read as empty.
+OPTIONAL_TABLES = ("adaptive",)
+
+
+@dataclass(frozen=True)
+class AdaptiveRow:
+    """What an adaptive trial adds to its response (:meth:`Store.commit_response`; the ``adaptive`` table)."""
+
+    procedure: str
+    varied: str
+    level: float
+    intensity: float  # the level on the procedure's axis (studyapp.runner.adaptive.intensity)
+    correct: bool | None  # None: skipped (the procedure had stopped)
+    estimate_mean: float | None
+    estimate_sd: float | None
+    state: str  # JSON: the procedure's state after this trial
+    skipped: bool = False
 
 
 class StoreError(UserError):
@@ -455,13 +492,14 @@ class Store:
                         chosen_2: str = "", response: int | None = None, rt_s: float | None = None,
                         onset_s: float | None = None, dropped_frames: int = 0, switches: int = 0,
                         gaze_left_fovea: bool | None = None, correct: bool | None = None,
-                        frames: Sequence | None = None) -> None:
+                        frames: Sequence | None = None, adaptive: AdaptiveRow | None = None) -> None:
         """Write one response durably (fsynced commit) before the next trial starts.
 
         ``frames`` (live trials: :class:`studyapp.runner.live.FrameRecord`-like rows, one per flip) are written
         in the same transaction: a crash loses at most the frames of the trial in progress, never an answer.
         The participant's answer and frame counts are updated in the same transaction too, so a row lost from
-        the file later is detected (:func:`verify`)."""
+        the file later is detected (:func:`verify`). ``adaptive`` (a trial of an adaptive design) is written in
+        the same transaction: the level, the answer and the procedure's state are committed with the response."""
         rt = None if rt_s is None or not math.isfinite(rt_s) else float(rt_s)
         onset = None if onset_s is None or not math.isfinite(onset_s) else float(onset_s)
         with self.transaction(f"save the response to trial {idx} of participant {pid!r}") as c:
@@ -469,6 +507,12 @@ class Store:
                                      int(dropped_frames), int(switches),
                                      None if gaze_left_fovea is None else int(gaze_left_fovea),
                                      None if correct is None else int(correct), utc_now()))
+            if adaptive is not None:
+                a = adaptive
+                c.execute(ADAPTIVE_SCHEMA)
+                _insert(c, "adaptive", (pid, idx, a.procedure, a.varied, float(a.level), float(a.intensity),
+                                        None if a.correct is None else int(a.correct), _real(a.estimate_mean),
+                                        _real(a.estimate_sd), a.state, int(a.skipped)))
             for f in frames or ():
                 _insert(c, "frames", (pid, idx, *_frame_values(f)))
             n = c.execute("SELECT n_answered, n_frames FROM participants WHERE id = ?", (pid,)).fetchone()
@@ -535,9 +579,33 @@ class Store:
             rows.append(tidy_row(pid, sid, block, scene, idx, fam, shown, chosen, chosen_2, resp, rt, kind,
                                  fps_check_slow=bool(slow_in(sid) & set(shown))))
         timing = self.trial_timing()
+        adaptive = {(a["participant"], a["idx"]): a for a in self.adaptive_rows()}
+        out = []
         for r in rows:
             r.update(timing.get((r["participant"], r["trial"]), {}))
-        return rows
+            a = adaptive.get((r["participant"], r["trial"]))
+            if a is not None:
+                if a["skipped"]:  # the procedure had stopped: nothing was shown, nothing answered
+                    continue
+                r.update(adaptive_columns(a))
+            out.append(r)
+        return out
+
+    def adaptive_rows(self, pid: str | None = None) -> list[dict]:
+        """The rows of the ``adaptive`` table (of participant ``pid``), in trial order; ``correct`` and
+        ``skipped`` as bools (``correct`` None when skipped). Empty for a database written before the table."""
+        if "adaptive" not in _tables(self.conn):
+            return []
+        cols = COLUMNS["adaptive"]
+        q = f"SELECT {', '.join(cols)} FROM adaptive" + (" WHERE participant = ?" if pid is not None else "") + \
+            " ORDER BY participant, idx"
+        out = []
+        for row in self.conn.execute(q, () if pid is None else (pid,)):
+            d = dict(zip(cols, row))
+            d["correct"] = None if d["correct"] is None else bool(d["correct"])
+            d["skipped"] = bool(d["skipped"])
+            out.append(d)
+        return out
 
     def trial_flips(self) -> dict[tuple[str, int], tuple[list, list, list, list, list]]:
         """(participant, trial) -> the checked flips of a live trial: flip times, render times (None: the last
@@ -755,6 +823,16 @@ def _frame_refusal(path, row: dict, field: str, why: str) -> StoreError:
                       f"frame {_short(row.get('frame'))}: {field}={_short(row[field])} is invalid: {why}{_NOT_OURS}")
 
 
+def adaptive_columns(row) -> dict:
+    """The tidy log's adaptive columns (:data:`ADAPTIVE_COLUMNS`) of an adaptive trial (an :class:`AdaptiveRow`
+    or a row of :meth:`Store.adaptive_rows`), and ``condition``: the varied condition (2afc trials too)."""
+    get = row.get if isinstance(row, dict) else (lambda k: getattr(row, k))
+    out = {c: get(c) for c in ADAPTIVE_COLUMNS}
+    out["correct"] = int(out["correct"])
+    out["condition"] = get("procedure").rsplit("@", 1)[0]
+    return out
+
+
 def tidy_row(participant: str, session: str, block: str, scene: str, trial: int, family: str,
              conditions: Sequence[str], chosen: str, chosen_2: str, response, rt_s, kind: str,
              fps_check_slow: bool = False) -> dict:
@@ -828,9 +906,13 @@ def _connect_ro(path: Path) -> sqlite3.Connection:
     raise StoreError(f"{path}: cannot open the study database: {str(first).splitlines()[0]}")
 
 
+def _tables(conn: sqlite3.Connection) -> set[str]:
+    return {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+
+
 def _check_tables(path: Path, conn: sqlite3.Connection) -> None:
-    have = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
-    missing = [t for t in COLUMNS if t not in have]
+    have = _tables(conn)
+    missing = [t for t in COLUMNS if t not in have and t not in OPTIONAL_TABLES]
     if missing:
         raise StoreError(f"{path}: is an incomplete studyapp study database (missing tables: {', '.join(missing)}); "
                          "it was left untouched")
@@ -861,7 +943,10 @@ def verify(path: Path, conn: sqlite3.Connection) -> None:
         fk = conn.execute("PRAGMA foreign_key_check").fetchone()
         if fk:
             raise _damaged(path, f"a row of {fk[0]} refers to a missing row of {fk[2]}")
+        have = _tables(conn)
         for table, cols in COLUMNS.items():
+            if table not in have:  # an optional table of a database written before it
+                continue
             for row in conn.execute(f"SELECT {', '.join(cols)}, crc FROM {table}"):
                 try:
                     ok = row_crc(table, row[:-1]) == row[-1]
@@ -869,6 +954,7 @@ def verify(path: Path, conn: sqlite3.Connection) -> None:
                     ok = False
                 if not ok:
                     raise _damaged(path, f"a row of {table} fails its checksum")
+        _check_adaptive(path, conn, have)
         for pid, n_planned, n_answered, n_frames in conn.execute(
                 "SELECT id, n_planned, n_answered, n_frames FROM participants"):
             got = tuple(conn.execute(f"SELECT COUNT(*) FROM {t} WHERE participant = ?", (pid,)).fetchone()[0]
@@ -880,6 +966,27 @@ def verify(path: Path, conn: sqlite3.Connection) -> None:
         raise _damaged(path, f"a text value is not UTF-8 ({exc.reason})") from None
     except sqlite3.DatabaseError as exc:
         raise _damaged(path, str(exc).splitlines()[0]) from None
+
+
+def _check_adaptive(path: Path, conn: sqlite3.Connection, have: set[str]) -> None:
+    """Every answered trial of an adaptive design (a planned trial that shows a condition of the recorded
+    protocol's ``design.adaptive.vary``) has its ``adaptive`` row: without it the procedures would replay a
+    shorter history and the export would lose the trial's level."""
+    row = conn.execute("SELECT value FROM study WHERE key = 'protocol_json'").fetchone()
+    proto = _json(row[0]) if row else None
+    adaptive = ((proto or {}).get("design") or {}).get("adaptive") if isinstance(proto, dict) else None
+    varied = set((adaptive or {}).get("vary") or {}) if isinstance(adaptive, dict) else set()
+    if not varied:
+        return
+    recorded = set(conn.execute("SELECT participant, idx FROM adaptive").fetchall()) if "adaptive" in have else set()
+    for pid, idx, conds in conn.execute("SELECT r.participant, r.idx, t.conditions FROM responses r JOIN "
+                                        "planned_trials t ON t.participant = r.participant AND t.idx = r.idx "
+                                        "WHERE t.kind = 'trial'"):
+        shown = _json(conds)
+        if isinstance(shown, list) and varied & {c for c in shown if isinstance(c, str)} and \
+                (pid, idx) not in recorded:
+            raise _damaged(path, f"participant {pid!r}, trial {idx}: an answered adaptive trial has no adaptive "
+                           "record")
 
 
 def open_store(path, mode: str = "read") -> Store:
@@ -1014,7 +1121,9 @@ def read_trials(db_path):
 
     Text columns are strings (``""`` where a column does not apply to the trial family), ``trial``,
     ``practice``, ``catch`` and ``fps_check_slow`` are int64, ``response`` is float64 (1.0/0.0 for ``yes_no``,
-    NaN for the other families) and ``rt_s`` float64 (NaN when not measured).
+    NaN for the other families) and ``rt_s`` float64 (NaN when not measured); the adaptive ``level``,
+    ``intensity``, ``correct`` (1.0/0.0), ``estimate_mean`` and ``estimate_sd`` are float64, NaN outside adaptive
+    trials.
     """
     with open_store(db_path) as st:
         if not st.meta():
@@ -1030,7 +1139,7 @@ def tidy_frame(rows: Sequence[dict]):
     df = pd.DataFrame(list(rows), columns=list(ALL_COLUMNS))
     for c in ("trial", "practice", "catch", "fps_check_slow"):
         df[c] = df[c].astype("int64")
-    for c in ("response", "rt_s", *TIMING_COLUMNS):
+    for c in ("response", "rt_s", *TIMING_COLUMNS, "level", "intensity", "correct", "estimate_mean", "estimate_sd"):
         df[c] = pd.to_numeric(df[c], errors="coerce").astype("float64")
     return df
 

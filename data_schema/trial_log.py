@@ -29,6 +29,15 @@ latency_p50_ms,           live trials: gaze age at the flip in ms, median and 95
 latency_p95_ms
 fps_check_slow            live trials: 1 if a condition shown was below ``min_fps`` in the session's frame-rate
                           check and the run went on with ``--accept-slow`` (a flagged trial), else 0
+procedure                 adaptive designs: the procedure of the trial, ``CONDITION@SCENE`` (str)
+varied                    adaptive: the varied renderer parameter, e.g. ``acuity_scale`` (str)
+level                     adaptive: the parameter's value shown (float)
+intensity                 adaptive: the level on the procedure's axis, where detection grows: log10 of the level
+                          (or the level, scale: linear), negated where a lower value foveates more (float)
+correct                   adaptive: 1 when the answer was correct -- 2afc: picked the original; yes_no: answered
+                          "not the ground truth" to the test (detected) -- else 0
+estimate_mean,            adaptive: the procedure's running threshold estimate after the trial, in intensity
+estimate_sd               units (QUEST+: posterior mean and SD; staircase: mean and SD of the last reversals)
 ========================  =====================================================================================
 
 The live columns summarise the trial's frames (:mod:`data_schema.timing`); the frames themselves are exported
@@ -48,11 +57,15 @@ REQUIRED = ("participant", "family", "scene")
 #: Family -> the columns it fills (declared by each family, :mod:`data_schema.families`).
 FAMILY_COLUMNS = {name: fam.log_columns for name, fam in _FAMILIES.items()}
 
-OPTIONAL = ("block", "session", "trial", "chosen_2", "rt_s", "practice", "catch", *TIMING_COLUMNS, "fps_check_slow")
+#: The columns of adaptive designs (empty for other trials).
+ADAPTIVE_COLUMNS = ("procedure", "varied", "level", "intensity", "correct", "estimate_mean", "estimate_sd")
+
+OPTIONAL = ("block", "session", "trial", "chosen_2", "rt_s", "practice", "catch", *TIMING_COLUMNS, "fps_check_slow",
+            *ADAPTIVE_COLUMNS)
 
 ALL_COLUMNS = ("participant", "session", "block", "scene", "trial", "family", "condition", "condition_a",
                "condition_b", "conditions", "chosen", "chosen_2", "response", "rt_s", "practice", "catch",
-               *TIMING_COLUMNS, "fps_check_slow")
+               *TIMING_COLUMNS, "fps_check_slow", *ADAPTIVE_COLUMNS)
 
 
 

@@ -27,6 +27,7 @@ COMMAND_MODULES = (
     "studyapp.commands.study",
     "studyapp.commands.lightcuts",
     "studyapp.commands.replay",
+    "studyapp.commands.power",
 )
 
 
@@ -98,6 +99,8 @@ DEMO_STEPS = (
     ("studyapp.commands.lightcuts", "lightcuts", "a lightcuts stimulus: cornell_many (111,858 lights), fsl"),
     ("studyapp.commands.study", "", "simulated participants run two shipped protocols into fresh databases"),
     ("studyapp.commands.analyze", "analysis", "analysis of the simulated studies and of synthetic seed logs"),
+    ("studyapp.commands.power", "thresholds", "a threshold study (threshold_foveation): simulated participants, "
+     "psychometric fits, the speed at threshold (Pareto figure)"),
 )
 
 

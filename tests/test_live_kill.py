@@ -3,12 +3,12 @@ and the final log (answers and frame poses/gaze) equals an uninterrupted run's."
 
 import os
 import random
-import signal
 import sqlite3
 import subprocess
 import sys
-import time
 from pathlib import Path
+
+from sigkill import start_and_kill
 
 ROOT = Path(__file__).resolve().parents[1]
 KILLS = 8
@@ -62,17 +62,8 @@ def test_sigkill_during_live_trials_then_resume(tmp_path):
     seen_answers, seen_frames, kills = {}, [], 0
     while kills < KILLS:
         enrolled, _, _ = _state(db)
-        proc = subprocess.Popen(_cmd(proto, db, enrolled), cwd=tmp_path, env=env, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True)
-        line = proc.stdout.readline()
-        if "started" in line:
-            time.sleep(rng.uniform(0.0, 0.6))
-        if proc.poll() is None:
-            os.kill(proc.pid, signal.SIGKILL)
-            kills += 1
-        proc.wait()
-        proc.stdout.close()
-        proc.stderr.close()
+        killed, code = start_and_kill(_cmd(proto, db, enrolled), tmp_path, env, rng, 0.6)
+        kills += killed
         _, answers, frames = _state(db)
         for i, v in seen_answers.items():  # nothing committed is lost or changed
             assert answers.get(i) == v
@@ -80,7 +71,7 @@ def test_sigkill_during_live_trials_then_resume(tmp_path):
         assert {f[0] for f in frames} <= answered  # frames only of answered trials
         assert [f for f in frames if f[0] in seen_answers] == [f for f in seen_frames]
         seen_answers, seen_frames = answers, frames
-        if proc.returncode == 0 or len(answers) == 8:
+        if code == 0 or len(answers) == 8:
             break
     res = subprocess.run(_cmd(proto, db, True), cwd=tmp_path, env=env, capture_output=True, text=True)
     assert res.returncode == 0 or "already answered every trial" in res.stderr, res.stderr

@@ -18,8 +18,8 @@ SHIPPED = sorted(PROTOCOLS.glob("seed*.yaml"))
 
 def test_the_replication_protocols_are_shipped():
     assert [p.stem for p in SHIPPED] == ["seed001_2afc", "seed001_2afc_live", "seed001_pilot", "seed001_pilot_live",
-                                         "seed003_task1", "seed003_task1_live", "seed003_task2",
-                                         "seed003_task2_live"]
+                                         "seed003_alpha_threshold", "seed003_task1", "seed003_task1_live",
+                                         "seed003_task2", "seed003_task2_live"]
 
 
 @pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)

@@ -46,7 +46,8 @@ def test_every_shipped_protocol_runs_end_to_end_with_declared_qualities(tmp_path
     n = sum(t.kind != "reference" for t in build_schedule(p, "P1", 0))
     assert len(df) == 2 * n
     main_trials = df[(df.practice == 0) & (df["catch"] == 0)]
-    per = {"seed001_pilot": 3, "seed001_2afc": 90, "seed003_task1": 50, "seed003_task2": 40}[p.name.removesuffix("_live")]
+    per = {"seed001_pilot": 3, "seed001_2afc": 90, "seed003_task1": 50, "seed003_task2": 40,
+           "seed003_alpha_threshold": 80}[p.name.removesuffix("_live")]
     assert len(main_trials) == 2 * per
     if p.family == "yes_no":
         assert set(df.response.unique()) <= {0.0, 1.0}

@@ -65,6 +65,14 @@ class TrialFamily:
     has_positions: bool = False  # which condition is shown first/left can be balanced
     has_picks: bool = False  # the participant picks up to n_picks favourites
     loops: bool = True  # sequences loop while the participant switches among the stimuli
+    #: Adaptive designs (studyapp.runner.adaptive): whether a trial has a correct answer a procedure can adapt
+    #: on (2AFC: picked the original; yes/no: said "not the ground truth" to a test stimulus, i.e. detected),
+    #: the proportion of such answers that defines the threshold, the chance rate (None: a free false-alarm
+    #: rate, estimated by the fit) and psignifit's experiment type.
+    has_correct_answer: bool = False
+    threshold_criterion: float | None = None
+    guess_rate: float | None = None
+    psignifit_type: str | None = None
 
     # -- protocol parameters and keys ------------------------------------------------------------------------
     def default_n_picks(self, n_conditions: int) -> int:
@@ -97,6 +105,16 @@ class TrialFamily:
         raise NotImplementedError
 
     def practice_groups(self, conditions: Sequence[str]) -> list[tuple[str, ...]]:
+        raise NotImplementedError
+
+    def adaptive_items(self, reference: str, test: str, scene: str, n: int, stream) -> list[dict]:
+        """The ``n`` trials of one adaptive procedure (``test`` varied against ``reference``), before ordering:
+        dicts like :meth:`main_items`'. Families without a correct answer have none."""
+        raise NotImplementedError
+
+    def adaptive_correct(self, conditions: Sequence[str], test: str, derived: dict) -> bool:
+        """Whether the answer to an adaptive trial that showed ``conditions`` counts as correct (detected);
+        ``derived`` is :meth:`interpret`'s result."""
         raise NotImplementedError
 
     def catch_item(self, i: int, good: str, bad: str) -> tuple[tuple[str, ...], str]:

@@ -29,6 +29,7 @@ class Preference(TrialFamily):
     catch_kinds = ()
     has_picks = True
     loops = True
+    has_correct_answer = False  # a favourite is not right or wrong: no adaptive designs
 
     def default_n_picks(self, n_conditions):
         return 2

@@ -31,6 +31,10 @@ class TwoAFC(TrialFamily):
     catch_kinds = ("degraded", "repeat")
     has_positions = True
     loops = True
+    has_correct_answer = True  # adaptive trials: "which one is the original?"
+    threshold_criterion = 0.75
+    guess_rate = 0.5
+    psignifit_type = "2AFC"
 
     def default_keys(self, n_conditions):
         return {"answer": {"1": "A", "2": "B"}, "switch": {"left": 0, "right": 1}}
@@ -64,6 +68,16 @@ class TwoAFC(TrialFamily):
 
     def catch_item(self, i, good, bad):
         return ((good, bad), "A") if i % 2 == 0 else ((bad, good), "B")
+
+    def adaptive_items(self, reference, test, scene, n, stream):
+        """The reference (the original) and the test in random order, the same number of times on each side
+        when ``n`` is even."""
+        sides = stream.shuffle([k % 2 for k in range(n)])
+        return [{"scene": scene, "conditions": (test, reference) if f else (reference, test), "run": test,
+                 "item": f"{scene}/{test}"} for f in sides]
+
+    def adaptive_correct(self, conditions, test, derived):
+        return derived["chosen"] != test  # picked the original
 
     def interpret(self, conditions, answers, n_picks):
         if len(answers) != 1 or answers[0] not in ("A", "B"):

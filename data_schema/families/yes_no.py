@@ -26,6 +26,10 @@ class YesNo(TrialFamily):
     tests = ("summary_table", "pairwise_kruskal", "kruskal_dunn", "gee")
     catch_kinds = ("degraded",)
     loops = False
+    has_correct_answer = True  # adaptive trials: "is this the ground truth?" -- "no" to a test stimulus detects it
+    threshold_criterion = 0.5  # of "not the ground truth" answers, above the false-alarm rate the fit estimates
+    guess_rate = None
+    psignifit_type = "yes/no"
 
     def default_keys(self, n_conditions):
         return {"answer": {"y": "yes", "n": "no"}, "switch": {}}
@@ -45,6 +49,12 @@ class YesNo(TrialFamily):
 
     def catch_item(self, i, good, bad):
         return ((bad,), "no") if i % 2 == 0 else ((good,), "yes")
+
+    def adaptive_items(self, reference, test, scene, n, stream):
+        return [{"scene": scene, "conditions": (test,), "run": test, "item": f"{scene}/{test}"} for _ in range(n)]
+
+    def adaptive_correct(self, conditions, test, derived):
+        return derived["response"] == 0  # "no, not the ground truth": the foveation was detected
 
     def interpret(self, conditions, answers, n_picks):
         if len(answers) != 1 or answers[0] not in ("yes", "no"):

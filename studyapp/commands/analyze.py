@@ -28,7 +28,9 @@ and per-block breakdowns, Thurstone (JOD) / Bradley-Terry / Plackett-Luce scales
 intervals, and logistic GEE odds ratios against the reference (--test ... gee).
 Output: DIR/report.md, DIR/tables/*.md|.tex|.csv, DIR/figures/*.png, DIR/analysis.json. The plan
 comes from the study database (its protocol's analysis block), from --plan, or from the options
-below; options override the plan. The same input gives byte-identical output."""
+below; options override the plan. An adaptive (threshold) protocol gets psignifit 4 fits per participant,
+renderer and scene and pooled, the group table and the speed at threshold (Pareto figure) instead
+(docs/thresholds.md). The same input gives byte-identical output."""
 
 
 def register(sub, parser_class) -> None:
@@ -57,7 +59,59 @@ def register(sub, parser_class) -> None:
     a.add_argument("--n-boot", type=int, metavar="N", help="bootstrap replicates of the scales (default 1000)")
     a.add_argument("--seed", type=int, metavar="N", help="bootstrap seed (default 0)")
     a.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    a.add_argument("--protocol", metavar="FILE", help="adaptive designs from a CSV/Parquet log: the protocol it "
+                   "was run with (a study database records its own)")
+    a.add_argument("--cost-scale", type=_cost_scale, default=1.0, metavar="S",
+                   help="adaptive designs: count the cost at threshold on frames of the render size times S "
+                   "(default 1: the study's size; smaller is faster, the counts of GT and LaFR shrink with it)")
+    a.add_argument("--cache", metavar="DIR", help="adaptive designs: the stimulus cache the cost's frames are "
+                   "read from or rendered into (default: none, rendered in memory)")
     a.set_defaults(func=cmd_analyze)
+
+
+def _cost_scale(text: str) -> float:
+    from data_schema.ranges import SCALE, argtype
+
+    return argtype("--cost-scale", SCALE)(text)
+
+
+def adaptive_protocol(log: Path, protocol_file: str | None):
+    """The protocol of an adaptive threshold study (None: a fixed design): ``--protocol``, else the one a study
+    database recorded."""
+    from studyapp.runner.protocol import load_protocol, protocol_from_data
+
+    if protocol_file:
+        protocol = load_protocol(protocol_file)
+    elif log.suffix.lower() in (".db", ".sqlite", ".sqlite3"):
+        from data_schema.store import open_store
+
+        with open_store(log) as st:
+            data = st.protocol_json()
+        if not data or "adaptive" not in (data.get("design") or {}):
+            return None
+        protocol = protocol_from_data(data, f"{log}#protocol")
+    else:
+        return None
+    return protocol if getattr(protocol, "adaptive", None) is not None else None
+
+
+def write_thresholds(log: Path, protocol, out: Path, *, figures: bool = True, cost_scale: float = 1.0,
+                     cache: str | None = None, n_boot: int | None = None, seed: int | None = None,
+                     title: str | None = None) -> list[Path]:
+    """A threshold study's report (fits, group table, Pareto table and figure) into ``out``, whole or not at
+    all."""
+    from analysis.io import read_log
+    from analysis.report import write_threshold_report
+    from data_schema.atomic import atomic_dir
+    from studyapp.runner.threshold_study import analyze_thresholds
+
+    res = analyze_thresholds(read_log(log), protocol, n_boot=2000 if n_boot is None else n_boot,
+                             seed=seed or 0, cost_scale=cost_scale, cache_dir=Path(cache) if cache else None,
+                             progress=_progress)
+    with atomic_dir(out, marker="analysis.json") as tmp:
+        paths = write_threshold_report(res, tmp, title=title or f"Thresholds of {log.name} ({protocol.name})",
+                                       figures=figures, progress=_progress)
+    return [out / p.relative_to(tmp) for p in paths]
 
 
 def _progress(msg: str) -> None:
@@ -91,6 +145,18 @@ def cmd_analyze(args) -> int:
     from data_schema.atomic import atomic_dir, check_dir_target
 
     log = Path(args.log)
+    protocol = adaptive_protocol(log, args.protocol)
+    if protocol is not None:  # an adaptive design: psychometric fits and the Pareto front, not the fixed tests
+        out = check_dir_target(args.out, marker="analysis.json")
+        if args.cache:
+            from data_schema.atomic import real_folder
+
+            real_folder(args.cache, "--cache")
+        paths = write_thresholds(log, protocol, out, figures=not args.no_figures, cost_scale=args.cost_scale,
+                                 cache=args.cache, n_boot=args.n_boot, seed=args.seed)
+        end_status()
+        print(f"wrote {len(paths)} files into {args.out} (report: {Path(args.out) / 'report.md'})")
+        return 0
     plan = load_plan(log, args.plan)
     from analysis.io import read_log
     from analysis.report import report_json, write_report

@@ -508,8 +508,6 @@ def demo_step(out_dir: Path, progress) -> list[Path]:
     fresh database per protocol, the tidy CSVs and the pwcmp file into ``out_dir/study``.
     """
     from data_schema import store
-    from studyapp.runner.observer import SimulatedObserver
-    from studyapp.runner.session import ground_truth_stimuli, run_session
     from studyapp.runner.stimuli import write_synthetic_stimuli
 
     out = Path(out_dir) / "study"
@@ -520,19 +518,28 @@ def demo_step(out_dir: Path, progress) -> list[Path]:
         if progress:
             progress(f"{name}: synthetic stimuli")
         write_synthetic_stimuli(p, DEMO_SCALE, max_frames=2)
-        db = out / f"{name}.db"
-        for suffix in ("", "-wal", "-shm"):
-            Path(str(db) + suffix).unlink(missing_ok=True)
-        for i in range(1, n_participants + 1):
-            pid = f"P{i:02d}"
-            if progress:
-                progress(f"{name}: simulated participant {pid}")
-            run_session(p, pid, db, lambda st, d, pid=pid, p=p: SimulatedObserver(
-                p, pid, 0, ground_truth_stimuli(p, st)), seed=0, scale=DEMO_SCALE)
+        db = simulated_study(p, out / f"{name}.db", n_participants, progress, scale=DEMO_SCALE)
         written += [db, store.export_csv(db, out / f"{name}_trials.csv")]
         if p.family == "2afc":
             written.append(store.export_pwcmp(db, out / f"{name}_pwcmp.csv"))
     return written
+
+
+def simulated_study(protocol, db: Path, n: int, progress=None, **session) -> Path:
+    """A fresh database ``db`` of ``n`` simulated participants ``P01``.. (seed 0) answering ``protocol``;
+    ``session``: :func:`studyapp.runner.session.run_session`'s options (``scale``, ``allow_declared``)."""
+    from studyapp.runner.observer import SimulatedObserver
+    from studyapp.runner.session import ground_truth_stimuli, run_session
+
+    for suffix in ("", "-wal", "-shm"):
+        Path(str(db) + suffix).unlink(missing_ok=True)
+    for i in range(1, n + 1):
+        pid = f"P{i:02d}"
+        if progress:
+            progress(f"{protocol.name}: simulated participant {pid}")
+        run_session(protocol, pid, db, lambda st, d, pid=pid: SimulatedObserver(
+            protocol, pid, 0, ground_truth_stimuli(protocol, st)), seed=0, **session)
+    return db
 
 
 def main(argv=None) -> int:

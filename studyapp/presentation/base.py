@@ -63,6 +63,11 @@ class TrialDisplay:
     scene: str = ""  # scene the stimuli show (the simulated observer compares against this scene's GT)
     kind: str = "trial"  # "trial", "practice", "catch" or "reference" (shown, answered with any key)
     key_reminder: str = "bottom"  # where the answer keys are recalled on the stimulus: "bottom", "top", "off"
+    # adaptive designs: the varied parameter, the level shown (the stimuli of the varied condition are its
+    # ``NAME(level)`` rendering) and the procedure (``VaFR@temple``); None/"" for a fixed design
+    level: float | None = None
+    varied: str | None = None
+    procedure: str = ""
 
 
 @dataclass

@@ -30,7 +30,7 @@ class TooSlow(UserError):
 
 def cells(protocol) -> list[tuple[str, str]]:
     """The (condition, scene) pairs the check renders: every rendered condition in every scene of the design."""
-    return [(c, s) for c, cond in protocol.conditions.items() if cond.renderer for s in protocol.scenes]
+    return [(c, s) for c in protocol.timed_conditions() for s in protocol.scenes]
 
 
 def seconds_per_cell(protocol) -> float:

@@ -28,6 +28,22 @@ bias ``b ~ N(0, bias_sd)``, lapse rate ``lambda`` (``simulation.lapse``). With `
 *Reaction time* from stimulus onset: the sequence duration (answers come after it) plus an ex-Gaussian
 ``mu_p + N(0, sigma) + Exp(tau)``, ``mu_p = rt_mu_s exp(N(0, 0.15))`` per participant, at least 0.15 s.
 
+*Adaptive trials* (a threshold design: the trial carries the ``level`` of the varied parameter and its
+``procedure``, ``COND@scene``). Where ``simulation.psychometric`` declares a psychometric function for the
+varied condition, the observer is a known-truth one: with ``x`` the procedure's intensity of the level
+(``studyapp.runner.adaptive.intensity``: log10 of the level for a log domain, negated where a lower level is
+stronger foveation) and the declared threshold ``t`` (a level, mapped the same way), slope ``b``, lapse ``l``
+and guess rate ``g`` (the family's chance rate: 2AFC 0.5; yes/no the declared false-alarm rate)::
+
+    weibull (default):  P(correct) = 1 - l - (1 - g - l) exp(-10^(b (x - t_p)))   (Watson 2017 eq. 3)
+    logistic:           P(correct) = g + (1 - g - l) / (1 + exp(-b (x - t_p)))
+
+the same functions QUEST+ assumes, so its threshold estimates the declared ``t``. The participant's threshold
+``t_p = t + N(0, threshold_sd)`` (intensity units, seeded by seed, participant, condition and scene). The
+outcome (correct / detected) is drawn, then turned into the family's answer (the answer whose interpretation
+gives that outcome). Where no function is declared, the image model above answers (the test's impairment
+against the ground truth's 0): a *model* of detection from the foveal/peripheral error, not a measurement.
+
 Every trial draws from its own generator seeded by (seed, participant, trial index), so a resumed session
 answers exactly as an uninterrupted one.
 """
@@ -52,6 +68,7 @@ from .images import load_gray
 from .protocol import Protocol
 
 E2_DEG = 2.3
+DEFAULT_FALSE_ALARMS = 0.05  # yes/no adaptive trials: "not the ground truth" to an undetectable test
 DECLARED_SCALE_JND = 5.0
 SIM_WIDTH = 64  # live stimuli: the simulated observer renders this many pixels across
 LIVE_SAMPLES = 3  # ... at this many moments of each stimulus
@@ -105,6 +122,63 @@ def foveated_difference(img: np.ndarray, gt: np.ndarray, ecc: np.ndarray) -> flo
     return float(math.sqrt(float((w * diff).sum()) / float(w.sum())))
 
 
+@dataclass(frozen=True)
+class DeclaredFunction:
+    """One participant's psychometric function of a varied condition, on the procedure's intensity axis."""
+
+    condition: str
+    spec: dict  # the procedure spec (scale, stronger): the intensity mapping
+    threshold: float  # the participant's threshold t_p (intensity units)
+    slope: float
+    lapse: float
+    guess: float
+    function: str = "weibull"
+
+    def intensity(self, level: float) -> float:
+        from .adaptive import intensity
+
+        return intensity(self.spec, level)
+
+    def p_correct(self, x):
+        """P(correct) at intensity ``x`` (module docstring)."""
+        x = np.asarray(x, dtype=float)
+        g, lam, b = self.guess, self.lapse, self.slope
+        if self.function == "logistic":
+            return g + (1.0 - g - lam) / (1.0 + np.exp(-b * (x - self.threshold)))
+        return 1.0 - lam - (1.0 - g - lam) * np.exp(-np.power(10.0, b * (x - self.threshold)))
+
+    def level_at(self, p: float) -> float:
+        """The level at which P(correct) = ``p`` (the threshold at a family's criterion), by bisection."""
+        from .adaptive import level_of
+
+        lo, hi = self.threshold - 20.0 / self.slope, self.threshold + 20.0 / self.slope
+        for _ in range(100):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if self.p_correct(mid) < p else (lo, mid)
+        return level_of(self.spec, 0.5 * (lo + hi))
+
+
+def declared_function(protocol: Protocol, condition: str, scene: str, participant: str,
+                      seed: int) -> DeclaredFunction | None:
+    """``simulation.psychometric[condition]`` (with its ``scenes[scene]`` overrides) for ``participant``: the
+    threshold drawn around the declared one with ``threshold_sd``; None when the condition declares none."""
+    decl = (protocol.simulation.get("psychometric") or {}).get(condition)
+    adaptive = getattr(protocol, "adaptive", None)
+    if decl is None or adaptive is None or condition not in adaptive.varied:
+        return None
+    decl = {**decl, **(decl.get("scenes") or {}).get(scene, {})}
+    spec = adaptive.spec(condition)
+    from .adaptive import intensity
+
+    fam = families.get(protocol.family)
+    guess = fam.guess_rate if fam.guess_rate is not None else float(decl.get("guess", DEFAULT_FALSE_ALARMS))
+    sd = float(protocol.simulation.get("threshold_sd", 0.0))
+    z = np.random.default_rng(_key("threshold", seed, participant, condition, scene)).standard_normal()
+    return DeclaredFunction(condition, spec, intensity(spec, float(decl["threshold"])) + sd * float(z),
+                            float(decl.get("slope", 3.5)), float(decl.get("lapse", 0.02)), float(guess),
+                            str(decl.get("function", "weibull")))
+
+
 class SimulatedObserver:
     """Answers trials with the model in the module docstring; implements the Presenter interface.
 
@@ -141,6 +215,8 @@ class SimulatedObserver:
         self._clock += 2.0
 
     def preload(self, trial: TrialDisplay) -> None:
+        if self.declared(trial) is not None:
+            return  # a declared psychometric function answers: no images needed
         for s in trial.stimuli:
             self.impairment(s, trial.scene)
 
@@ -165,7 +241,10 @@ class SimulatedObserver:
         onset = self._clock
         lapse = rng.random() < p.lapse
         switches = 0
-        if trial.kind == "reference":
+        declared = self.declared(trial)
+        if declared is not None and trial.kind != "reference":
+            answers, margin = self._psychometric_answer(trial, declared, rng)
+        elif trial.kind == "reference":
             answers = ["seen"] if trial.answer_keys else []
             margin = 0.0
         else:
@@ -179,6 +258,30 @@ class SimulatedObserver:
         self.shown.append(trial.index)
         return TrialResult(answers=answers, rt_s=float(rt), onset_s=float(onset), dropped_frames=0,
                            switches=switches, gaze_left_fovea=None, escaped=False, frames=frames)
+
+    # -- adaptive trials: a declared psychometric function ------------------------------------------------------
+    def declared(self, trial: TrialDisplay) -> DeclaredFunction | None:
+        """The declared psychometric function of an adaptive trial's varied condition for this participant
+        (None: not an adaptive trial, or nothing declared: the image model answers)."""
+        if getattr(trial, "level", None) is None or not getattr(trial, "procedure", ""):
+            return None
+        cond, _, scene = trial.procedure.partition("@")
+        return declared_function(self.protocol, cond, scene or trial.scene, self.participant, self.seed)
+
+    def _psychometric_answer(self, trial: TrialDisplay, f: DeclaredFunction, rng) -> tuple[list[str], float]:
+        """Draw the outcome at the trial's level, then the family's answer that gives it."""
+        x = f.intensity(trial.level)
+        pc = f.p_correct(x)
+        correct = bool(rng.random() < pc)
+        fam = families.get(trial.family)
+        conditions = tuple(st.condition for st in trial.stimuli)
+        test = next((c for c in conditions if c == f.condition or c.startswith(f"{f.condition}(")), f.condition)
+        for answer in sorted(fam.answer_values(len(conditions))):
+            derived = fam.interpret(conditions, [answer], 1)
+            if bool(fam.adaptive_correct(conditions, test, derived)) == correct:
+                return [answer], abs(x - f.threshold) * f.slope
+        raise UserError(f"family {trial.family}: no answer is {'correct' if correct else 'wrong'} for "
+                        f"{list(conditions)}")
 
     # -- live stimuli: a few frames rendered along a synthetic gaze path ------------------------------------
     def _live_frames(self, trial: TrialDisplay, onset: float) -> list:

@@ -32,6 +32,8 @@ from data_schema.geometry import Display, ViewingGeometry
 from data_schema.names import check_name, check_unique
 from data_schema.protocol_schema import LoadedYAML, load_yaml, validate_document
 
+from .adaptive import DEFAULT_YES_NO_GUESS, AdaptiveDesign, Varied, check_spec, grid, level_condition
+
 #: Keys of free exploration (``motion: explore``; psychtoolbox key names): move forward/back/left/right, turn.
 #: A protocol's answer and switch keys may not use them.
 MOVE_KEYS = {"w": (1, 0), "s": (-1, 0), "a": (0, -1), "d": (0, 1)}
@@ -144,6 +146,26 @@ class Protocol:
     eyetracker: dict | None = None
     full: bool = False  # the full-size variant (the protocol's full block in place)
     key_reminder: str = "bottom"  # presentation.key_reminder: where trials recall their keys (bottom|top|off)
+    adaptive: AdaptiveDesign | None = None  # design.adaptive (None: a fixed design)
+
+    @property
+    def shown_conditions(self) -> tuple[str, ...]:
+        """The conditions the design's trials show: the design's, or for an adaptive design the reference and
+        every level of every varied condition (the ladder ``studyapp prepare`` renders)."""
+        if self.adaptive is None:
+            return self.design_conditions
+        return (self.adaptive.reference, *self.adaptive.level_conditions())
+
+    def timed_conditions(self) -> tuple[str, ...]:
+        """The renderer conditions the live frame-rate check renders: every one, except that a varied condition
+        is rendered only at its weakest foveation (its slowest level), not as its template or at every level."""
+        if self.adaptive is None:
+            return tuple(c for c, cond in self.conditions.items() if cond.renderer)
+        levels = self.adaptive.level_conditions()
+        weakest = {level_condition(c, min(v.levels) if v.stronger == "higher" else max(v.levels))
+                   for c, v in self.adaptive.varied.items()}
+        return tuple(c for c, cond in self.conditions.items() if cond.renderer
+                     and c not in self.adaptive.varied and (c not in levels or c in weakest))
 
     @property
     def mouse_is_gaze(self) -> bool:
@@ -195,8 +217,11 @@ class Protocol:
     def describe(self) -> str:
         n = len(self.design_conditions)
         d, (w, h) = self.display, self.render_size
+        design = (f"{self.repetitions} repetition(s)" if self.adaptive is None else
+                  f"adaptive: {len(self.adaptive.varied)} varied condition(s) x {len(self.scenes)} scene(s), "
+                  f"{self.adaptive.cap} trials each")
         return (f"{self.name} {self.version}: {self.family}, {len(self.scenes)} scene(s), {n} condition(s), "
-                f"{self.repetitions} repetition(s), display {d.width_px}x{d.height_px} ({d.fov_y_deg:.1f}° high, "
+                f"{design}, display {d.width_px}x{d.height_px} ({d.fov_y_deg:.1f}° high, "
                 f"{d.ppd:.1f} px/deg), stimuli rendered at {w}x{h}{' (full size)' if self.full else ''}")
 
 
@@ -256,6 +281,121 @@ def _conditions(doc: LoadedYAML, data: dict, base: Path, check_renderers: bool) 
                               backend=spec.get("backend"), latency_ms=float(spec.get("latency_ms", 0.0)),
                               max_fps=spec.get("max_fps"))
     return out
+
+
+#: Procedure settings that belong to one method only (a setting of the other method is refused, not ignored).
+_METHOD_KEYS = {"quest_plus": ("function", "threshold", "slope", "lapse", "guess"),
+                "staircase": ("rule", "steps", "estimate_reversals")}
+
+
+def _adaptive(doc: LoadedYAML, data: dict, conditions: dict, fam) -> tuple[AdaptiveDesign, dict[str, Condition]]:
+    """``design.adaptive`` checked (the refusals of issue 28 item 9, one line each) and its level conditions:
+    ``NAME(level)`` for every level of every varied condition, the condition's params with the level in place."""
+    spec = data["design"]["adaptive"]
+    where = ("design", "adaptive")
+    procedure = dict(spec.get("procedure", {}))
+    method = procedure.get("method", "quest_plus")
+    for other, keys in _METHOD_KEYS.items():
+        wrong = [k for k in keys if k in procedure and other != method]
+        if wrong:
+            raise doc.error(where + ("procedure", wrong[0]), f"belongs to method {other}, not {method}")
+    if "guess" in procedure and fam.guess_rate is not None:
+        raise doc.error(where + ("procedure", "guess"), f"{fam.name} trials guess {fam.guess_rate:g} by design: "
+                        "remove guess (a yes_no design estimates its false-alarm rate)")
+    guess = (fam.guess_rate,) if fam.guess_rate is not None else tuple(procedure.pop("guess", DEFAULT_YES_NO_GUESS))
+    procedure.pop("guess", None)
+    reg = _registry()
+    varied, levels_out = {}, {}
+    for name, v in spec["vary"].items():
+        at = where + ("vary", name)
+        cond = conditions[name]
+        if cond.renderer is None:
+            raise doc.error(at, f"condition {name!r} has no renderer: only a renderer's parameter can be varied")
+        strength = reg.foveation_strength(cond.renderer) if reg is not None and hasattr(
+            reg, "foveation_strength") else None
+        param = v.get("param") or (strength.param if strength else None)
+        if param is None:
+            raise doc.error(at, f"renderer {cond.renderer!r} has no foveation strength to vary: give param")
+        info = reg.get(cond.renderer).params.get(param) if reg is not None else None
+        if reg is not None and info is None:
+            raise doc.error(at + ("param",), f"renderer {cond.renderer!r} has no parameter {param!r}: allowed "
+                            f"{', '.join(reg.get(cond.renderer).params)}")
+        if info is not None and (info.type not in (int, float) or info.choices):
+            raise doc.error(at + ("param",), f"{cond.renderer}.{param} is not numeric (allowed {info.allowed()}): "
+                            "only a numeric parameter can be varied")
+        if param in cond.params:
+            raise doc.error(("conditions", name, "params", param), f"is varied by design.adaptive.vary.{name}: "
+                            "remove it here")
+        stronger = v.get("stronger") or (strength.stronger if strength and strength.param == param else None)
+        if stronger is None:
+            raise doc.error(at, f"{cond.renderer}.{param} is not the renderer's foveation strength: give stronger "
+                            "(higher or lower: which way foveation grows)")
+        scale = v.get("scale", "log")
+        levels = _levels(doc, at, v, scale)
+        if info is not None and info.type is int:
+            if any(lv != round(lv) for lv in levels) and not isinstance(v["levels"], int):
+                raise doc.error(at + ("levels",), f"{cond.renderer}.{param} takes whole numbers")
+            levels = sorted({float(round(lv)) for lv in levels})
+            if len(levels) < 2:
+                raise doc.error(at + ("levels",), "a ladder of one level cannot be adapted: give at least 2 levels")
+        for lv in levels:
+            if scale == "log" and lv <= 0:
+                raise doc.error(at + ("levels",), f"{lv:g} is not above 0: a log domain needs positive levels "
+                                "(or scale: linear)")
+            if info is not None:
+                try:
+                    info.range.check(f"{cond.renderer}.{param}", int(lv) if info.type is int else lv)
+                except UserError as exc:
+                    raise doc.error(at + ("levels",), f"{exc}: the domain must lie inside the parameter's "
+                                    "allowed range") from None
+        start = v.get("start")
+        varied[name] = Varied(name, param, scale, stronger, tuple(levels),
+                              None if start is None else float(start))
+        for lv in levels:
+            lname = level_condition(name, lv)
+            if lname in conditions:
+                raise doc.error(at, f"level condition {lname!r} is also a condition of the protocol: rename it")
+            value = int(lv) if info is not None and info.type is int else lv
+            levels_out[lname] = Condition(
+                name=lname, renderer=cond.renderer, params={**cond.params, param: value}, label=cond.label,
+                quality=cond.quality, role="main", backend=cond.backend, latency_ms=cond.latency_ms,
+                max_fps=cond.max_fps)
+    design = AdaptiveDesign(reference=spec["reference"], varied=varied, procedure=procedure,
+                            stop=dict(spec["stop"]), guess=tuple(float(g) for g in guess))
+    for name in varied:
+        try:
+            check_spec(design.spec(name))
+        except UserError as exc:
+            field = "stop" if "stop" in str(exc) or "stopping" in str(exc) else "procedure"
+            raise doc.error(where + (field,), str(exc)) from None
+    return design, levels_out
+
+
+def _levels(doc: LoadedYAML, at: tuple, v: dict, scale: str) -> list[float]:
+    """The ladder of a varied condition: ``levels`` as given (6 significant digits: they name folders), or that
+    many levels from ``min`` to ``max`` evenly spaced on ``scale``."""
+    given = v["levels"]
+    if isinstance(given, int):
+        if "min" not in v or "max" not in v:
+            raise doc.error(at + ("levels",), f"levels: {given} needs min and max (or give the levels as a list)")
+        lo, hi = float(v["min"]), float(v["max"])
+        if not lo < hi:
+            raise doc.error(at + ("min",), f"{lo:g} is not below max {hi:g}")
+        if given < 2:
+            raise doc.error(at + ("levels",), "a ladder of one level cannot be adapted: give at least 2 levels")
+        if scale == "log" and lo <= 0:
+            raise doc.error(at + ("min",), f"{lo:g} is not above 0: a log domain needs positive levels (or scale: "
+                            "linear)")
+        return grid(scale, lo, hi, given)
+    if "min" in v or "max" in v:
+        raise doc.error(at + ("min" if "min" in v else "max",), "min and max go with a number of levels; the listed "
+                        "levels are the domain")
+    levels = [float(f"{float(x):.6g}") for x in given]
+    if len(levels) < 2:
+        raise doc.error(at + ("levels",), "a ladder of one level cannot be adapted: give at least 2 levels")
+    if len(set(levels)) != len(levels):
+        raise doc.error(at + ("levels",), "a level is listed twice (levels are compared to 6 significant digits)")
+    return sorted(levels)
 
 
 def _check_eye(doc: LoadedYAML, where: tuple, params: dict, stereo_display: bool) -> None:
@@ -583,13 +723,32 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
     conditions = _conditions(doc, data, base, check_renderers)
 
     design = data["design"]
-    if "conditions" in design:
+    fam = families.get(family)
+    if ("repetitions" in design) == ("adaptive" in design):
+        raise doc.error(("design",), "give repetitions (a fixed design) or adaptive (an adaptive one)"
+                        + (", not both" if "adaptive" in design else ""))
+    if "adaptive" in design:
+        if not fam.has_correct_answer:
+            able = ", ".join(f.name for f in families.FAMILIES.values() if f.has_correct_answer)
+            raise doc.error(("design", "adaptive"), f"{family} trials have no correct answer for a procedure to "
+                            f"adapt on: an adaptive design needs the {able} family")
+        if "conditions" in design:
+            raise doc.error(("design", "conditions"), "an adaptive design shows adaptive.reference and the "
+                            "conditions of adaptive.vary: remove design.conditions")
+        ref = design["adaptive"]["reference"]
+        _check_condition(doc, conditions, ("design", "adaptive", "reference"), ref)
+        for name in design["adaptive"]["vary"]:
+            _check_condition(doc, conditions, ("design", "adaptive", "vary", name), name)
+        if ref in design["adaptive"]["vary"]:
+            raise doc.error(("design", "adaptive", "reference"), f"{ref!r} is itself varied (adaptive.vary): the "
+                            "reference must be a fixed condition, e.g. the ground truth")
+        design_conditions = (ref, *design["adaptive"]["vary"])
+    elif "conditions" in design:
         for i, c in enumerate(design["conditions"]):
             _check_condition(doc, conditions, ("design", "conditions", i), c)
         design_conditions = tuple(design["conditions"])
     else:
         design_conditions = tuple(n for n, c in conditions.items() if c.role == "main")
-    fam = families.get(family)
     need = fam.min_conditions
     if len(design_conditions) < need:
         raise doc.error(("design",), f"{family} needs at least {need} conditions in the design, has "
@@ -638,6 +797,12 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
     display, render_size = _display(doc, data)
     if check_renderers:
         _check_renderers_on_display(doc, conditions, display, render_size, data.get("fixation"))
+    adaptive = None
+    if "adaptive" in design:
+        adaptive, levels = _adaptive(doc, data, conditions, fam)
+        conditions.update(levels)
+        if check_renderers:
+            _check_renderers_on_display(doc, levels, display, render_size, data.get("fixation"))
 
     keys = data.get("keys", {})
     default = fam.default_keys(len(design_conditions))
@@ -712,7 +877,8 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
         stimulus_kind=kind, duration_s=stim.get("duration_s"), fps=float(stim.get("fps", 0.0)),
         camera_path=tuple(stim.get("camera_path", ())), black_s=float(timing.get("black_s", 0.5)),
         max_response_s=timing.get("max_response_s"), answer_keys=answer_keys, switch_keys=switch_keys,
-        repetitions=int(design["repetitions"]), scene_order=design.get("scene_order", "fixed"),
+        repetitions=int(design["repetitions"]) if adaptive is None else adaptive.cap,
+        scene_order=design.get("scene_order", "fixed"),
         trial_order=design.get("trial_order", "blocked"), max_run=int(design.get("max_run", 0)),
         min_repeat_distance=int(design.get("min_repeat_distance", 0)),
         position_balance=bool(design.get("position_balance", fam.has_positions)), n_picks=n_picks,
@@ -722,7 +888,7 @@ def _build(doc: LoadedYAML, path: Path, stimuli_dir, check_renderers: bool, outp
         gaze_source=stim.get("gaze", "fixation"), min_fps=stim.get("min_fps"),
         fps_check_s=float(stim.get("fps_check_s", FPS_CHECK_S)), explore=dict(stim.get("explore", {})),
         eyetracker=data.get("eyetracker"), full=full,
-        key_reminder=data.get("presentation", {}).get("key_reminder", "bottom"))
+        key_reminder=data.get("presentation", {}).get("key_reminder", "bottom"), adaptive=adaptive)
     if kind == "live" and check_renderers and _registry() is not None:  # the poses need the scenes' cameras
         _check_live_poses(doc, protocol)
     return protocol

@@ -186,8 +186,14 @@ def scene_order(protocol: Protocol, cb: int, stream: _Stream) -> list[str]:
 
 
 def _main_items(protocol: Protocol, scene: str, scene_idx: int, cb: int, stream: _Stream) -> list[dict]:
-    """The answered trials of one scene (before ordering): the family's items."""
-    return families.get(protocol.family).main_items(
+    """The answered trials of one scene (before ordering): the family's items; for an adaptive design each
+    procedure's ``stop.trials`` slots (the reference and the varied condition; its level is chosen when the
+    trial comes, from the answers before it: :mod:`studyapp.runner.adaptive`)."""
+    fam = families.get(protocol.family)
+    if protocol.adaptive is not None:
+        a = protocol.adaptive
+        return [it for c in a.varied for it in fam.adaptive_items(a.reference, c, scene, a.cap, stream)]
+    return fam.main_items(
         protocol.design_conditions, scene, protocol.repetitions, position_balance=protocol.position_balance,
         flip_seed=cb + scene_idx, stream=stream)
 

@@ -39,6 +39,7 @@ from data_schema.names import check_name
 from data_schema.store import PlannedRow, Store, StoreError, open_store, remove_database
 from studyapp.presentation.base import Stimulus, TrialDisplay, TrialResult
 
+from .adaptive_run import AdaptiveRun
 from .fpscheck import TooSlow, measure, refusal, seconds_per_cell, table_lines, too_slow, trial_flags
 from .live import instructions_text, layout_record, scene_record
 from .protocol import Protocol
@@ -94,13 +95,18 @@ class StimulusSet:
 
 
 def trial_display(protocol: Protocol, t: PlannedTrial | PlannedRow, stimuli: StimulusSet, number: int,
-                  total: int, display_px: tuple[float, float] | None) -> TrialDisplay:
-    """What the presenter needs for one planned trial."""
+                  total: int, display_px: tuple[float, float] | None, adaptive: AdaptiveRun | None = None
+                  ) -> TrialDisplay:
+    """What the presenter needs for one planned trial (an adaptive slot: the varied condition at the level its
+    procedure chooses now, from ``adaptive``)."""
     kind = t.kind
     ref = kind == "reference"
+    shown, level, varied, proc = tuple(t.conditions), None, None, ""
+    if adaptive is not None and adaptive.procedure_of(t):
+        shown, level, varied, proc = adaptive.shown(t)
     return TrialDisplay(
-        index=t.idx, family=t.family,
-        stimuli=tuple(stimuli.stimulus(c, t.scene) for c in t.conditions),
+        index=t.idx, family=t.family, level=level, varied=varied, procedure=proc,
+        stimuli=tuple(stimuli.stimulus(c, t.scene) for c in shown),
         question="" if ref else protocol.question,
         answer_keys=({} if protocol.stimulus_kind in ("sequence", "live") else {"space": "seen"}) if ref
         else dict(protocol.answer_keys),
@@ -380,17 +386,39 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
     floor = protocol.min_fps if protocol.live and hasattr(presenter, "fps_check_frames") else None
     first = True
     displays = {}
+    adaptive = AdaptiveRun(protocol, pid, store.participant(pid)["seed"], store.adaptive_rows(pid),
+                           str(store.path)) if protocol.adaptive is not None else None
 
     def display_of(t, done=None):
-        """The trial's display; ``done`` = counted trials answered before it (default: so far)."""
-        if t.idx not in displays:
+        """The trial's display; ``done`` = counted trials answered before it (default: so far). An adaptive
+        slot's display is made again once its procedure has had another answer (its level may change)."""
+        n = adaptive.trials(t) if adaptive is not None else -1
+        if t.idx not in displays or displays[t.idx][0] != n:
             done = shown if done is None else done
-            displays[t.idx] = trial_display(protocol, t, stimuli, done + counted(t), shown_total, gaze)
-        return displays[t.idx]
+            displays[t.idx] = (n, trial_display(protocol, t, stimuli, done + counted(t), shown_total, gaze,
+                                                adaptive))
+        return displays[t.idx][1]
 
     if todo:
         presenter.preload(display_of(todo[0]))
+    def advance(k, t):
+        """Count ``t`` as done and preload the next trial."""
+        nonlocal number, shown
+        if t.kind != "reference":
+            number += 1
+        shown += counted(t)
+        displays.pop(t.idx, None)
+        if progress:
+            progress(number, total)
+        if k + 1 < len(todo):
+            presenter.preload(display_of(todo[k + 1]))
+
     for k, t in enumerate(todo):
+        if adaptive is not None and adaptive.procedure_of(t) and adaptive.finished(t):
+            # the procedure stopped early: the slot is recorded as skipped, nothing is shown
+            store.commit_response(pid, t.idx, sid, [], adaptive=adaptive.skip(t))
+            advance(k, t)
+            continue
         if t.break_before and not first and protocol.breaks:
             br = protocol.breaks
             store.event(sid, "break", f"before trial {t.idx}")
@@ -399,7 +427,10 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
         first = False
         d = display_of(t)
         prefetch = getattr(presenter, "prefetch", None)  # optional: decode the next trial during this one
-        if prefetch is not None and k + 1 < len(todo):
+        # (not the next trial of this trial's procedure: its level depends on this answer)
+        same = adaptive is not None and k + 1 < len(todo) and adaptive.procedure_of(t) is not None and \
+            adaptive.procedure_of(todo[k + 1]) == adaptive.procedure_of(t)
+        if prefetch is not None and k + 1 < len(todo) and not same:
             prefetch(display_of(todo[k + 1], shown + counted(t)))
         while True:
             result = presenter.present(d)
@@ -414,21 +445,16 @@ def _loop(store, protocol, pid, sid, presenter, stimuli, scale, resume, progress
                 store.end_session(sid, "ended")
                 return "ended"
         derived = interpret(protocol, t, result)
+        row = adaptive.record(t, derived) if adaptive is not None and adaptive.procedure_of(t) else None
         store.commit_response(pid, t.idx, sid, result.answers, chosen=derived["chosen"],
                               chosen_2=derived["chosen_2"], response=derived["response"], rt_s=result.rt_s,
                               onset_s=result.onset_s, dropped_frames=result.dropped_frames,
                               switches=result.switches, gaze_left_fovea=result.gaze_left_fovea,
-                              correct=_correct(store, pid, t, result.answers, derived), frames=result.frames)
+                              correct=_correct(store, pid, t, result.answers, derived), frames=result.frames,
+                              adaptive=row)
         for line in _slow_trial(t, result.frames, floor):
             (console or warn_line)(line)
-        if t.kind != "reference":
-            number += 1
-        shown += counted(t)
-        displays.pop(t.idx, None)
-        if progress:
-            progress(number, total)
-        if k + 1 < len(todo):
-            presenter.preload(display_of(todo[k + 1]))
+        advance(k, t)
     store.end_session(sid, "completed")
     presenter.message("Thank you! The session is complete.", 2.0)
     return "completed"

@@ -10,8 +10,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from data_schema.errors import UserError
-from data_schema.store import tidy_frame, tidy_row
+from data_schema.store import adaptive_columns, tidy_frame, tidy_row
 
+from .adaptive_run import AdaptiveRun
 from .observer import SimulatedObserver
 from .protocol import Protocol
 from .schedule import build_schedule
@@ -44,11 +45,19 @@ def simulate_log(protocol: Protocol, participants: int | list[str], seed: int = 
         obs = SimulatedObserver(protocol, pid, seed, gt)
         sched = build_schedule(protocol, pid, seed)
         total = sum(t.kind != "reference" for t in sched)
+        # an adaptive design: each slot's level from the answers before it, as in a session (adaptive_run)
+        adaptive = AdaptiveRun(protocol, pid, seed, [], "simulation") if protocol.adaptive is not None else None
         for t in sched:
-            res = obs.present(trial_display(protocol, t, stimuli, 0, total, gaze))
+            slot = adaptive is not None and adaptive.procedure_of(t) is not None
+            if slot and adaptive.finished(t):
+                continue  # the procedure stopped early: the slot is skipped (not in the log)
+            res = obs.present(trial_display(protocol, t, stimuli, 0, total, gaze, adaptive))
             if t.kind == "reference":
                 continue
             d = interpret(protocol, t, res)
-            rows.append(tidy_row(pid, f"{pid}-sim", t.block, t.scene, t.index, t.family, t.conditions,
-                                 d["chosen"], d["chosen_2"], d["response"], res.rt_s, t.kind))
+            row = tidy_row(pid, f"{pid}-sim", t.block, t.scene, t.index, t.family, t.conditions,
+                           d["chosen"], d["chosen_2"], d["response"], res.rt_s, t.kind)
+            if slot:
+                row.update(adaptive_columns(adaptive.record(t, d)))
+            rows.append(row)
     return tidy_frame(rows)

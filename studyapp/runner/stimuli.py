@@ -62,7 +62,7 @@ def needed_stimuli(protocol: Protocol) -> list[Needed]:
             want.append(n)
 
     for scene in protocol.scenes:
-        for cond in protocol.design_conditions:
+        for cond in protocol.shown_conditions:  # an adaptive design: every level of its ladder
             add(cond, scene)
         if protocol.reference:
             add(protocol.reference, scene)
