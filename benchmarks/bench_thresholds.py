@@ -124,7 +124,7 @@ def main(argv=None) -> int:
     ap.add_argument("--speed-participants", type=int, default=25)
     ap.add_argument("--write", metavar="FILE", help="replace the thresholds section of this Markdown file")
     args = ap.parse_args(argv)
-    from benchmarks._report import command_line, machine_line, replace_section
+    from benchmarks.harness import command_line, machine_line, replace_section
 
     lines = ["## Threshold studies: recovery, coverage and speed (bench_thresholds.py)", "",
              f"`{command_line('benchmarks/bench_thresholds.py', list(argv or sys.argv[1:]))}`; "
