@@ -1,0 +1,242 @@
+"""What a participant sees in every shipped protocol (issue 26, "Done when"): `studyapp run` in a real window of
+the protocol's display (1920x1080) under Xvfb, answered with xdotool through its practice trial(s) into its first
+main trial, checked from the screenshots the window saves (``run --screenshot-dir``: the black interval before
+each trial, the first frame of each stimulus, every rendered live frame) and one X-screen grab near the end of a
+labelled reference.
+
+Each session runs a copy of the shipped protocol with its timing shortened (tests/gui/shipped_session.py:
+short_copy): pre-rendered stimuli are uniform frames of a colour per condition written where ``prepare --scale``
+writes them (rendering the real set at --scale 0.05 took 10 min here), live ones render at --scale 0.03 with
+their renderer's preview parameters. The nine sessions run at once, each in its own Xvfb.
+
+Measures (pixels only):
+
+- stimulus rectangle: the bounding box of the non-black pixels of each condition's first frame equals the
+  viewport :func:`data_schema.geometry.eye_views` gives for the condition (the whole window on the shipped
+  monoscopic display), for every condition shown; pre-rendered: the pixels inside are the condition's colour;
+- text: the presenter's rendering of the same text over black (tests/gui/drive_presenter.py, one run in a window
+  of the same size) gives the mask of fully inked pixels; the label ("This is the ground truth") and the
+  "practice" tag are found where at least 90 % of their mask shows the text colour, at the reference's first
+  frame and in its last quarter; the progress text of the black interval ("practice", "1 / N") is the bottom
+  60 rows equal (max difference <= 8) to the rendering of the expected text, and unequal to the count that
+  includes practice trials;
+- key reminder: light text (every channel > 205) in the bottom band of 1.6 text heights, over the stimulus
+  dimmed to 30 %; with ``presentation.key_reminder: off`` none, and the stimulus undimmed at the bottom edge.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+sys.path.insert(0, str(Path(__file__).resolve().parent / "gui"))
+import psychopy  # noqa: E402,F401 - the GUI tests need it: a missing install is a failure, not a skip
+from shipped_session import (colour, drive, load, short_copy, shots_of,  # noqa: E402
+                             write_frames)
+from xvfb import Driver, Xvfb, require_tools  # noqa: E402
+
+from data_schema.geometry import eye_views  # noqa: E402
+from studyapp.runner.live import live_stimulus  # noqa: E402
+from studyapp.runner.protocol import load_protocol  # noqa: E402
+from studyapp.runner.session import counted  # noqa: E402
+
+NAMES = sorted(p.stem for p in (Path(__file__).resolve().parents[1] / "studyapp" / "protocols").glob("*.yaml"))
+W, H = 1920, 1080  # every shipped protocol's display
+SCREEN = f"{W}x{H}x24"
+TEXT_H = 30  # the presenter's text height in a 1080-row window (1/36 of it)
+BAND = round(1.6 * TEXT_H)  # the key reminder's band
+LABEL = "This is the ground truth"
+TAG_RGB = (255, 229, 153)  # "practice": PsychoPy rgb (1, 0.8, 0.2)
+OFF = "seed001_pilot+off"  # seed001_pilot with presentation.key_reminder: off
+
+
+def _session(name: str, folder: Path, out: dict) -> None:
+    try:
+        base = name.split("+")[0]
+        copy = short_copy(base, folder, **({"key_reminder": "off"} if name == OFF else {}))
+        p = load_protocol(copy, check_renderers=False)
+        if not p.live:
+            write_frames(p, scale_of(p))
+        with Xvfb(screen=SCREEN) as x:
+            out[name] = (p, drive(x, copy, folder, scale_of(p)))
+        print(f"{name}: {out[name][1].seconds:.1f} s", file=sys.stderr)
+    except BaseException as exc:  # reported by the test of this protocol
+        out[name] = exc
+
+
+def _references(folder: Path, progress: list[tuple[int, int]], out: dict) -> None:
+    """The presenter's own rendering over black of the label, the "practice" tag and each progress text."""
+    try:
+        black = folder / "black.png"
+        Image.new("RGB", (16, 9)).save(black)
+        still = [{"condition": "X", "frames": [str(black)], "fps": 0.0}]
+        base = {"family": "yes_no", "stimuli": still, "question": "", "answer_keys": {}, "duration_s": 0.05,
+                "black_before_s": 0.05, "key_reminder": "off"}
+        steps = [{"trial": base | {"index": 0, "kind": "reference", "label": LABEL}},
+                 {"trial": base | {"index": 1, "kind": "practice"}}]
+        steps += [{"trial": base | {"index": 2 + i, "progress": list(k)}} for i, k in enumerate(progress)]
+        spec = {"display": {"width_px": W, "height_px": H, "width_cm": 53.0, "distance_cm": 45.0},
+                "presenter": {"screenshot_dir": str(folder / "shots"), "fixation_rgb": None}, "steps": steps,
+                "watchdog_s": 110}
+        with Xvfb(screen=SCREEN) as x:
+            Driver(x, spec, folder, timeout_s=120).finish()
+        shots = folder / "shots"
+        label, tag = load(shots_of(shots, 0, "stim0")[0]), load(shots_of(shots, 1, "stim0")[0])
+        out["label_mask"] = label.min(axis=2) >= 250
+        out["tag_mask"] = (np.abs(tag - TAG_RGB) <= 2).all(axis=2)
+        out["progress"] = {"practice": load(shots_of(shots, 1, "black")[0])[H - 2 * TEXT_H:]}
+        for i, (k, n) in enumerate(progress):
+            out["progress"][f"{k} / {n}"] = load(shots_of(shots, 2 + i, "black")[0])[H - 2 * TEXT_H:]
+    except BaseException as exc:
+        out["error"] = exc
+
+
+def _expected_progress(p) -> tuple[tuple[int, int], tuple[int, int]]:
+    """The first main trial's progress ("1 / N", practice and references not counted) and the one that would
+    count them."""
+    from studyapp.runner.schedule import build_schedule
+
+    sched = build_schedule(p, "P1", 0)
+    first = next(i for i, t in enumerate(sched) if counted(t))
+    n_all = sum(t.kind != "reference" for t in sched)
+    before = sum(t.kind == "practice" for t in sched[:first])
+    return (1, sum(counted(t) for t in sched)), (before + 1, n_all)
+
+
+@pytest.fixture(scope="module")
+def sessions(tmp_path_factory):
+    """Every shipped protocol's session (and the reminder-off variant) and the reference renderings, at once."""
+    require_tools()
+    out, refs = {}, {}
+    progress = sorted({k for name in NAMES for k in _expected_progress(
+        load_protocol(Path(__file__).resolve().parents[1] / "studyapp" / "protocols" / f"{name}.yaml",
+                      check_renderers=False))})
+    threads = [threading.Thread(target=_session, args=(n, tmp_path_factory.mktemp(n.replace("+", "_")), out))
+               for n in [*NAMES, OFF]]
+    threads.append(threading.Thread(target=_references, args=(tmp_path_factory.mktemp("refs"), progress, refs)))
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=400)
+    if "error" in refs:
+        raise refs["error"]
+    return out, refs
+
+
+def ink(shot: np.ndarray, mask: np.ndarray, rgb, tol: int = 6) -> float:
+    """The fraction of ``mask``'s pixels (fully inked text of the reference rendering) that show ``rgb``."""
+    return float((np.abs(shot[mask] - rgb) <= tol).all(axis=1).mean())
+
+
+def rectangle(shot: np.ndarray) -> tuple[int, int, int, int]:
+    """``(x0, y0, x1, y1)`` of the pixels that are not the window's black background."""
+    ys, xs = np.nonzero(shot.max(axis=2) > 8)
+    return int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1
+
+
+def band_ink(shot: np.ndarray, y0: int, y1: int) -> int:
+    """Light text pixels in rows ``y0:y1`` (the stimulus under the band is dimmed below 80)."""
+    return int((shot[y0:y1].min(axis=2) > 205).sum())
+
+
+def first_shots(p, run, t) -> list[tuple[str, np.ndarray]]:
+    """(condition, screenshot of its first frame) for each stimulus of trial ``t`` (live: the first frame, then
+    the second rendered after each switch)."""
+    if not p.live:
+        return [(c, load(shots_of(run.shots, t.index, f"stim{i}")[0])) for i, c in enumerate(t.conditions)]
+    live = shots_of(run.shots, t.index, "live")
+    return [(c, load(live[run.live_first.get((t.index, i), 0)])) for i, c in enumerate(t.conditions)]
+
+
+def scale_of(p) -> float:
+    """The test's --scale: live 0.03 (58x32 renders; at 0.02 seed001_2afc_live's catch condition COARSE, LaFR
+    delta 8, has 3 log-polar rows and stops the session); pre-rendered the smallest of a few that keeps the render's
+    aspect ratio exact (seed001 0.05: 48x27, seed003 0.125: 32x18)."""
+    if p.live:
+        return 0.03
+    w, h = p.render_size
+    for s in (0.05, 0.0625, 0.1, 0.125, 0.25, 0.5):
+        g = p.render_geometry(s)
+        if g.width * h == g.height * w:
+            return s
+    return 1.0
+
+
+def viewport(p, cond: str) -> tuple[int, int, int, int]:
+    """The rectangle :func:`data_schema.geometry.eye_views` gives a condition's stimulus in the window."""
+    if p.live:
+        views = live_stimulus(p, cond, p.scenes[0], scale_of(p)).views((W, H))
+    else:
+        g = p.render_geometry(scale_of(p))
+        views = eye_views((W, H), (g.width, g.height), 1)  # prepare writes one view of every condition
+    assert len(views) == 1, views
+    v = views[0]
+    return (v.x0, v.y0, v.x0 + v.width, v.y0 + v.height)
+
+
+@pytest.mark.parametrize("name", [*NAMES, OFF])
+def test_shipped_protocol_screens(sessions, name):
+    out, refs = sessions
+    if isinstance(out.get(name), BaseException):
+        raise out[name]
+    p, run = out[name]
+    index = {c: i for i, c in enumerate(p.conditions)}
+    rects, seen = {}, []
+    main_progress, wrong_progress = _expected_progress(p)
+    for t in run.trials:
+        shots = first_shots(p, run, t)
+        black = load(shots_of(run.shots, t.index, "black")[0])
+        for cond, shot in shots:
+            rect = rectangle(shot)
+            if p.live:  # a scene may leave black around its content (cornell): compare within the scene
+                x0, y0, x1, y1 = viewport(p, cond)
+                assert x0 <= rect[0] and y0 <= rect[1] and rect[2] <= x1 and rect[3] <= y1, (t.index, cond, rect)
+                rects.setdefault(t.scene, {})[cond] = rect
+            else:
+                assert rect == viewport(p, cond), (t.index, cond, rect)
+                rects.setdefault("all", {})[cond] = rect
+            if not p.live:  # the condition's own frame over the rectangle (overlays aside)
+                x0, y0, x1, y1 = rect
+                inner = shot[y0 + 3 * TEXT_H:y1 - BAND, x0:x1]
+                assert (np.abs(inner - colour(index[cond], 0)) <= 2).all(axis=2).mean() > 0.98, (t.index, cond)
+            seen.append(cond)
+            label = ink(shot, refs["label_mask"], (255, 255, 255))
+            tag = ink(shot, refs["tag_mask"], TAG_RGB)
+            reminder = band_ink(shot, H - BAND, H)
+            if t.kind == "reference":
+                assert label >= 0.9, (t.index, cond, label)
+                end = run.grabs[(t.index, "end")]
+                assert ink(end, refs["label_mask"], (255, 255, 255)) >= 0.9, (t.index, "end of the reference")
+                if not p.live:  # the grab shows the last frame of the sequence: the label stayed to the end
+                    assert tuple(end[H // 2, W // 4]) == colour(index[cond], 1)
+                assert reminder == 0  # a reference has no keys
+                continue
+            assert label < 0.5, (t.index, cond, label)
+            assert (tag >= 0.9) == (t.kind == "practice"), (t.index, cond, t.kind, tag)
+            if name == OFF:
+                assert reminder == 0, (t.index, cond, reminder)
+                assert tuple(shot[H - 3, 2]) == colour(index[cond], 0)  # no band: the stimulus itself
+            else:
+                assert reminder > 100, (t.index, cond, reminder)
+                if not p.live:
+                    np.testing.assert_allclose(shot[H - 3, 2], 0.3 * np.array(colour(index[cond], 0)), atol=2)
+        bottom = black[H - 2 * TEXT_H:]
+        want = "practice" if t.kind == "practice" else None if t.kind == "reference" else "%d / %d" % main_progress
+        if want is not None:
+            assert np.abs(bottom - refs["progress"][want]).max() <= 8, (t.index, want)
+        if t.kind not in ("practice", "reference"):
+            wrong = "%d / %d" % wrong_progress
+            assert np.abs(bottom - refs["progress"][wrong]).max() > 8, (t.index, "counted practice", wrong)
+    assert run.trials[-1].kind in ("trial", "catch") and any(t.kind == "practice" for t in run.trials)
+    for scene, by_cond in rects.items():  # one rectangle for every condition shown (within one render pixel)
+        r = np.array(list(by_cond.values()))
+        assert (r.max(axis=0) - r.min(axis=0) <= W / p.render_geometry(scale_of(p)).width + 1).all(), (scene, by_cond)
+    if p.live:  # a scene whose view reaches every edge shows it over the eye_views viewport exactly
+        full = [s for s, by_cond in rects.items() if all(r == viewport(p, c) for c, r in by_cond.items())]
+        assert full, rects
+    assert "ended" in run.stdout, run.stdout
