@@ -11,9 +11,12 @@ their renderer's preview parameters. The nine sessions run at once, each in its 
 
 Measures (pixels only):
 
-- stimulus rectangle: the bounding box of the non-black pixels of each condition's first frame equals the
-  viewport :func:`data_schema.geometry.eye_views` gives for the condition (the whole window on the shipped
-  monoscopic display), for every condition shown; pre-rendered: the pixels inside are the condition's colour;
+- stimulus rectangle: the bounding box of the non-black pixels of each condition's first frame. Pre-rendered:
+  it equals the viewport :func:`data_schema.geometry.eye_views` gives (the whole window on the shipped
+  monoscopic display) for every condition shown, and the pixels inside are the condition's colour. Live (the
+  content decides where pixels are black: the cornell boxes leave black around the box): every condition of a
+  scene has the same box within one render pixel, inside the viewport, and in a scene whose view reaches the
+  window's edges (driven up to the first main trial in one) the box is the viewport;
 - text: the presenter's rendering of the same text over black (tests/gui/drive_presenter.py, one run in a window
   of the same size) gives the mask of fully inked pixels; the label ("This is the ground truth") and the
   "practice" tag are found where at least 90 % of their mask shows the text colour, at the reference's first
@@ -53,23 +56,28 @@ BAND = round(1.6 * TEXT_H)  # the key reminder's band
 LABEL = "This is the ground truth"
 TAG_RGB = (255, 229, 153)  # "practice": PsychoPy rgb (1, 0.8, 0.2)
 OFF = "seed001_pilot+off"  # seed001_pilot with presentation.key_reminder: off
+BOXED = ("cornell", "cornell_many")  # scenes whose live start view leaves black around the box
+
+
+def copy_of(name: str, folder: Path) -> Path:
+    """The test's copy of a shipped protocol (``OFF``: with the key reminder turned off)."""
+    return short_copy(name.split("+")[0], folder, **({"key_reminder": "off"} if name == OFF else {}))
 
 
 def _session(name: str, folder: Path, out: dict) -> None:
     try:
-        base = name.split("+")[0]
-        copy = short_copy(base, folder, **({"key_reminder": "off"} if name == OFF else {}))
+        copy = copy_of(name, folder)
         p = load_protocol(copy, check_renderers=False)
         if not p.live:
             write_frames(p, scale_of(p))
         with Xvfb(screen=SCREEN) as x:
-            out[name] = (p, drive(x, copy, folder, scale_of(p)))
+            out[name] = (p, drive(x, copy, folder, scale_of(p), n_main(p)))
         print(f"{name}: {out[name][1].seconds:.1f} s", file=sys.stderr)
     except BaseException as exc:  # reported by the test of this protocol
         out[name] = exc
 
 
-def _references(folder: Path, progress: list[tuple[int, int]], out: dict) -> None:
+def _references(folder: Path, texts: list[str], out: dict) -> None:
     """The presenter's own rendering over black of the label, the "practice" tag and each progress text."""
     try:
         black = folder / "black.png"
@@ -79,33 +87,57 @@ def _references(folder: Path, progress: list[tuple[int, int]], out: dict) -> Non
                 "black_before_s": 0.05, "key_reminder": "off"}
         steps = [{"trial": base | {"index": 0, "kind": "reference", "label": LABEL}},
                  {"trial": base | {"index": 1, "kind": "practice"}}]
-        steps += [{"trial": base | {"index": 2 + i, "progress": list(k)}} for i, k in enumerate(progress)]
+        counts = [tuple(int(v) for v in t.split(" / ")) for t in texts if t != "practice"]
+        steps += [{"trial": base | {"index": 2 + i, "progress": list(k)}} for i, k in enumerate(counts)]
         spec = {"display": {"width_px": W, "height_px": H, "width_cm": 53.0, "distance_cm": 45.0},
                 "presenter": {"screenshot_dir": str(folder / "shots"), "fixation_rgb": None}, "steps": steps,
-                "watchdog_s": 110}
+                "watchdog_s": 300}
         with Xvfb(screen=SCREEN) as x:
-            Driver(x, spec, folder, timeout_s=120).finish()
+            Driver(x, spec, folder, timeout_s=320).finish()
         shots = folder / "shots"
         label, tag = load(shots_of(shots, 0, "stim0")[0]), load(shots_of(shots, 1, "stim0")[0])
         out["label_mask"] = label.min(axis=2) >= 250
         out["tag_mask"] = (np.abs(tag - TAG_RGB) <= 2).all(axis=2)
         out["progress"] = {"practice": load(shots_of(shots, 1, "black")[0])[H - 2 * TEXT_H:]}
-        for i, (k, n) in enumerate(progress):
+        for i, (k, n) in enumerate(counts):
             out["progress"][f"{k} / {n}"] = load(shots_of(shots, 2 + i, "black")[0])[H - 2 * TEXT_H:]
     except BaseException as exc:
         out["error"] = exc
 
 
-def _expected_progress(p) -> tuple[tuple[int, int], tuple[int, int]]:
-    """The first main trial's progress ("1 / N", practice and references not counted) and the one that would
-    count them."""
+def _schedule(p):
     from studyapp.runner.schedule import build_schedule
 
-    sched = build_schedule(p, "P1", 0)
-    first = next(i for i, t in enumerate(sched) if counted(t))
-    n_all = sum(t.kind != "reference" for t in sched)
-    before = sum(t.kind == "practice" for t in sched[:first])
-    return (1, sum(counted(t) for t in sched)), (before + 1, n_all)
+    return build_schedule(p, "P1", 0)
+
+
+def n_main(p) -> int:
+    """How many main trials to drive: one, or (live) up to the first in a scene whose view reaches every edge
+    of the window (cornell and cornell_many leave black around the box), so that a rectangle is measured
+    against the viewport."""
+    mains = [t for t in _schedule(p) if counted(t)]
+    if not p.live:
+        return 1
+    return next(k + 1 for k, t in enumerate(mains) if t.scene not in BOXED)
+
+
+def expected_progress(p) -> dict[int, tuple[str, str]]:
+    """Trial index -> (the progress text of the black interval, the text if practice trials were counted) for
+    each trial driven: "practice", or "k / N" with practice and references left out."""
+    sched = _schedule(p)
+    total, n_all = sum(counted(t) for t in sched), sum(t.kind != "reference" for t in sched)
+    out, k, j, mains = {}, 0, 0, 0
+    for t in sched:
+        j += t.kind != "reference"
+        if t.kind == "practice":  # any count would differ from "practice"
+            out[t.index] = ("practice", "practice")
+        elif counted(t):
+            k += 1
+            out[t.index] = (f"{k} / {total}", f"{j} / {n_all}")
+            mains += 1
+            if mains == n_main(p):
+                return out
+    return out
 
 
 @pytest.fixture(scope="module")
@@ -113,12 +145,13 @@ def sessions(tmp_path_factory):
     """Every shipped protocol's session (and the reminder-off variant) and the reference renderings, at once."""
     require_tools()
     out, refs = {}, {}
-    progress = sorted({k for name in NAMES for k in _expected_progress(
-        load_protocol(Path(__file__).resolve().parents[1] / "studyapp" / "protocols" / f"{name}.yaml",
-                      check_renderers=False))})
+    texts = set()
+    for name in [*NAMES, OFF]:  # the copies' schedules (their content, hence their schedule seed, differs)
+        copy = copy_of(name, tmp_path_factory.mktemp("copies"))
+        texts |= {t for pair in expected_progress(load_protocol(copy, check_renderers=False)).values() for t in pair}
     threads = [threading.Thread(target=_session, args=(n, tmp_path_factory.mktemp(n.replace("+", "_")), out))
                for n in [*NAMES, OFF]]
-    threads.append(threading.Thread(target=_references, args=(tmp_path_factory.mktemp("refs"), progress, refs)))
+    threads.append(threading.Thread(target=_references, args=(tmp_path_factory.mktemp("refs"), sorted(texts), refs)))
     for t in threads:
         t.start()
     for t in threads:
@@ -186,8 +219,8 @@ def test_shipped_protocol_screens(sessions, name):
         raise out[name]
     p, run = out[name]
     index = {c: i for i, c in enumerate(p.conditions)}
-    rects, seen = {}, []
-    main_progress, wrong_progress = _expected_progress(p)
+    rects = {}
+    progress = expected_progress(p)
     for t in run.trials:
         shots = first_shots(p, run, t)
         black = load(shots_of(run.shots, t.index, "black")[0])
@@ -204,7 +237,6 @@ def test_shipped_protocol_screens(sessions, name):
                 x0, y0, x1, y1 = rect
                 inner = shot[y0 + 3 * TEXT_H:y1 - BAND, x0:x1]
                 assert (np.abs(inner - colour(index[cond], 0)) <= 2).all(axis=2).mean() > 0.98, (t.index, cond)
-            seen.append(cond)
             label = ink(shot, refs["label_mask"], (255, 255, 255))
             tag = ink(shot, refs["tag_mask"], TAG_RGB)
             reminder = band_ink(shot, H - BAND, H)
@@ -226,12 +258,13 @@ def test_shipped_protocol_screens(sessions, name):
                 if not p.live:
                     np.testing.assert_allclose(shot[H - 3, 2], 0.3 * np.array(colour(index[cond], 0)), atol=2)
         bottom = black[H - 2 * TEXT_H:]
-        want = "practice" if t.kind == "practice" else None if t.kind == "reference" else "%d / %d" % main_progress
-        if want is not None:
+        if t.kind == "reference":  # no progress text
+            assert bottom.max() <= 8, t.index
+        else:
+            want, wrong = progress[t.index]
             assert np.abs(bottom - refs["progress"][want]).max() <= 8, (t.index, want)
-        if t.kind not in ("practice", "reference"):
-            wrong = "%d / %d" % wrong_progress
-            assert np.abs(bottom - refs["progress"][wrong]).max() > 8, (t.index, "counted practice", wrong)
+            if wrong != want:
+                assert np.abs(bottom - refs["progress"][wrong]).max() > 8, (t.index, "counted practice", wrong)
     assert run.trials[-1].kind in ("trial", "catch") and any(t.kind == "practice" for t in run.trials)
     for scene, by_cond in rects.items():  # one rectangle for every condition shown (within one render pixel)
         r = np.array(list(by_cond.values()))
