@@ -1,13 +1,13 @@
-"""What a participant sees in every shipped protocol (issue 26, "Done when"): `studyapp run` in a real window of
-the protocol's display (1920x1080) under Xvfb, answered with xdotool through its practice trial(s) into its first
-main trial, checked from the screenshots the window saves (``run --screenshot-dir``: the black interval before
-each trial, the first frame of each stimulus, every rendered live frame) and one X-screen grab near the end of a
-labelled reference.
+"""What a participant sees in every shipped protocol (issue 26, "Done when"): `studyapp run` in a real window
+of the protocol's display (1920x1080) under Xvfb, answered with xdotool through its practice trial(s) into its
+first main trial, checked from the screenshots the window saves (``run --screenshot-dir``: the black interval
+before each trial, the first frame of each stimulus, every rendered live frame) and one X-screen grab near the
+end of a labelled reference.
 
 Each session runs a copy of the shipped protocol with its timing shortened (tests/gui/shipped_session.py:
-short_copy): pre-rendered stimuli are uniform frames of a colour per condition written where ``prepare --scale``
-writes them (rendering the real set at --scale 0.05 took 10 min here), live ones render at --scale 0.03 with
-their renderer's preview parameters. The nine sessions run at once, each in its own Xvfb.
+short_copy): pre-rendered stimuli are uniform frames of a colour per condition written where ``prepare
+--scale`` writes them (rendering the real set at --scale 0.05 took 10 min here), live ones render at --scale
+0.03 with their renderer's preview parameters. The nine sessions run at once, each in its own Xvfb.
 
 Measures (pixels only):
 
@@ -17,12 +17,12 @@ Measures (pixels only):
   content decides where pixels are black: the cornell boxes leave black around the box): every condition of a
   scene has the same box within one render pixel, inside the viewport, and in a scene whose view reaches the
   window's edges (driven up to the first main trial in one) the box is the viewport;
-- text: the presenter's rendering of the same text over black (tests/gui/drive_presenter.py, one run in a window
-  of the same size) gives the mask of fully inked pixels; the label ("This is the ground truth") and the
-  "practice" tag are found where at least 90 % of their mask shows the text colour, at the reference's first
-  frame and in its last quarter; the progress text of the black interval ("practice", "1 / N") is the bottom
-  60 rows equal (max difference <= 8) to the rendering of the expected text, and unequal to the count that
-  includes practice trials;
+- text: the presenter's rendering of the same text over black (tests/gui/drive_presenter.py, one run in a
+  window of the same size) gives the mask of fully inked pixels; the label ("This is the ground truth") and
+  the "practice" tag are found where at least 90 % of their mask shows the text colour, at the reference's
+  first frame and in its last quarter; the progress text of the black interval ("practice", "1 / N") is the
+  bottom 60 rows equal (max difference <= 8) to the rendering of the expected text, and unequal to the count
+  that includes practice trials;
 - key reminder: light text (every channel > 205) in the bottom band of 1.6 text heights, over the stimulus
   dimmed to 30 %; with ``presentation.key_reminder: off`` none, and the stimulus undimmed at the bottom edge.
 """
@@ -48,7 +48,8 @@ from studyapp.runner.live import live_stimulus  # noqa: E402
 from studyapp.runner.protocol import load_protocol  # noqa: E402
 from studyapp.runner.session import counted  # noqa: E402
 
-NAMES = sorted(p.stem for p in (Path(__file__).resolve().parents[1] / "studyapp" / "protocols").glob("*.yaml"))
+PROTOCOL_DIR = Path(__file__).resolve().parents[1] / "studyapp" / "protocols"
+NAMES = sorted(p.stem for p in PROTOCOL_DIR.glob("*.yaml"))
 W, H = 1920, 1080  # every shipped protocol's display
 SCREEN = f"{W}x{H}x24"
 TEXT_H = 30  # the presenter's text height in a 1080-row window (1/36 of it)
@@ -142,16 +143,19 @@ def expected_progress(p) -> dict[int, tuple[str, str]]:
 
 @pytest.fixture(scope="module")
 def sessions(tmp_path_factory):
-    """Every shipped protocol's session (and the reminder-off variant) and the reference renderings, at once."""
+    """Every shipped protocol's session (and the reminder-off variant) and the reference renderings, at
+    once."""
     require_tools()
     out, refs = {}, {}
     texts = set()
     for name in [*NAMES, OFF]:  # the copies' schedules (their content, hence their schedule seed, differs)
         copy = copy_of(name, tmp_path_factory.mktemp("copies"))
-        texts |= {t for pair in expected_progress(load_protocol(copy, check_renderers=False)).values() for t in pair}
+        pairs = expected_progress(load_protocol(copy, check_renderers=False)).values()
+        texts |= {t for pair in pairs for t in pair}
     threads = [threading.Thread(target=_session, args=(n, tmp_path_factory.mktemp(n.replace("+", "_")), out))
                for n in [*NAMES, OFF]]
-    threads.append(threading.Thread(target=_references, args=(tmp_path_factory.mktemp("refs"), sorted(texts), refs)))
+    threads.append(threading.Thread(target=_references,
+                                    args=(tmp_path_factory.mktemp("refs"), sorted(texts), refs)))
     for t in threads:
         t.start()
     for t in threads:
@@ -178,8 +182,8 @@ def band_ink(shot: np.ndarray, y0: int, y1: int) -> int:
 
 
 def first_shots(p, run, t) -> list[tuple[str, np.ndarray]]:
-    """(condition, screenshot of its first frame) for each stimulus of trial ``t`` (live: the first frame, then
-    the second rendered after each switch)."""
+    """(condition, screenshot of its first frame) for each stimulus of trial ``t`` (live: the first frame,
+    then the second rendered after each switch)."""
     if not p.live:
         return [(c, load(shots_of(run.shots, t.index, f"stim{i}")[0])) for i, c in enumerate(t.conditions)]
     live = shots_of(run.shots, t.index, "live")
@@ -188,8 +192,8 @@ def first_shots(p, run, t) -> list[tuple[str, np.ndarray]]:
 
 def scale_of(p) -> float:
     """The test's --scale: live 0.03 (58x32 renders; at 0.02 seed001_2afc_live's catch condition COARSE, LaFR
-    delta 8, has 3 log-polar rows and stops the session); pre-rendered the smallest of a few that keeps the render's
-    aspect ratio exact (seed001 0.05: 48x27, seed003 0.125: 32x18)."""
+    delta 8, has 3 log-polar rows and stops the session); pre-rendered the smallest of a few that keeps the
+    render's aspect ratio exact (seed001 0.05: 48x27, seed003 0.125: 32x18)."""
     if p.live:
         return 0.03
     w, h = p.render_size
@@ -228,18 +232,27 @@ def test_shipped_protocol_screens(sessions, name):
             rect = rectangle(shot)
             if p.live:  # a scene may leave black around its content (cornell): compare within the scene
                 x0, y0, x1, y1 = viewport(p, cond)
-                assert x0 <= rect[0] and y0 <= rect[1] and rect[2] <= x1 and rect[3] <= y1, (t.index, cond, rect)
+                inside = x0 <= rect[0] and y0 <= rect[1] and rect[2] <= x1 and rect[3] <= y1
+                assert inside, (t.index, cond, rect)
                 rects.setdefault(t.scene, {})[cond] = rect
             else:
                 assert rect == viewport(p, cond), (t.index, cond, rect)
                 rects.setdefault("all", {})[cond] = rect
+            frame = None
             if not p.live:  # the condition's own frame over the rectangle (overlays aside)
                 x0, y0, x1, y1 = rect
                 inner = shot[y0 + 3 * TEXT_H:y1 - BAND, x0:x1]
-                assert (np.abs(inner - colour(index[cond], 0)) <= 2).all(axis=2).mean() > 0.98, (t.index, cond)
+                frame = [k for k in (0, 1)
+                         if (np.abs(inner - colour(index[cond], k)) <= 2).all(axis=2).mean() > 0.98]
+                assert frame, (t.index, cond)  # frame 1: the first flip after a switch used the old onset
             label = ink(shot, refs["label_mask"], (255, 255, 255))
             tag = ink(shot, refs["tag_mask"], TAG_RGB)
             reminder = band_ink(shot, H - BAND, H)
+            end_label = ink(run.grabs[(t.index, "end")], refs["label_mask"], (255, 255, 255)) \
+                if t.kind == "reference" else None
+            print(f"SCREEN {name} trial {t.index} {t.kind} {t.scene} {cond}: frame {frame} rect {rect} label "
+                  f"{label:.2f}{'' if end_label is None else f' (end {end_label:.2f})'} tag {tag:.2f} "
+                  f"reminder ink {reminder}")
             if t.kind == "reference":
                 assert label >= 0.9, (t.index, cond, label)
                 end = run.grabs[(t.index, "end")]
@@ -252,23 +265,28 @@ def test_shipped_protocol_screens(sessions, name):
             assert (tag >= 0.9) == (t.kind == "practice"), (t.index, cond, t.kind, tag)
             if name == OFF:
                 assert reminder == 0, (t.index, cond, reminder)
-                assert tuple(shot[H - 3, 2]) == colour(index[cond], 0)  # no band: the stimulus itself
+                assert tuple(shot[H - 3, 2]) == colour(index[cond], frame[0])  # no band: the stimulus itself
             else:
                 assert reminder > 100, (t.index, cond, reminder)
                 if not p.live:
-                    np.testing.assert_allclose(shot[H - 3, 2], 0.3 * np.array(colour(index[cond], 0)), atol=2)
+                    dimmed = 0.3 * np.array(colour(index[cond], frame[0]))  # under the band
+                    np.testing.assert_allclose(shot[H - 3, 2], dimmed, atol=2)
         bottom = black[H - 2 * TEXT_H:]
         if t.kind == "reference":  # no progress text
             assert bottom.max() <= 8, t.index
         else:
             want, wrong = progress[t.index]
+            print(f"SCREEN {name} trial {t.index} black: progress {want!r} max diff "
+                  f"{np.abs(bottom - refs['progress'][want]).max()}, vs {wrong!r} "
+                  f"{np.abs(bottom - refs['progress'][wrong]).max()}")
             assert np.abs(bottom - refs["progress"][want]).max() <= 8, (t.index, want)
             if wrong != want:
-                assert np.abs(bottom - refs["progress"][wrong]).max() > 8, (t.index, "counted practice", wrong)
+                assert np.abs(bottom - refs["progress"][wrong]).max() > 8, (t.index, "counts practice", wrong)
     assert run.trials[-1].kind in ("trial", "catch") and any(t.kind == "practice" for t in run.trials)
     for scene, by_cond in rects.items():  # one rectangle for every condition shown (within one render pixel)
         r = np.array(list(by_cond.values()))
-        assert (r.max(axis=0) - r.min(axis=0) <= W / p.render_geometry(scale_of(p)).width + 1).all(), (scene, by_cond)
+        pixel = W / p.render_geometry(scale_of(p)).width + 1
+        assert (r.max(axis=0) - r.min(axis=0) <= pixel).all(), (scene, by_cond)
     if p.live:  # a scene whose view reaches every edge shows it over the eye_views viewport exactly
         full = [s for s, by_cond in rects.items() if all(r == viewport(p, c) for c, r in by_cond.items())]
         assert full, rects

@@ -4,16 +4,16 @@ hand, not part of the suite (minutes per protocol on llvmpipe):
     PYTHONPATH=$PWD python tests/gui/fps_tables.py OUT_DIR [--scale 0.05] [--shipped] [NAME ...]
 
 For each live protocol (default: all four) a real windowed session, `studyapp run PROTOCOL --scale S
---accept-slow`, runs under a private Xvfb of the display's size (1920x1080): the frame-rate check renders every
-condition x scene for ``stimulus.fps_check_s`` seconds before the first trial (studyapp/runner/fpscheck.py) and
-stores its table with the session; xdotool then presses SPACE and the answer keys until one trial is answered,
-and Escape, E end the session. ``studyapp sessions --db OUT_DIR/NAME.db`` prints the table (saved as
+--accept-slow`, runs under a private Xvfb of the display's size (1920x1080): the frame-rate check renders
+every condition x scene for ``stimulus.fps_check_s`` seconds before the first trial
+(studyapp/runner/fpscheck.py) and stores its table with the session; xdotool then presses SPACE and the
+answer keys until one trial is answered, and Escape, E end the session. ``studyapp sessions --db OUT_DIR/NAME.db`` prints the table (saved as
 OUT_DIR/NAME.sessions.txt).
 
 The sessions run a copy of the shipped protocol with the eye tracker's calibration and validation turned off
 (iohub's MouseGaze still gives the gaze, so the gaze-to-flip latency is measured): calibration is being
-reworked (issue 26, item 4) and, with MouseGaze, it fails on this machine's main branch (iohub
-``KeyError: 'target_attributes'``). ``--shipped`` runs the shipped files unchanged instead.
+reworked (issue 26, item 4) and, with MouseGaze, it fails on this machine's main branch (iohub ``KeyError:
+'target_attributes'``). ``--shipped`` runs the shipped files unchanged instead.
 """
 
 from __future__ import annotations
@@ -54,8 +54,8 @@ def session(path: Path, db: Path, scale: float, timeout_s: float = 1800) -> tupl
     t0 = time.monotonic()
     with Xvfb(screen=f"{p.display.width_px}x{p.display.height_px}x24") as x:
         err = open(db.with_suffix(".run.stderr"), "w")
-        proc = subprocess.Popen([PYTHON, "-m", "studyapp", "run", str(path), "--participant", "P1", "--db", str(db),
-                                 "--scale", f"{scale:g}", "--accept-slow", "--quiet"],
+        proc = subprocess.Popen([PYTHON, "-m", "studyapp", "run", str(path), "--participant", "P1",
+                                 "--db", str(db), "--scale", f"{scale:g}", "--accept-slow", "--quiet"],
                                 cwd=str(db.parent), env=x.env, stdout=subprocess.PIPE, stderr=err, text=True)
         try:
             while proc.poll() is None and time.monotonic() - t0 < timeout_s:
@@ -75,8 +75,8 @@ def session(path: Path, db: Path, scale: float, timeout_s: float = 1800) -> tupl
                 proc.wait()
             err.close()
     print(out.strip(), file=sys.stderr)
-    shown = subprocess.run([PYTHON, "-m", "studyapp", "sessions", "--db", str(db)], capture_output=True, text=True,
-                           env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    shown = subprocess.run([PYTHON, "-m", "studyapp", "sessions", "--db", str(db)], capture_output=True,
+                           text=True, env=dict(os.environ, PYTHONPATH=str(ROOT)))
     return shown.stdout + shown.stderr, time.monotonic() - t0
 
 

@@ -35,12 +35,11 @@ def xkey(name: str) -> str:
 
 
 def short_copy(name: str, folder: Path, **presentation) -> Path:
-    """The shipped protocol ``name`` written to ``folder`` with its timing shortened (sequences of 2 s at 1 fps,
-    live trials of 1.5 s, black intervals of 0.3 s, no frame-rate check, the gaze from the window's pointer
-    instead of iohub's MouseGaze and its calibration), live conditions at
-    their renderer's preview parameters (what ``run --simulate`` renders: sl_gt with 256 + 256 samples instead
-    of 2048 + 2048) and ``presentation`` set; display, conditions, scenes, keys, labels and design are the
-    shipped ones."""
+    """The shipped protocol ``name`` written to ``folder`` with its timing shortened (sequences of 2 s at 1
+    fps, live trials of 1.5 s, black intervals of 0.3 s, no frame-rate check, the gaze from the window's
+    pointer instead of iohub's MouseGaze and its calibration), live conditions at their renderer's preview
+    parameters (what ``run --simulate`` renders: sl_gt with 256 + 256 samples instead of 2048 + 2048) and
+    ``presentation`` set; display, conditions, scenes, keys, labels and design are the shipped ones."""
     from renderers.registry import preview_params
 
     data = yaml.safe_load((PROTOCOLS / f"{name}.yaml").read_text())
@@ -48,7 +47,7 @@ def short_copy(name: str, folder: Path, **presentation) -> Path:
     if stim["kind"] == "live":
         stim["duration_s"] = 1.5
         stim["fps_check_s"] = 0
-        stim["gaze"] = "mouse"  # the window's pointer: no iohub server to start (calibration is not shown here)
+        stim["gaze"] = "mouse"  # the window's pointer: no iohub server to start (calibration is not shown)
         data.pop("eyetracker", None)
         for cond in data["conditions"].values():
             if cond.get("renderer"):
@@ -64,9 +63,10 @@ def short_copy(name: str, folder: Path, **presentation) -> Path:
 
 
 def colour(i: int, k: int) -> tuple[int, int, int]:
-    """The uniform colour of condition ``i``'s frame ``k`` (every channel in 60..190: never black, never a text
-    colour; frame 1 differs from frame 0 in green)."""
-    base = [(150, 70, 90), (70, 150, 90), (90, 80, 160), (160, 140, 60), (60, 120, 150), (130, 90, 130)][i % 6]
+    """The uniform colour of condition ``i``'s frame ``k`` (every channel in 60..190: never black, never a
+    text colour; frame 1 differs from frame 0 in green)."""
+    base = [(150, 70, 90), (70, 150, 90), (90, 80, 160), (160, 140, 60), (60, 120, 150),
+            (130, 90, 130)][i % 6]
     return (base[0], min(190, base[1] + 30 * k), base[2])
 
 
@@ -102,14 +102,15 @@ class Run:
     shots: Path
     grabs: dict = field(default_factory=dict)  # (trial, "end") -> RGB array of the X screen
     trials: list = field(default_factory=list)  # the PlannedTrials driven, in order
-    live_first: dict = field(default_factory=dict)  # (trial, stimulus) -> index of a live shot of that stimulus
+    live_first: dict = field(default_factory=dict)  # (trial, stimulus) -> index of a live shot of it
     stdout: str = ""
     stderr: str = ""
     seconds: float = 0.0
 
 
 def _wait(what, timeout_s: float, proc, action=None, every_s: float = 0.6):
-    """Poll ``what()`` until it is truthy; ``action()`` every ``every_s`` meanwhile; fail if the session exits."""
+    """Poll ``what()`` until it is truthy; ``action()`` every ``every_s`` meanwhile; fail if the session
+    exits."""
     deadline = time.monotonic() + timeout_s
     last = 0.0
     while True:
@@ -127,10 +128,10 @@ def _wait(what, timeout_s: float, proc, action=None, every_s: float = 0.6):
 
 
 def drive(x: Xvfb, copy: Path, workdir: Path, scale: float, n_main: int = 1, timeout_s: float = 120.0) -> Run:
-    """Run participant P1 of the protocol ``copy`` (cwd ``workdir``) and answer every trial up to and including
-    the ``n_main``-th trial that is neither practice nor reference: each stimulus of a trial is shown once
-    (switch keys), then the first answer key (two picks where the family picks two) is pressed; at the next trial
-    Escape, then E, end the session. A reference's screen is grabbed from X near its end."""
+    """Run participant P1 of the protocol ``copy`` (cwd ``workdir``) and answer every trial up to and
+    including the ``n_main``-th trial that is neither practice nor reference: each stimulus of a trial is
+    shown once (switch keys), then the first answer key (two picks where the family picks two) is pressed; at
+    the next trial Escape, then E, end the session. A reference's screen is grabbed from X near its end."""
     from studyapp.runner.protocol import load_protocol
     from studyapp.runner.schedule import build_schedule
 
@@ -170,11 +171,12 @@ def drive(x: Xvfb, copy: Path, workdir: Path, scale: float, n_main: int = 1, tim
                 key = xkey(next(k for k, j in p.switch_keys.items() if j == i))
                 if p.live:  # the frames rendered after the switch are the new stimulus'
                     seen = len(shots_of(shots, t.index, what))
-                    run.live_first[(t.index, i)] = seen + 1  # the second frame after the switch (not in flight)
+                    run.live_first[(t.index, i)] = seen + 1  # the second frame after it (none in flight)
                     _wait(lambda: len(shots_of(shots, t.index, what)) >= seen + 2, timeout_s, proc,
                           lambda: x.key(key), 3.0)
                 else:
-                    _wait(lambda: shots_of(shots, t.index, f"stim{i}"), timeout_s, proc, lambda: x.key(key), 1.5)
+                    _wait(lambda: shots_of(shots, t.index, f"stim{i}"), timeout_s, proc, lambda: x.key(key),
+                          1.5)
             _wait(lambda: answered(t.index), timeout_s, proc, lambda: x.key(*answer_keys), 2.0)
             if t.kind not in ("practice", "reference"):
                 mains += 1
