@@ -7,8 +7,8 @@ For each live protocol (default: all four) a real windowed session, `studyapp ru
 --accept-slow`, runs under a private Xvfb of the display's size (1920x1080): the frame-rate check renders
 every condition x scene for ``stimulus.fps_check_s`` seconds before the first trial
 (studyapp/runner/fpscheck.py) and stores its table with the session; xdotool then presses SPACE and the
-answer keys until one trial is answered, and Escape, E end the session. ``studyapp sessions --db OUT_DIR/NAME.db`` prints the table (saved as
-OUT_DIR/NAME.sessions.txt).
+answer keys until one trial is answered, and Escape, E end the session. ``studyapp sessions --db
+OUT_DIR/NAME.db`` prints the table (saved as OUT_DIR/NAME.sessions.txt).
 
 The sessions run a copy of the shipped protocol with the eye tracker's calibration and validation turned off
 (iohub's MouseGaze still gives the gaze, so the gaze-to-flip latency is measured): calibration is being
