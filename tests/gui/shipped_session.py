@@ -4,7 +4,7 @@
 The window saves a back-buffer screenshot of the black interval before every trial and of the first frame of
 every stimulus shown (``run --screenshot-dir``; a live trial: of every rendered frame); :func:`drive` presses
 the keys a participant would and grabs the X screen itself where the window saves nothing (the end of a
-labelled reference).
+labelled reference's second half).
 """
 
 from __future__ import annotations
@@ -100,7 +100,7 @@ class Run:
     """What a driven session left: the screenshot folder, the X grabs taken, the trials driven, the output."""
 
     shots: Path
-    grabs: dict = field(default_factory=dict)  # (trial, "end") -> RGB array of the X screen
+    grabs: dict = field(default_factory=dict)  # reference trial -> X-screen grabs (RGB) of its second half
     trials: list = field(default_factory=list)  # the PlannedTrials driven, in order
     live_first: dict = field(default_factory=dict)  # (trial, stimulus) -> index of a live shot of it
     stdout: str = ""
@@ -158,11 +158,15 @@ def drive(x: Xvfb, copy: Path, workdir: Path, scale: float, n_main: int = 1, tim
         mains = 0
         for t in schedule:
             run.trials.append(t)
-            _wait(lambda: shots_of(shots, t.index, what), timeout_s, proc)
-            if t.kind == "reference":  # plays without keys: grab the screen in its last quarter
-                time.sleep(max(0.0, 0.8 * p.duration_s - 0.1))
-                run.grabs[(t.index, "end")] = np.asarray(ImageGrab.grab(xdisplay=x.display).convert("RGB"),
-                                                         dtype=int)
+            first = _wait(lambda: shots_of(shots, t.index, what), timeout_s, proc)[0]
+            if t.kind == "reference":  # plays without keys: grab the X screen from mid-way until it has ended
+                # (timed from the shot's file, written just before the onset flip, not from when it was seen)
+                nxt = schedule[len(run.trials)].index
+                time.sleep(max(0.0, first.stat().st_mtime + 0.5 * p.duration_s - time.time()))
+                grabs = run.grabs.setdefault(t.index, [])
+                while not shots_of(shots, nxt, "black") and proc.poll() is None:
+                    grabs.append(np.asarray(ImageGrab.grab(xdisplay=x.display).convert("RGB")))
+                    time.sleep(0.1)
                 continue
             # The shot is saved just before the first flip, and keys that went down before it are dropped:
             # press a moment later, and again until the press shows.
