@@ -286,9 +286,11 @@ def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_r
                                   display_info, measured, str(measured.get("presenter", type(presenter).__name__)),
                                   resumed_from=previous, scenes=scene_record(protocol) if protocol.live else None)
         validation = measured.get("validation")
-        if validation:  # the eye tracker's accuracy, measured before the first trial
-            store.record_validation(sid, validation["error_deg"],
-                                    json.dumps({"attempts_deg": validation["attempts"]}))
+        if validation:  # the eye tracker's accuracy, measured before the first trial (presentation.eyetracker)
+            if validation["error_deg"] is None:  # skipped with no gaze measured: the event only
+                store.event(sid, "validation", json.dumps(validation))
+            else:
+                store.record_validation(sid, validation["error_deg"], json.dumps(validation))
         if on_started:
             on_started(sid)
         try:
