@@ -58,13 +58,18 @@ def _targets(*errors):
 
 
 def test_a_failure_shows_the_errors_and_the_keys():
-    res = E.attempt_result(_targets(0.5, 3.0, math.inf), 1.5)
-    assert not res["passed"] and res["max_error_deg"] == math.inf
+    res = E.attempt_result(_targets(0.5, 1.0, math.inf), 1.5)  # within the limit, but a target saw no gaze
+    assert not res["passed"] and res["targets_without_gaze"] == 1
+    assert (res["mean_error_deg"], res["max_error_deg"]) == (0.75, 1.0)  # of the targets with gaze
     text = E.result_text(E.attempt_result(_targets(0.5, 3.5), 1.5), 1.5, can_repeat=True)
     assert "Mean error 2.00° (limit 1.5°), worst target 3.50°" in text and "1: 0.50°   2: 3.50°" in text
     assert "R: repeat" in text and "S: skip" in text and "E: end the session" in text
-    assert "R: repeat" not in E.result_text(res, 1.5, can_repeat=False) and "no gaze" in E.result_text(res, 1.5, False)
+    shown = E.result_text(res, 1.5, can_repeat=False)
+    assert "R: repeat" not in shown and "worst target 1.00°; 1 target(s) without gaze." in shown
+    assert "3: no gaze" in shown
     assert E.attempt_result(_targets(0.5, 3.5), None)["passed"]  # no limit: measured, never failed
+    noted = E.result_text(res, 1.5, True, "Calibration: the tracker's calibration returned 'CALIBRATION_ABORTED'.")
+    assert "no gaze\nCalibration: the tracker's calibration returned 'CALIBRATION_ABORTED'.\n" in noted
 
 
 def test_the_stored_summary_is_json_without_infinities():
@@ -74,7 +79,10 @@ def test_the_stored_summary_is_json_without_infinities():
     again = json.loads(json.dumps(s, allow_nan=False))
     assert again["status"] == "passed" and again["n_attempts"] == 2
     assert again["error_deg"] == pytest.approx(0.3) and again["max_error_deg"] == pytest.approx(0.4)
-    assert again["attempts"][0]["targets"][0]["error_deg"] is None and again["attempts"][0]["mean_error_deg"] is None
+    assert again["attempts"][0]["targets"][0]["error_deg"] is None and again["attempts"][0]["mean_error_deg"] == 9.0
+    assert again["attempts"][0]["targets_without_gaze"] == 1 and not again["attempts"][0]["passed"]
+    nothing = E.summary([E.attempt_result(_targets(math.inf), 2.0)], "skipped", 2.0, {"done": True})
+    assert nothing["error_deg"] is None and json.dumps(nothing, allow_nan=False)
 
 
 class FakeScreen:
@@ -153,3 +161,17 @@ def test_a_real_trackers_calibration_never_raises(monkeypatch, reply, done, reas
     tr._device, tr._win = FakeDevice(reply), type("Win", (), {"flip": lambda _self: None})()
     got = tr.calibrate(DISPLAY)
     assert got["done"] is done and got.get("reason") == reason
+
+
+def test_a_failed_calibration_is_shown_with_the_validation_result(monkeypatch):
+    fs = FakeScreen(["space", "s"])
+    tr = _tracker(monkeypatch, [[5.0]], max_validation_error_deg=1.0)
+    tr.spec["device"] = "eyetracker.hw.sr_research.eyelink.EyeTracker"  # a real tracker: it calibrates
+    monkeypatch.setattr(tr, "calibrate", lambda display: {"done": False, "reason": "the tracker's calibration "
+                                                                                   "returned 'CALIBRATION_ABORTED'"})
+    res = tr.calibrate_and_validate(fs.screen(), DISPLAY)
+    assert "calibrates itself" in fs.texts[0] and "with your eyes" in fs.texts[0]
+    assert "Calibration: the tracker's calibration returned 'CALIBRATION_ABORTED'." in fs.texts[1]
+    assert res["status"] == "skipped" and res["calibration"]["done"] is False
+    assert ("calibration", {"attempt": 0, "done": False, "reason": "the tracker's calibration returned "
+                                                                   "'CALIBRATION_ABORTED'"}) in fs.events

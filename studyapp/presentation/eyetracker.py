@@ -21,8 +21,9 @@ Before the first trial (:meth:`EyeTracker.calibrate_and_validate`, with ``calibr
    their target (:func:`target_frame`): the target moves from one position to the next along a minimum-jerk
    path over ``target_delay_s``, expands and contracts over ``target_duration_s`` (expansion ``1.5``, then down
    to its inner dot), then stays still for :data:`HOLD_S`; the gaze is sampled every flip and the samples of
-   the still period's accuracy window (:data:`ACCURACY_WINDOW_S`, iohub's ``accuracy_period_start/stop``) give
-   the target's angular error (:func:`target_error_deg`).
+   the last :data:`ACCURACY_S` of the still period (iohub's ``accuracy_period_start``; at least
+   :data:`MIN_SAMPLES`, the still period extended on a slow window) give the target's angular error
+   (:func:`target_error_deg`).
 4. **Result**: a pass shows the mean error for a moment; a failure shows the mean, worst and per-target
    errors and offers the experimenter ``R`` repeat (calibration and validation, up to ``max_attempts``),
    ``S`` skip (continue with this accuracy, recorded as skipped) or ``E`` end (a one-line
@@ -56,9 +57,10 @@ TARGET_LAYOUTS = {
 }
 EXPAND_SCALE = 1.5  # the target's largest radius during its expand phase (PsychoPy's default expandScale)
 HOLD_S = 0.6  # the target stays still this long after contracting: the gaze is measured then
-#: Seconds before the end of the still period between which samples count (iohub's validation:
-#: ``accuracy_period_start=0.550``, ``accuracy_period_stop=0.150``).
-ACCURACY_WINDOW_S = (0.55, 0.15)
+#: The samples of the last ACCURACY_S of the still period count (iohub's validation: ``accuracy_period_start``).
+ACCURACY_S = 0.55
+#: At least MIN_SAMPLES count: on a slow window the still period is extended by up to MAX_EXTRA_HOLD_S.
+MIN_SAMPLES, MAX_EXTRA_HOLD_S = 3, 1.0
 OUTER_DEG, INNER_DEG = 0.5, 0.12  # target radii (degrees of visual angle; at least 8 and 3 pixels)
 PASS_SHOWN_S = 1.0  # how long a passed validation's result stays on screen
 
@@ -134,12 +136,14 @@ def target_error_deg(samples_px, target_px: tuple[float, float], geometry) -> fl
 
 def attempt_result(targets: list[dict], limit: float | None) -> dict:
     """One validation attempt from its per-target rows (``error_deg`` inf where no gaze came): mean and worst
-    target error and whether it passed (no limit: always)."""
-    errors = [t["error_deg"] for t in targets]
+    error of the targets with gaze, how many had none, and whether it passed (every target seen, the mean
+    within ``limit``; no limit: every target seen)."""
+    errors = [t["error_deg"] for t in targets if math.isfinite(t["error_deg"])]
+    missing = len(targets) - len(errors)
     mean = float(np.mean(errors)) if errors else float("inf")
     worst = float(np.max(errors)) if errors else float("inf")
-    return {"targets": targets, "mean_error_deg": mean, "max_error_deg": worst,
-            "passed": math.isfinite(mean) and (limit is None or mean <= limit)}
+    return {"targets": targets, "mean_error_deg": mean, "max_error_deg": worst, "targets_without_gaze": missing,
+            "passed": bool(errors) and not missing and (limit is None or mean <= limit)}
 
 
 def _finite(v: float) -> float | None:
@@ -152,7 +156,8 @@ def summary(attempts: list[dict], status: str, limit: float | None, calibration:
     its per-target errors (JSON: no infinities)."""
     def clean(a: dict) -> dict:
         return {"mean_error_deg": _finite(a["mean_error_deg"]), "max_error_deg": _finite(a["max_error_deg"]),
-                "passed": a["passed"], "aborted": a.get("aborted", False),
+                "targets_without_gaze": a["targets_without_gaze"], "passed": a["passed"],
+                "aborted": a.get("aborted", False),
                 "targets": [dict(t, error_deg=_finite(t["error_deg"])) for t in a["targets"]]}
     last = attempts[-1]
     return {"status": status, "error_deg": _finite(last["mean_error_deg"]),
@@ -173,17 +178,20 @@ def instructions_text(n_targets: int, mouse_is_gaze: bool, calibrates: bool) -> 
     return "\n".join(lines)
 
 
-def result_text(result: dict, limit: float | None, can_repeat: bool) -> str:
-    """The experimenter's screen after a failed validation: the errors and the keys."""
+def result_text(result: dict, limit: float | None, can_repeat: bool, note: str = "") -> str:
+    """The experimenter's screen after a failed validation: the errors, ``note`` (a calibration that did not
+    succeed) and the keys."""
     def deg(v):
         return f"{v:.2f}°" if math.isfinite(v) else "no gaze"
     bound = f" (limit {limit:g}°)" if limit is not None else ""
+    blind = result.get("targets_without_gaze", 0)
     what = ("The check was stopped." if result.get("aborted")
-            else f"Mean error {deg(result['mean_error_deg'])}{bound}, worst target {deg(result['max_error_deg'])}.")
+            else f"Mean error {deg(result['mean_error_deg'])}{bound}, worst target {deg(result['max_error_deg'])}"
+                 + (f"; {blind} target(s) without gaze." if blind else "."))
     per = "   ".join(f"{k + 1}: {deg(t['error_deg'])}" for k, t in enumerate(result["targets"]))
     keys = ([f"{key_text(REPEAT_KEY)}: repeat calibration and check"] if can_repeat else []) + [
         f"{key_text(SKIP_KEY)}: skip (continue with this accuracy)", f"{key_text(END_KEY)}: end the session"]
-    return "\n".join(["Eye-tracker check failed", "", what, per, "", "   ".join(keys)])
+    return "\n".join(["Eye-tracker check failed", "", what, per, *([note] if note else []), "", "   ".join(keys)])
 
 
 # ---------------------------------------------------------------------------------------------------- iohub
@@ -375,7 +383,6 @@ class EyeTracker:
                                           units="pix")
         layout = TARGET_LAYOUTS[int(self.spec.get("targets", 5))]
         targets, prev = [], None
-        lo, hi = ACCURACY_WINDOW_S
         screen.poll_keys([ESCAPE])  # forget keys pressed before the dots
         for k, (fx, fy) in enumerate(layout):
             to = (fx * ww, fy * wh)
@@ -383,7 +390,7 @@ class EyeTracker:
             samples, t0 = [], None
             while True:
                 elapsed = 0.0 if t0 is None else now() - t0
-                if elapsed >= end:
+                if elapsed >= end and (len(samples) >= MIN_SAMPLES or elapsed >= end + MAX_EXTRA_HOLD_S):
                     break
                 (x, y), radius, _ = target_frame(elapsed, prev, to, timing, outer, inner)
                 target.pos = (x - ww / 2.0, wh / 2.0 - y)
@@ -394,7 +401,7 @@ class EyeTracker:
                     t0 = t_flip
                     screen.emit("validation_target", attempt=attempt, target=k, x=to[0], y=to[1])
                 g = self.gaze_window_px()
-                if g is not None and end - lo <= t_flip - t0 <= end - hi:
+                if g is not None and t_flip - t0 >= end - ACCURACY_S:
                     samples.append(g)
                 if screen.poll_keys([ESCAPE]):
                     targets.append({"x_px": to[0], "y_px": to[1], "error_deg": float("inf"), "n_samples": 0})
@@ -440,7 +447,8 @@ class EyeTracker:
                     win_flip()
                 return summary(attempts, "passed", limit, calibration)
             can_repeat = len(attempts) < max_attempts
-            text = result_text(result, limit, can_repeat)
+            note = "" if calibration["done"] or not calibrates else f"Calibration: {calibration['reason']}."
+            text = result_text(result, limit, can_repeat, note)
             screen.show_text(text, f"attempt {len(attempts)} of {max_attempts}")
             win_flip()
             screen.emit("validation_failed", attempt=len(attempts) - 1, can_repeat=can_repeat, text=text)
