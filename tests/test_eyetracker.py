@@ -175,3 +175,30 @@ def test_a_failed_calibration_is_shown_with_the_validation_result(monkeypatch):
     assert res["status"] == "skipped" and res["calibration"]["done"] is False
     assert ("calibration", {"attempt": 0, "done": False, "reason": "the tracker's calibration returned "
                                                                    "'CALIBRATION_ABORTED'"}) in fs.events
+
+
+def test_a_device_that_stopped_recording_is_started_again():
+    """iohub's MouseGaze was seen to stop recording by itself (a 1920x1080 window under Xvfb): the gaze source
+    starts it again instead of losing the gaze for the rest of the session."""
+    class Stopped:
+        recording, calls = False, []
+
+        def isRecordingEnabled(self):  # noqa: N802 - iohub's names
+            return self.recording
+
+        def setRecordingState(self, on):  # noqa: N802
+            self.calls.append(on)
+            self.recording = on
+
+        def getLastGazePosition(self):  # noqa: N802
+            return (0.0, 0.0) if self.recording else None
+
+    class Screen_:
+        width, height = 480, 270
+
+    tr = E.EyeTracker("mousegaze")
+    tr._device = dev = Stopped()
+    tr._win = type("Win", (), {"size": (480, 270), "winHandle": type("H", (), {"screen": Screen_()})()})()
+    assert tr.gaze_window_px() == (240.0, 135.0)  # display centre = window centre (window at 0, 0)
+    assert dev.calls == [True] and tr.recording_restarts == 1
+    assert tr.gaze_window_px() == (240.0, 135.0) and dev.calls == [True]  # recording: nothing to do

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import time
 from dataclasses import dataclass
 from typing import Callable
 
@@ -247,6 +248,7 @@ class EyeTracker:
         self._pointer = None
         self._win = None
         self._locate: Callable[[], tuple[int, int]] = lambda: (0, 0)
+        self.recording_restarts = 0  # times the device had stopped recording and was started again
 
     # ------------------------------------------------------------------ start / stop
     @property
@@ -335,6 +337,12 @@ class EyeTracker:
         if self._device is None:
             return None
         g = self._device.getLastGazePosition()
+        if g is None and self._device.isRecordingEnabled() is False:
+            # iohub's MouseGaze was seen to stop recording by itself within seconds (a 1920x1080 window under
+            # Xvfb), the gaze then missing for the rest of the session: start it again
+            self._device.setRecordingState(True)
+            self.recording_restarts += 1
+            g = self._device.getLastGazePosition()
         if g is None or len(g) < 2:
             return None
         # iohub reports display coordinates (origin at the screen centre, y up): use the window position
@@ -382,6 +390,7 @@ class EyeTracker:
                                           innerBorderColor=(-1, -1, -1), innerLineWidth=1, colorSpace="rgb",
                                           units="pix")
         layout = TARGET_LAYOUTS[int(self.spec.get("targets", 5))]
+        period = 1.0 / display.refresh_hz
         targets, prev = [], None
         screen.poll_keys([ESCAPE])  # forget keys pressed before the dots
         for k, (fx, fy) in enumerate(layout):
@@ -403,6 +412,9 @@ class EyeTracker:
                 g = self.gaze_window_px()
                 if g is not None and t_flip - t0 >= end - ACCURACY_S:
                     samples.append(g)
+                # no faster than the display's refresh: a window without vsync (Xvfb) would otherwise take the CPU
+                # from iohub's server process, whose gaze then lags or drops out
+                time.sleep(max(0.0, t_flip + period - now()))
                 if screen.poll_keys([ESCAPE]):
                     targets.append({"x_px": to[0], "y_px": to[1], "error_deg": float("inf"), "n_samples": 0})
                     return dict(attempt_result(targets, None), passed=False, aborted=True)
@@ -445,7 +457,7 @@ class EyeTracker:
                 t_end = screen.now() + PASS_SHOWN_S
                 while screen.now() < t_end:
                     win_flip()
-                return summary(attempts, "passed", limit, calibration)
+                return dict(summary(attempts, "passed", limit, calibration), recording_restarts=self.recording_restarts)
             can_repeat = len(attempts) < max_attempts
             note = "" if calibration["done"] or not calibrates else f"Calibration: {calibration['reason']}."
             text = result_text(result, limit, can_repeat, note)
@@ -454,7 +466,7 @@ class EyeTracker:
             screen.emit("validation_failed", attempt=len(attempts) - 1, can_repeat=can_repeat, text=text)
             key = screen.wait_key(([REPEAT_KEY] if can_repeat else []) + [SKIP_KEY, END_KEY])
             if key == SKIP_KEY:
-                return summary(attempts, "skipped", limit, calibration)
+                return dict(summary(attempts, "skipped", limit, calibration), recording_restarts=self.recording_restarts)
             if key == END_KEY:
                 err = result["mean_error_deg"]
                 what = f"mean error {err:.2f}°" if math.isfinite(err) else "no gaze measured"
