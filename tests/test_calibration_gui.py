@@ -1,7 +1,7 @@
 """The eye tracker's calibration and validation in a real window (issue 26 item 4): iohub's MouseGaze under a
-private Xvfb, the mouse moved by xdotool. Following the dots passes with a small error and the result is stored
-with the session; a mouse held still fails with its measured error shown, and the experimenter's repeat (R) and
-skip (S) work. Window-free parts: tests/test_eyetracker.py."""
+private Xvfb, the mouse moved by xdotool. Following the dots passes with a small error and the result is
+stored with the session; a mouse held still fails with its measured error shown, and the experimenter's
+repeat (R) and skip (S) work. Window-free parts: tests/test_eyetracker.py."""
 
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ TRACKER = {"device": MOUSE_GAZE_DEVICE, "calibrate": True, "max_validation_error
 
 @pytest.fixture(autouse=True)
 def _gui_tools_installed():
-    assert not missing_tools(), f"GUI tests need {missing_tools()} (Debian: xvfb, xdotool; ./run installs them)"
+    assert not missing_tools(), f"GUI tests need {missing_tools()} (Debian: xvfb, xdotool)"
 
 
 def _spec(**tracker):
@@ -122,5 +122,6 @@ def test_a_mouse_held_still_fails_shows_its_error_and_repeat_and_skip_work(tmp_p
     assert "R: repeat" not in texts[1] and "S: skip" in texts[1] and "E: end the session" in texts[1]
     v = facts["validation"]
     assert v["status"] == "skipped" and v["n_attempts"] == 2
-    assert v["error_deg"] == pytest.approx(expected, abs=0.01) and v["max_error_deg"] == pytest.approx(corner, abs=0.01)
+    assert v["error_deg"] == pytest.approx(expected, abs=0.01)
+    assert v["max_error_deg"] == pytest.approx(corner, abs=0.01)
     assert [a["passed"] for a in v["attempts"]] == [False, False]

@@ -1,6 +1,6 @@
-"""Window-free tests of the eye tracker's calibration and validation (studyapp/presentation/eyetracker.py): the
-target's animation, the angular error, the texts, the experimenter's repeat/skip/end choice and the stored result.
-The same procedure in a real window, the mouse moved by xdotool: tests/test_calibration_gui.py."""
+"""Window-free tests of the eye tracker's calibration and validation (studyapp/presentation/eyetracker.py):
+the target's animation, the angular error, the texts, the experimenter's repeat/skip/end choice and the stored
+result. The same procedure in a real window, the mouse moved by xdotool: tests/test_calibration_gui.py."""
 
 from __future__ import annotations
 
@@ -26,7 +26,8 @@ def test_the_target_moves_on_iohubs_minimum_jerk_path():
     pos, r, phase = E.target_frame(0.25, (0.0, 0.0), (100.0, 0.0), timing, 10.0, 3.0)
     assert pos[0] == pytest.approx(100 * (10 * 0.25**3 - 15 * 0.25**4 + 6 * 0.25**5))  # slow start
     # on the target: expand to 1.5x over half the duration, contract to the inner radius, then still
-    assert E.target_frame(1.5, (0.0, 0.0), (100.0, 50.0), timing, 10.0, 3.0) == ((100.0, 50.0), 12.5, "expand")
+    assert E.target_frame(1.5, (0.0, 0.0), (100.0, 50.0), timing, 10.0, 3.0) == ((100.0, 50.0), 12.5,
+                                                                                  "expand")
     _, r, phase = E.target_frame(2.99, (0.0, 0.0), (100.0, 50.0), timing, 10.0, 3.0)
     assert phase == "contract" and r == pytest.approx(3.0, abs=0.2)
     assert E.target_frame(3.2, (0.0, 0.0), (100.0, 50.0), timing, 10.0, 3.0) == ((100.0, 50.0), 3.0, "still")
@@ -68,7 +69,8 @@ def test_a_failure_shows_the_errors_and_the_keys():
     assert "R: repeat" not in shown and "worst target 1.00°; 1 target(s) without gaze." in shown
     assert "3: no gaze" in shown
     assert E.attempt_result(_targets(0.5, 3.5), None)["passed"]  # no limit: measured, never failed
-    noted = E.result_text(res, 1.5, True, "Calibration: the tracker's calibration returned 'CALIBRATION_ABORTED'.")
+    note = "Calibration: the tracker's calibration returned 'CALIBRATION_ABORTED'."
+    noted = E.result_text(res, 1.5, True, note)
     assert "no gaze\nCalibration: the tracker's calibration returned 'CALIBRATION_ABORTED'.\n" in noted
 
 
@@ -79,7 +81,8 @@ def test_the_stored_summary_is_json_without_infinities():
     again = json.loads(json.dumps(s, allow_nan=False))
     assert again["status"] == "passed" and again["n_attempts"] == 2
     assert again["error_deg"] == pytest.approx(0.3) and again["max_error_deg"] == pytest.approx(0.4)
-    assert again["attempts"][0]["targets"][0]["error_deg"] is None and again["attempts"][0]["mean_error_deg"] == 9.0
+    first = again["attempts"][0]
+    assert first["targets"][0]["error_deg"] is None and first["mean_error_deg"] == 9.0
     assert again["attempts"][0]["targets_without_gaze"] == 1 and not again["attempts"][0]["passed"]
     nothing = E.summary([E.attempt_result(_targets(math.inf), 2.0)], "skipped", 2.0, {"done": True})
     assert nothing["error_deg"] is None and json.dumps(nothing, allow_nan=False)
@@ -156,7 +159,8 @@ class FakeDevice:
     (KeyError("target_attributes"), False, "the tracker's calibration failed: 'target_attributes'"),
 ])
 def test_a_real_trackers_calibration_never_raises(monkeypatch, reply, done, reason):
-    monkeypatch.setattr(E, "calibration_args", lambda *a: {"target_attributes": {"animate": {"enable": True}}})
+    complete = {"target_attributes": {"animate": {"enable": True}}}
+    monkeypatch.setattr(E, "calibration_args", lambda *a: complete)
     tr = E.EyeTracker("device", {"device": "eyetracker.hw.sr_research.eyelink.EyeTracker", "calibrate": True})
     tr._device, tr._win = FakeDevice(reply), type("Win", (), {"flip": lambda _self: None})()
     got = tr.calibrate(DISPLAY)
@@ -167,8 +171,8 @@ def test_a_failed_calibration_is_shown_with_the_validation_result(monkeypatch):
     fs = FakeScreen(["space", "s"])
     tr = _tracker(monkeypatch, [[5.0]], max_validation_error_deg=1.0)
     tr.spec["device"] = "eyetracker.hw.sr_research.eyelink.EyeTracker"  # a real tracker: it calibrates
-    monkeypatch.setattr(tr, "calibrate", lambda display: {"done": False, "reason": "the tracker's calibration "
-                                                                                   "returned 'CALIBRATION_ABORTED'"})
+    aborted = {"done": False, "reason": "the tracker's calibration returned 'CALIBRATION_ABORTED'"}
+    monkeypatch.setattr(tr, "calibrate", lambda display: aborted)
     res = tr.calibrate_and_validate(fs.screen(), DISPLAY)
     assert "calibrates itself" in fs.texts[0] and "with your eyes" in fs.texts[0]
     assert "Calibration: the tracker's calibration returned 'CALIBRATION_ABORTED'." in fs.texts[1]

@@ -1,4 +1,4 @@
-"""The eye tracker of a PsychoPy window: the gaze source, its calibration and a validation a participant can follow.
+"""A window's eye tracker: the gaze source, its calibration and a validation a participant can follow.
 
 Three gaze sources (:class:`EyeTracker`):
 
@@ -18,12 +18,12 @@ Before the first trial (:meth:`EyeTracker.calibrate_and_validate`, with ``calibr
    *is* the gaze, exactly (iohub's MouseGaze "calibration" is a mock that calibrates nothing), so its
    calibration is recorded as not needed and only the validation runs.
 3. **Validation** in the study's window, animated as iohub's calibration and validation procedures animate
-   their target (:func:`target_frame`): the target moves from one position to the next along a minimum-jerk
-   path over ``target_delay_s``, expands and contracts over ``target_duration_s`` (expansion ``1.5``, then down
-   to its inner dot), then stays still for :data:`HOLD_S`; the gaze is sampled every flip and the samples of
-   the last :data:`ACCURACY_S` of the still period (iohub's ``accuracy_period_start``; at least
-   :data:`MIN_SAMPLES`, the still period extended on a slow window) give the target's angular error
-   (:func:`target_error_deg`).
+   their target (:func:`target_frame`): the target moves from one position to the next along a
+   minimum-jerk path over ``target_delay_s``, expands and contracts over ``target_duration_s`` (expansion
+   ``1.5``, then down to its inner dot), then stays still for :data:`HOLD_S`; the gaze is sampled every
+   flip and the samples of the last :data:`ACCURACY_S` of the still period (iohub's
+   ``accuracy_period_start``; at least :data:`MIN_SAMPLES`, the still period extended on a slow window) give
+   the target's angular error (:func:`target_error_deg`).
 4. **Result**: a pass shows the mean error for a moment; a failure shows the mean, worst and per-target
    errors and offers the experimenter ``R`` repeat (calibration and validation, up to ``max_attempts``),
    ``S`` skip (continue with this accuracy, recorded as skipped) or ``E`` end (a one-line
@@ -58,7 +58,7 @@ TARGET_LAYOUTS = {
 }
 EXPAND_SCALE = 1.5  # the target's largest radius during its expand phase (PsychoPy's default expandScale)
 HOLD_S = 0.6  # the target stays still this long after contracting: the gaze is measured then
-#: The samples of the last ACCURACY_S of the still period count (iohub's validation: ``accuracy_period_start``).
+#: The samples of the last ACCURACY_S of the still period count (iohub's ``accuracy_period_start``).
 ACCURACY_S = 0.55
 #: At least MIN_SAMPLES count: on a slow window the still period is extended by up to MAX_EXTRA_HOLD_S.
 MIN_SAMPLES, MAX_EXTRA_HOLD_S = 3, 1.0
@@ -92,7 +92,7 @@ class Screen:
     emit: Callable[..., None]  # report an event: emit(name, **info)
 
 
-# ---------------------------------------------------------------------------------------------------- pure parts
+# ------------------------------------------------------------------------------------------------ pure parts
 def min_jerk(t: float) -> float:
     """Minimum-jerk progress ``10 t^3 - 15 t^4 + 6 t^5`` (0..1 over ``t`` = 0..1), the path iohub's procedures
     move their target along (written there as ``60 (t^5/10 - t^4/4 + t^3/6)``)."""
@@ -106,8 +106,8 @@ def target_frame(elapsed_s: float, frm: tuple[float, float] | None, to: tuple[fl
     position, outer radius and phase (``move``, ``expand``, ``contract``, ``still``).
 
     Moving (``timing.delay_s``): along the minimum-jerk path at radius ``outer``; then expanding to
-    ``EXPAND_SCALE * outer`` and contracting to ``inner`` (``timing.duration_s``, half each, linear, as iohub's
-    validation does with ``expand_scale > 1`` and ``contract_target``); then still at ``inner``.
+    ``EXPAND_SCALE * outer`` and contracting to ``inner`` (``timing.duration_s``, half each, linear, as
+    iohub's validation does with ``expand_scale > 1`` and ``contract_target``); then still at ``inner``.
     """
     t = elapsed_s
     if frm is not None:
@@ -125,9 +125,10 @@ def target_frame(elapsed_s: float, frm: tuple[float, float] | None, to: tuple[fl
 
 
 def target_error_deg(samples_px, target_px: tuple[float, float], geometry) -> float:
-    """Mean angular distance (degrees) of the gaze ``samples_px`` (window pixels) from the target: each sample's
-    eccentricity seen from the target as the centre of projection (seed 001 Eq 3, ``e = atan(c_r r)``),
-    averaged over the samples as iohub's validation averages its per-sample errors; ``inf`` without samples."""
+    """Mean angular distance (degrees) of the gaze ``samples_px`` (window pixels) from the target: each
+    sample's eccentricity seen from the target as the centre of projection (seed 001 Eq 3,
+    ``e = atan(c_r r)``), averaged over the samples as iohub's validation averages its per-sample errors;
+    ``inf`` without samples."""
     s = np.asarray(samples_px, dtype=np.float64).reshape(-1, 2)
     if not len(s):
         return float("inf")
@@ -143,7 +144,8 @@ def attempt_result(targets: list[dict], limit: float | None) -> dict:
     missing = len(targets) - len(errors)
     mean = float(np.mean(errors)) if errors else float("inf")
     worst = float(np.max(errors)) if errors else float("inf")
-    return {"targets": targets, "mean_error_deg": mean, "max_error_deg": worst, "targets_without_gaze": missing,
+    return {"targets": targets, "mean_error_deg": mean, "max_error_deg": worst,
+            "targets_without_gaze": missing,
             "passed": bool(errors) and not missing and (limit is None or mean <= limit)}
 
 
@@ -151,10 +153,11 @@ def _finite(v: float) -> float | None:
     return float(v) if math.isfinite(v) else None
 
 
-def summary(attempts: list[dict], status: str, limit: float | None, calibration: dict) -> dict:
+def summary(attempts: list[dict], status: str, limit: float | None, calibration: dict,
+            recording_restarts: int = 0) -> dict:
     """What is stored with the session: ``status`` (``passed`` or ``skipped``), the last attempt's mean and
-    worst target error (degrees; None where no gaze came), the limit, the calibration, and every attempt with
-    its per-target errors (JSON: no infinities)."""
+    worst target error (degrees; None where no gaze came), the limit, the calibration, how often the device
+    had to be restarted, and every attempt with its per-target errors (JSON: no infinities)."""
     def clean(a: dict) -> dict:
         return {"mean_error_deg": _finite(a["mean_error_deg"]), "max_error_deg": _finite(a["max_error_deg"]),
                 "targets_without_gaze": a["targets_without_gaze"], "passed": a["passed"],
@@ -163,7 +166,8 @@ def summary(attempts: list[dict], status: str, limit: float | None, calibration:
     last = attempts[-1]
     return {"status": status, "error_deg": _finite(last["mean_error_deg"]),
             "max_error_deg": _finite(last["max_error_deg"]), "limit_deg": limit, "n_attempts": len(attempts),
-            "calibration": calibration, "attempts": [clean(a) for a in attempts]}
+            "calibration": calibration, "recording_restarts": recording_restarts,
+            "attempts": [clean(a) for a in attempts]}
 
 
 def instructions_text(n_targets: int, mouse_is_gaze: bool, calibrates: bool) -> str:
@@ -173,8 +177,8 @@ def instructions_text(n_targets: int, mouse_is_gaze: bool, calibrates: bool) -> 
     lines = ["Eye-tracker check", ""]
     if calibrates:
         lines.append("First the eye tracker calibrates itself: follow its targets with your eyes.")
-    lines += [f"A dot appears in the centre of the screen, then moves to {n_targets - 1} other places. {follow} "
-              "and keep looking at its centre while it shrinks and stays still.", "",
+    lines += [f"A dot appears in the centre of the screen, then moves to {n_targets - 1} other places. "
+              f"{follow} and keep looking at its centre while it shrinks and stays still.", "",
               f"Press {key_text(CONTINUE_KEY)} to start ({key_text(ESCAPE)} stops the check)."]
     return "\n".join(lines)
 
@@ -187,15 +191,16 @@ def result_text(result: dict, limit: float | None, can_repeat: bool, note: str =
     bound = f" (limit {limit:g}°)" if limit is not None else ""
     blind = result.get("targets_without_gaze", 0)
     what = ("The check was stopped." if result.get("aborted")
-            else f"Mean error {deg(result['mean_error_deg'])}{bound}, worst target {deg(result['max_error_deg'])}"
-                 + (f"; {blind} target(s) without gaze." if blind else "."))
+            else f"Mean error {deg(result['mean_error_deg'])}{bound}, worst target "
+                 f"{deg(result['max_error_deg'])}" + (f"; {blind} target(s) without gaze." if blind else "."))
     per = "   ".join(f"{k + 1}: {deg(t['error_deg'])}" for k, t in enumerate(result["targets"]))
     keys = ([f"{key_text(REPEAT_KEY)}: repeat calibration and check"] if can_repeat else []) + [
         f"{key_text(SKIP_KEY)}: skip (continue with this accuracy)", f"{key_text(END_KEY)}: end the session"]
-    return "\n".join(["Eye-tracker check failed", "", what, per, *([note] if note else []), "", "   ".join(keys)])
+    return "\n".join(["Eye-tracker check failed", "", what, per, *([note] if note else []), "",
+                      "   ".join(keys)])
 
 
-# ---------------------------------------------------------------------------------------------------- iohub
+# ------------------------------------------------------------------------------------------------ iohub
 def check_iohub_device(device: str) -> None:
     """Raise a one-line error unless ``device`` (``eyetracker.hw.<maker>.EyeTracker``) names an iohub device
     class that is installed, resolved the way iohub resolves it (its module or a plug-in's entry point)."""
@@ -237,7 +242,8 @@ class EyeTracker:
     ----------
     kind : ``"mousegaze"``, ``"device"`` or ``"pointer"``.
     spec : the protocol's ``eyetracker`` block (``device``, ``settings``, ``calibrate``,
-        ``max_validation_error_deg``, ``max_attempts``, ``targets``, ``target_delay_s``, ``target_duration_s``).
+        ``max_validation_error_deg``, ``max_attempts``, ``targets``, ``target_delay_s``,
+        ``target_duration_s``).
     """
 
     def __init__(self, kind: str, spec: dict | None = None):
@@ -281,8 +287,8 @@ class EyeTracker:
                 check_iohub_device(self.device)
                 cfg = {self.device: {"name": "tracker", **(self.spec.get("settings") or {})}}
             else:
-                cfg = {MOUSE_GAZE_DEVICE: {"name": "tracker", "controls": {"move": [], "blink": ["LEFT_BUTTON"],
-                                                                           "saccade_threshold": 0.5}}}
+                controls = {"move": [], "blink": ["LEFT_BUTTON"], "saccade_threshold": 0.5}
+                cfg = {MOUSE_GAZE_DEVICE: {"name": "tracker", "controls": controls}}
             level = logging.console.level
             logging.console.setLevel(logging.ERROR)  # "fullScr should be True": not for a tracker
             try:
@@ -360,12 +366,12 @@ class EyeTracker:
         return max(8.0, OUTER_DEG * display.ppd), max(3.0, INNER_DEG * display.ppd)
 
     def calibrate(self, display: Display) -> dict:
-        """The tracker's own calibration through iohub (see the module docstring); what was done, as a dict."""
+        """The tracker's own calibration through iohub (see the module docstring); what was done."""
         if self.mouse_is_gaze:
             return {"done": False, "reason": "not needed: the mouse is the gaze (MouseGaze)"}
         outer, inner = self._radii(display)
-        args = calibration_args(self._win, self._device, self._timing(), int(self.spec.get("targets", 5)), outer,
-                                inner)
+        args = calibration_args(self._win, self._device, self._timing(), int(self.spec.get("targets", 5)),
+                                outer, inner)
         try:
             result = self._device.runSetupProcedure(args)
         except Exception as exc:  # noqa: BLE001 - the tracker's own failure, shown to the experimenter
@@ -412,14 +418,14 @@ class EyeTracker:
                 g = self.gaze_window_px()
                 if g is not None and t_flip - t0 >= end - ACCURACY_S:
                     samples.append(g)
-                # no faster than the display's refresh: a window without vsync (Xvfb) would otherwise take the CPU
-                # from iohub's server process, whose gaze then lags or drops out
+                # no faster than the display's refresh: a window without vsync (Xvfb) would otherwise take the
+                # CPU from iohub's server process, whose gaze then lags or drops out
                 time.sleep(max(0.0, t_flip + period - now()))
                 if screen.poll_keys([ESCAPE]):
                     targets.append({"x_px": to[0], "y_px": to[1], "error_deg": float("inf"), "n_samples": 0})
                     return dict(attempt_result(targets, None), passed=False, aborted=True)
-            targets.append({"x_px": to[0], "y_px": to[1], "error_deg": target_error_deg(samples, to, geometry),
-                            "n_samples": len(samples)})
+            error = target_error_deg(samples, to, geometry)
+            targets.append({"x_px": to[0], "y_px": to[1], "error_deg": error, "n_samples": len(samples)})
             prev = to
         win.flip()
         return attempt_result(targets, self.spec.get("max_validation_error_deg"))
@@ -434,12 +440,13 @@ class EyeTracker:
         calibrates = bool(spec.get("calibrate")) and not self.mouse_is_gaze
         n = int(spec.get("targets", 5))
         attempts, calibration = [], {"done": False, "reason": "not asked (calibrate: false)"}
+        win_flip = screen.win.flip
         while True:
             text = instructions_text(n, self.mouse_is_gaze, calibrates)
             screen.show_text(text, "")
-            win_flip = screen.win.flip
             win_flip()
-            screen.emit("validation_instructions", attempt=len(attempts), text=text, window_pos_px=self._locate())
+            screen.emit("validation_instructions", attempt=len(attempts), text=text,
+                        window_pos_px=self._locate())
             if screen.wait_key([CONTINUE_KEY, ESCAPE]) == CONTINUE_KEY:
                 if spec.get("calibrate"):
                     calibration = self.calibrate(display)
@@ -454,10 +461,8 @@ class EyeTracker:
                 screen.show_text(f"Eye-tracker check passed: mean error {result['mean_error_deg']:.2f}°", "")
                 win_flip()
                 screen.emit("validation_passed", error_deg=result["mean_error_deg"])
-                t_end = screen.now() + PASS_SHOWN_S
-                while screen.now() < t_end:
-                    win_flip()
-                return dict(summary(attempts, "passed", limit, calibration), recording_restarts=self.recording_restarts)
+                time.sleep(PASS_SHOWN_S)
+                return summary(attempts, "passed", limit, calibration, self.recording_restarts)
             can_repeat = len(attempts) < max_attempts
             note = "" if calibration["done"] or not calibrates else f"Calibration: {calibration['reason']}."
             text = result_text(result, limit, can_repeat, note)
@@ -466,10 +471,10 @@ class EyeTracker:
             screen.emit("validation_failed", attempt=len(attempts) - 1, can_repeat=can_repeat, text=text)
             key = screen.wait_key(([REPEAT_KEY] if can_repeat else []) + [SKIP_KEY, END_KEY])
             if key == SKIP_KEY:
-                return dict(summary(attempts, "skipped", limit, calibration), recording_restarts=self.recording_restarts)
+                return summary(attempts, "skipped", limit, calibration, self.recording_restarts)
             if key == END_KEY:
                 err = result["mean_error_deg"]
                 what = f"mean error {err:.2f}°" if math.isfinite(err) else "no gaze measured"
                 bound = f", limit {limit:g}°" if limit is not None else ""
-                raise PresentationError(f"eye-tracker validation failed ({what}{bound}, {len(attempts)} attempt(s)): "
-                                        "the experimenter ended the session")
+                raise PresentationError(f"eye-tracker validation failed ({what}{bound}, {len(attempts)} "
+                                        "attempt(s)): the experimenter ended the session")
