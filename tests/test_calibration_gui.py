@@ -21,7 +21,7 @@ from studyapp.runner.protocol import MOUSE_GAZE_DEVICE  # noqa: E402
 
 DISPLAY = {"width_px": 480, "height_px": 270, "width_cm": 30.0, "distance_cm": 60.0}
 TRACKER = {"device": MOUSE_GAZE_DEVICE, "calibrate": True, "max_validation_error_deg": 1.0,
-           "target_delay_s": 0.2, "target_duration_s": 0.2}
+           "target_delay_s": 0.3, "target_duration_s": 0.5}
 
 
 @pytest.fixture(autouse=True)
