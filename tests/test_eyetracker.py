@@ -206,3 +206,32 @@ def test_a_device_that_stopped_recording_is_started_again():
     assert tr.gaze_window_px() == (240.0, 135.0)  # display centre = window centre (window at 0, 0)
     assert dev.calls == [True] and tr.recording_restarts == 1
     assert tr.gaze_window_px() == (240.0, 135.0) and dev.calls == [True]  # recording: nothing to do
+
+
+@pytest.mark.parametrize("errors, status", [([0.2, 0.4], "passed"), ([math.inf], "skipped")])
+def test_the_result_is_stored_with_the_session(tmp_path, errors, status):
+    """``facts["validation"]`` of the window reaches the study database: ``sessions.validation_deg`` (the
+    last attempt's mean error; left empty when no gaze came) and a ``validation`` event with the whole record."""
+    import sqlite3
+    from pathlib import Path
+
+    from studyapp.runner.observer import SimulatedObserver
+    from studyapp.runner.protocol import load_protocol
+    from studyapp.runner.session import ground_truth_stimuli, run_session
+
+    record = E.summary([E.attempt_result(_targets(*errors), 1.0)], status, 1.0, {"done": True}, 1)
+    p = load_protocol(Path(__file__).resolve().parents[1] / "protocols" / "seed001_pilot.yaml",
+                      stimuli_dir=tmp_path / "none", check_renderers=False)
+
+    def window_like(stimuli, display):
+        obs = SimulatedObserver(p, "P1", 0, ground_truth_stimuli(p, stimuli))
+        opened = obs.open
+        obs.open = lambda disp: {**opened(disp), "validation": record}
+        return obs
+
+    run_session(p, "P1", tmp_path / "s.db", window_like, allow_declared=True)
+    con = sqlite3.connect(tmp_path / "s.db")
+    (deg,), = con.execute("SELECT validation_deg FROM sessions").fetchall()
+    (detail,), = con.execute("SELECT detail FROM events WHERE kind = 'validation'").fetchall()
+    assert deg == (pytest.approx(0.3) if status == "passed" else None)
+    assert json.loads(detail) == record and json.loads(detail)["recording_restarts"] == 1
