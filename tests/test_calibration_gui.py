@@ -58,6 +58,8 @@ def test_following_the_dots_passes_with_a_small_error_and_is_stored(tmp_path):
                     p = to if f == 1.0 else ((prev[0] + to[0]) / 2, (prev[1] + to[1]) / 2)
                     x.xdotool("mousemove", str(round(wx + p[0])), str(round(wy + p[1])))
                 prev = to
+            measured = d.wait_for("validation", attempt=0)
+            assert measured["passed"], measured["targets_deg"]  # (fails at once with the errors, no time-out)
             passed = d.wait_for("validation_passed")
             facts = d.wait_for("opened")
             d.finish()

@@ -216,6 +216,17 @@ def check_iohub_device(device: str) -> None:
                            "eyetracker.hw.sr_research.eyelink.EyeTracker with its psychopy plug-in)")
 
 
+def free_udp_port() -> int:
+    """A UDP port free on this machine now. iohub's client and server talk over one fixed port (9036) by
+    default, so two sessions on one machine (or tests in parallel) would each read the other's tracker: every
+    session gets a port of its own."""
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
 def calibration_args(win, tracker, timing: Timing, n_targets: int, outer_px: float, inner_px: float) -> dict:
     """iohub's calibration configuration for ``tracker``, complete (``target_attributes`` with its ``animate``
     keys, layout, pacing, colours), built by PsychoPy's own ``EyetrackerCalibration`` and the tracker class's
@@ -292,7 +303,7 @@ class EyeTracker:
             level = logging.console.level
             logging.console.setLevel(logging.ERROR)  # "fullScr should be True": not for a tracker
             try:
-                self._io = launchHubServer(window=win, **cfg)
+                self._io = launchHubServer(window=win, udp_port=free_udp_port(), **cfg)
             finally:
                 logging.console.setLevel(level)
             self._device = self._io.getDevice("tracker")
@@ -456,7 +467,8 @@ class EyeTracker:
                 result = dict(attempt_result([], None), passed=False, aborted=True)
             attempts.append(result)
             screen.emit("validation", attempt=len(attempts) - 1, error_deg=_finite(result["mean_error_deg"]),
-                        max_error_deg=_finite(result["max_error_deg"]), passed=result["passed"])
+                        max_error_deg=_finite(result["max_error_deg"]), passed=result["passed"],
+                        targets_deg=[_finite(t["error_deg"]) for t in result["targets"]])
             if result["passed"]:
                 screen.show_text(f"Eye-tracker check passed: mean error {result['mean_error_deg']:.2f}°", "")
                 win_flip()
