@@ -153,11 +153,10 @@ def _finite(v: float) -> float | None:
     return float(v) if math.isfinite(v) else None
 
 
-def summary(attempts: list[dict], status: str, limit: float | None, calibration: dict,
-            recording_restarts: int = 0) -> dict:
+def summary(attempts: list[dict], status: str, limit: float | None, calibration: dict) -> dict:
     """What is stored with the session: ``status`` (``passed`` or ``skipped``), the last attempt's mean and
-    worst target error (degrees; None where no gaze came), the limit, the calibration, how often the device
-    had to be restarted, and every attempt with its per-target errors (JSON: no infinities)."""
+    worst target error (degrees; None where no gaze came), the limit, the calibration, and every attempt with
+    its per-target errors (JSON: no infinities)."""
     def clean(a: dict) -> dict:
         return {"mean_error_deg": _finite(a["mean_error_deg"]), "max_error_deg": _finite(a["max_error_deg"]),
                 "targets_without_gaze": a["targets_without_gaze"], "passed": a["passed"],
@@ -166,8 +165,7 @@ def summary(attempts: list[dict], status: str, limit: float | None, calibration:
     last = attempts[-1]
     return {"status": status, "error_deg": _finite(last["mean_error_deg"]),
             "max_error_deg": _finite(last["max_error_deg"]), "limit_deg": limit, "n_attempts": len(attempts),
-            "calibration": calibration, "recording_restarts": recording_restarts,
-            "attempts": [clean(a) for a in attempts]}
+            "calibration": calibration, "attempts": [clean(a) for a in attempts]}
 
 
 def instructions_text(n_targets: int, mouse_is_gaze: bool, calibrates: bool) -> str:
@@ -265,7 +263,6 @@ class EyeTracker:
         self._pointer = None
         self._win = None
         self._locate: Callable[[], tuple[int, int]] = lambda: (0, 0)
-        self.recording_restarts = 0  # times the device had stopped recording and was started again
 
     # ------------------------------------------------------------------ start / stop
     @property
@@ -354,12 +351,6 @@ class EyeTracker:
         if self._device is None:
             return None
         g = self._device.getLastGazePosition()
-        if g is None and self._device.isRecordingEnabled() is False:
-            # iohub's MouseGaze was seen to stop recording by itself within seconds (a 1920x1080 window under
-            # Xvfb), the gaze then missing for the rest of the session: start it again
-            self._device.setRecordingState(True)
-            self.recording_restarts += 1
-            g = self._device.getLastGazePosition()
         if g is None or len(g) < 2:
             return None
         # iohub reports display coordinates (origin at the screen centre, y up): use the window position
@@ -474,7 +465,7 @@ class EyeTracker:
                 win_flip()
                 screen.emit("validation_passed", error_deg=result["mean_error_deg"])
                 time.sleep(PASS_SHOWN_S)
-                return summary(attempts, "passed", limit, calibration, self.recording_restarts)
+                return summary(attempts, "passed", limit, calibration)
             can_repeat = len(attempts) < max_attempts
             note = "" if calibration["done"] or not calibrates else f"Calibration: {calibration['reason']}."
             text = result_text(result, limit, can_repeat, note)
@@ -483,7 +474,7 @@ class EyeTracker:
             screen.emit("validation_failed", attempt=len(attempts) - 1, can_repeat=can_repeat, text=text)
             key = screen.wait_key(([REPEAT_KEY] if can_repeat else []) + [SKIP_KEY, END_KEY])
             if key == SKIP_KEY:
-                return summary(attempts, "skipped", limit, calibration, self.recording_restarts)
+                return summary(attempts, "skipped", limit, calibration)
             if key == END_KEY:
                 err = result["mean_error_deg"]
                 what = f"mean error {err:.2f}°" if math.isfinite(err) else "no gaze measured"
