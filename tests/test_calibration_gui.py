@@ -5,7 +5,6 @@ repeat (R) and skip (S) work. Window-free parts: tests/test_eyetracker.py."""
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
@@ -13,7 +12,8 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "gui"))
-from xvfb import Driver, Xvfb, missing_tools, query  # noqa: E402
+from test_eyetracker import stored_validation  # noqa: E402
+from xvfb import Driver, Xvfb, missing_tools  # noqa: E402
 
 from data_schema.geometry import Display  # noqa: E402
 from studyapp.presentation.eyetracker import TARGET_LAYOUTS, target_error_deg  # noqa: E402
@@ -76,24 +76,7 @@ def test_following_the_dots_passes_with_a_small_error_and_is_stored(tmp_path):
     assert all(t["n_samples"] > 0 and t["error_deg"] <= 0.05 for t in targets)
 
     # the result is stored with the session: the sessions' validation_deg and a "validation" event with it all
-    from studyapp.runner.observer import SimulatedObserver
-    from studyapp.runner.protocol import load_protocol
-    from studyapp.runner.session import ground_truth_stimuli, run_session
-
-    p = load_protocol(Path(__file__).resolve().parents[1] / "protocols" / "seed001_pilot.yaml",
-                      stimuli_dir=tmp_path / "none", check_renderers=False)
-
-    def with_facts(stimuli, display):
-        obs = SimulatedObserver(p, "P1", 0, ground_truth_stimuli(p, stimuli))
-        opened = obs.open
-        obs.open = lambda disp: {**opened(disp), "validation": v}
-        return obs
-
-    db = tmp_path / "s.db"
-    run_session(p, "P1", db, with_facts, allow_declared=True)
-    assert query(db, "SELECT validation_deg FROM sessions") == [(v["error_deg"],)]
-    (detail,), = query(db, "SELECT detail FROM events WHERE kind = 'validation'")
-    assert json.loads(detail) == v
+    assert stored_validation(tmp_path, v) == (v["error_deg"], v)
 
 
 def test_a_mouse_held_still_fails_shows_its_error_and_repeat_and_skip_work(tmp_path):

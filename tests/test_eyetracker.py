@@ -181,10 +181,9 @@ def test_a_failed_calibration_is_shown_with_the_validation_result(monkeypatch):
                                                                    "'CALIBRATION_ABORTED'"}) in fs.events
 
 
-@pytest.mark.parametrize("errors, status", [([0.2, 0.4], "passed"), ([math.inf], "skipped")])
-def test_the_result_is_stored_with_the_session(tmp_path, errors, status):
-    """``facts["validation"]`` of the window reaches the study database: ``sessions.validation_deg`` (the
-    last attempt's mean error; left empty when no gaze came) and a ``validation`` event with the whole record."""
+def stored_validation(tmp_path, record: dict) -> tuple[float | None, dict]:
+    """Run a simulated session (seed001_pilot) whose window reported ``record`` as ``facts["validation"]``;
+    return what the study database holds: ``sessions.validation_deg`` and the ``validation`` event's JSON."""
     import sqlite3
     from pathlib import Path
 
@@ -192,7 +191,6 @@ def test_the_result_is_stored_with_the_session(tmp_path, errors, status):
     from studyapp.runner.protocol import load_protocol
     from studyapp.runner.session import ground_truth_stimuli, run_session
 
-    record = E.summary([E.attempt_result(_targets(*errors), 1.0)], status, 1.0, {"done": True})
     p = load_protocol(Path(__file__).resolve().parents[1] / "protocols" / "seed001_pilot.yaml",
                       stimuli_dir=tmp_path / "none", check_renderers=False)
 
@@ -204,7 +202,19 @@ def test_the_result_is_stored_with_the_session(tmp_path, errors, status):
 
     run_session(p, "P1", tmp_path / "s.db", window_like, allow_declared=True)
     con = sqlite3.connect(tmp_path / "s.db")
-    (deg,), = con.execute("SELECT validation_deg FROM sessions").fetchall()
-    (detail,), = con.execute("SELECT detail FROM events WHERE kind = 'validation'").fetchall()
+    try:
+        (deg,), = con.execute("SELECT validation_deg FROM sessions").fetchall()
+        (detail,), = con.execute("SELECT detail FROM events WHERE kind = 'validation'").fetchall()
+    finally:
+        con.close()
+    return deg, json.loads(detail)
+
+
+@pytest.mark.parametrize("errors, status", [([0.2, 0.4], "passed"), ([math.inf], "skipped")])
+def test_the_result_is_stored_with_the_session(tmp_path, errors, status):
+    """``facts["validation"]`` of the window reaches the study database: ``sessions.validation_deg`` (the
+    last attempt's mean error; left empty when no gaze came) and a ``validation`` event with the whole record."""
+    record = E.summary([E.attempt_result(_targets(*errors), 1.0)], status, 1.0, {"done": True})
+    deg, detail = stored_validation(tmp_path, record)
     assert deg == (pytest.approx(0.3) if status == "passed" else None)
-    assert json.loads(detail) == record and json.loads(detail)["status"] == status
+    assert detail == record and detail["status"] == status
