@@ -425,7 +425,7 @@ def register(subparsers, parser_class) -> None:
     _render_options(pr, "with --full and no --scheduler: render the full-size set on this machine anyway")
     pr.set_defaults(func=cmd_prepare, interrupted_hint=PREPARE_INTERRUPTED)
 
-    from studyapp.presentation.base import END_KEY, ESCAPE, RESUME_KEY
+    from studyapp.presentation.base import END_KEY, ESCAPE, REPEAT_KEY, RESUME_KEY, SKIP_KEY
 
     r = subparsers.add_parser(
         "run", help="run (or resume) a participant's session",
@@ -433,6 +433,9 @@ def register(subparsers, parser_class) -> None:
                     "observer (--simulate). Every answer is committed to the study database before the next trial. "
                     f"In the window, {ESCAPE.capitalize()} pauses the session at once (the trial is shown again): "
                     f"then {RESUME_KEY.upper()} resumes, {END_KEY.upper()} ends it (continue later with --resume). "
+                    "With an eye tracker, calibration instructions and animated dots come first; after a failed "
+                    f"validation the experimenter sees the error and presses {REPEAT_KEY.upper()} (repeat), "
+                    f"{SKIP_KEY.upper()} (skip) or {END_KEY.upper()} (end). "
                     "Stimuli: a pre-rendered protocol's stimulus set must be prepared first; a missing set is "
                     "refused in one line naming it and the `studyapp prepare` command, unless --prepare is given "
                     "(then it is rendered first, with a progress bar and the time left). The database and the "

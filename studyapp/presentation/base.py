@@ -115,10 +115,12 @@ class Presenter(Protocol):
 
 
 #: The session keys of every presenter: Escape pauses a trial, then R resumes or E ends the session; SPACE
-#: ends a break once its countdown is over.
+#: ends a break once its countdown is over. After a failed eye-tracker validation the experimenter repeats the
+#: calibration (R), skips the check (S) or ends the session (E).
 ESCAPE = "escape"
 CONTINUE_KEY = "space"
 RESUME_KEY, END_KEY = "r", "e"
+REPEAT_KEY, SKIP_KEY = "r", "s"
 
 KEY_REMINDER_PLACES = ("bottom", "top", "off")
 

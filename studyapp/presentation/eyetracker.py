@@ -44,11 +44,9 @@ from data_schema.errors import first_line
 from data_schema.geometry import Display
 from studyapp.runner.protocol import MOUSE_GAZE_DEVICE
 
-from .base import CONTINUE_KEY, END_KEY, ESCAPE, PresentationError, key_text
+from .base import CONTINUE_KEY, END_KEY, ESCAPE, REPEAT_KEY, SKIP_KEY, PresentationError, key_text
 
 IOHUB_STOP_S = 5.0  # how long the iohub server may take to stop before it is killed
-#: The experimenter's keys after a failed validation: repeat calibration and validation, skip (continue), end.
-REPEAT_KEY, SKIP_KEY = "r", "s"
 #: Target layouts, fractions of the window from its top-left corner, the first one first (iohub's calibration
 #: layouts ``FIVE_POINTS`` and ``NINE_POINTS``, psychopy.iohub.devices.eyetracker.calibration.procedure).
 TARGET_LAYOUTS = {
