@@ -218,3 +218,12 @@ def test_the_result_is_stored_with_the_session(tmp_path, errors, status):
     deg, detail = stored_validation(tmp_path, record)
     assert deg == (pytest.approx(0.3) if status == "passed" else None)
     assert detail == record and detail["status"] == status
+
+
+@pytest.mark.parametrize("sample, expected", [
+    ((10.5, -3), (10.5, -3.0)), ([1, 2, 3], (1.0, 2.0)), (None, None), ("O", None), (b"O", None), ((1.0,), None),
+    ((float("nan"), 1.0), None), ((1.0, float("inf")), None), (("a", "b"), None), ({}, None), (7, None)])
+def test_a_gaze_sample_is_two_finite_numbers_or_none(sample, expected):
+    """iohub's getLastGazePosition returned the string 'O' in a loaded session and the trial died with a
+    ValueError: anything but two finite numbers is "no gaze" (the trial's gaze-lost path), never a crash."""
+    assert E.gaze_pair(sample) == expected

@@ -242,6 +242,18 @@ def calibration_args(win, tracker, timing: Timing, n_targets: int, outer_px: flo
     return dict(calib)
 
 
+def gaze_pair(sample) -> tuple[float, float] | None:
+    """iohub's last gaze position as two finite floats, or None (no sample yet, a lost track, or anything else
+    the device returns: iohub has been seen to return a status string, e.g. ``'O'``, under load)."""
+    if isinstance(sample, (str, bytes)):
+        return None
+    try:
+        x, y = float(sample[0]), float(sample[1])
+    except (TypeError, ValueError, IndexError, KeyError):
+        return None
+    return (x, y) if math.isfinite(x) and math.isfinite(y) else None
+
+
 class EyeTracker:
     """The gaze source of a window (see the module docstring).
 
@@ -348,13 +360,13 @@ class EyeTracker:
             return (float(x) + ww / 2.0, wh / 2.0 - float(y))
         if self._device is None:
             return None
-        g = self._device.getLastGazePosition()
-        if g is None or len(g) < 2:
+        g = gaze_pair(self._device.getLastGazePosition())
+        if g is None:
             return None
         # iohub reports display coordinates (origin at the screen centre, y up): use the window position
         screen = self._win.winHandle.screen
         wx, wy = self._locate()
-        return (float(g[0]) + screen.width / 2.0 - wx, screen.height / 2.0 - float(g[1]) - wy)
+        return (g[0] + screen.width / 2.0 - wx, screen.height / 2.0 - g[1] - wy)
 
     # ------------------------------------------------------------------ calibration and validation
     def _timing(self) -> Timing:
