@@ -77,6 +77,7 @@ class _Fn:
         self.param_types = {p: "float" for p in self.params}
         self.var_types: dict[str, str] = {}
         self.calls: set[str] = set()
+        self.real = "float"   # "double" for the functions of a double-precision closure
 
 
 class Translator:
@@ -91,6 +92,10 @@ class Translator:
         self.fns = {n.name: _Fn(n) for n in tree.body if isinstance(n, ast.FunctionDef)}
         self.consts = {k: v for k, v in vars(module).items()
                        if k.isupper() and isinstance(v, (int, float)) and not isinstance(v, bool)}
+        from .. import constants as shared
+        #: constants taken from the shared table (renderers/constants.py): declared once by constants_gen.glsl
+        #: under their own names, not re-emitted with the prefix
+        self.shared = {k for k, v in self.consts.items() if getattr(shared, k, None) == v}
 
     # -- analysis ----------------------------------------------------------------------------------------------
     def closure(self, roots) -> list[str]:
@@ -119,6 +124,8 @@ class Translator:
         roots = set(root_params or {})
         for _ in range(20):
             changed = False
+            conflicts: list[str] = []
+            _join = functools.partial(_join_types, conflicts)
             site_types: dict[str, dict[str, set[str]]] = {}
             for name in names:
                 fn = self.fns[name]
@@ -139,12 +146,12 @@ class Translator:
                 for var, types in assigned.items():
                     if var in fn.params:
                         continue
-                    t = "int" if types == {"int"} else ("vec2" if types == {"vec2"} else "float")
+                    t = _join(fn.name, var, types)
                     if fn.var_types.get(var) != t:
                         fn.var_types[var] = t
                         changed = True
                 rets = {self._ret_type(fn, r.value) for r in ast.walk(fn.node) if isinstance(r, ast.Return)}
-                ret = "vec2" if "vec2" in rets else ("int" if rets == {"int"} else "float")
+                ret = _join(fn.name, "return value", rets)
                 if fn.ret != ret:
                     fn.ret = ret
                     changed = True
@@ -155,11 +162,13 @@ class Translator:
                 for p in fn.param_types:
                     if p == self.array_param:
                         continue
-                    t = "int" if site_types.get(name, {}).get(p) == {"int"} else "float"
+                    t = _join(name, p, site_types.get(name, {}).get(p, {"float"}))
                     if fn.param_types[p] != t:
                         fn.param_types[p] = t
                         changed = True
             if not changed:
+                if conflicts:  # at the fixed point: a name really takes values of two types
+                    raise NotImplementedError(conflicts[0])
                 return
         raise NotImplementedError("type inference did not converge")
 
@@ -179,7 +188,9 @@ class Translator:
 
     def _ret_type(self, fn, value):
         if isinstance(value, ast.Tuple):
-            return "vec2"
+            if not 2 <= len(value.elts) <= 4:
+                raise NotImplementedError(f"{fn.name}: tuple of {len(value.elts)} values (GLSL vectors hold 2-4)")
+            return f"vec{len(value.elts)}"
         return self.etype(fn, value)
 
     def _is_array(self, node) -> bool:
@@ -204,7 +215,11 @@ class Translator:
             if isinstance(e.op, (ast.Div, ast.Pow)):
                 return "float"
             a, b = self.etype(fn, e.left), self.etype(fn, e.right)
+            if "i64" in (a, b):
+                return "int" if isinstance(e.op, ast.BitAnd) else "i64"
             return "int" if a == b == "int" else "float"
+        if isinstance(e, (ast.Compare, ast.BoolOp)) or (isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.Not)):
+            return "bool"
         if isinstance(e, ast.UnaryOp):
             return self.etype(fn, e.operand)
         if isinstance(e, ast.IfExp):
@@ -212,6 +227,9 @@ class Translator:
             return "int" if a == b == "int" else "float"
         if isinstance(e, ast.Call):
             f = e.func
+            if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
+                    and f.attr == "int64":
+                return "i64"
             if isinstance(f, ast.Name):
                 if f.id == "int":
                     return "int"
@@ -224,9 +242,13 @@ class Translator:
         return "float"
 
     # -- emission ----------------------------------------------------------------------------------------------
-    def emit(self, names) -> str:
-        out = [_HELPERS]
+    def emit(self, names, helpers: bool = True) -> str:
+        out = [_HELPERS] if helpers else []
+        if any(t == "i64" for n in names for t in [*self.fns[n].var_types.values(), *self.fns[n].param_types.values()]):
+            out.append(_I64_HELPERS)
         for k, v in sorted(self.consts.items()):
+            if k in self.shared:
+                continue
             if isinstance(v, int):
                 out.append(f"const int {self.prefix.upper()}{k} = {v};")
             else:
@@ -237,12 +259,12 @@ class Translator:
         return "\n".join(out) + "\n"
 
     def emit_fn(self, fn: _Fn) -> str:
-        params = ", ".join(f"{fn.param_types[p]} {p}" for p in fn.params if p != self.array_param)
-        lines = [f"{fn.ret} {self.prefix}{fn.name}({params}) {{"]
+        params = ", ".join(f"{self.tname(fn, fn.param_types[p])} {p}" for p in fn.params if p != self.array_param)
+        lines = [f"{self.tname(fn, fn.ret)} {self.glsl_name(fn.name)}({params}) {{"]
         loop_vars = {n.target.id for n in ast.walk(fn.node) if isinstance(n, ast.For)}
         for var, t in sorted(fn.var_types.items()):
             if var not in loop_vars and var != "_":
-                lines.append(f"    {t} {var};")
+                lines.append(f"    {self.tname(fn, t)} {var};")
         self._tmp = 0
         body = fn.node.body
         if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
@@ -263,14 +285,17 @@ class Translator:
                         self._tmp += 1
                         tmp = f"_v{self._tmp}"
                         tmps.append(tmp)
-                        lines.append(f"{pad}{self.etype(fn, v)} {tmp} = {self.expr(fn, v)};")
+                        lines.append(f"{pad}{self.tname(fn, self.etype(fn, v))} {tmp} = {self.expr(fn, v)};")
                     for t, tmp in zip(target.elts, tmps):
                         lines.append(f"{pad}{t.id} = {tmp};")
                     return lines
                 self._tmp += 1
                 tmp = f"_t{self._tmp}"
-                lines = [f"{pad}vec2 {tmp} = {self.expr(fn, value)};"]
-                for comp, t in zip("xy", target.elts):
+                have = self.etype(fn, value)
+                if have != f"vec{len(target.elts)}":
+                    raise NotImplementedError(f"{fn.name}: unpacking {len(target.elts)} names from a {have}")
+                lines = [f"{pad}{self.tname(fn, have)} {tmp} = {self.expr(fn, value)};"]
+                for comp, t in zip("xyzw", target.elts):
                     if t.id != "_":
                         lines.append(f"{pad}{t.id} = {tmp}.{comp};")
                 return lines
@@ -280,11 +305,11 @@ class Translator:
             return [f"{pad}{st.target.id} {op}= {self.expr(fn, st.value)};"]
         if isinstance(st, ast.Return):
             if isinstance(st.value, ast.Tuple):
-                a, b = (self.expr(fn, v) for v in st.value.elts)
-                return [f"{pad}return vec2({a}, {b});"]
+                vals = ", ".join(self.cast(fn, v, "float") for v in st.value.elts)
+                return [f"{pad}return {self.tname(fn, self._ret_type(fn, st.value))}({vals});"]
             return [f"{pad}return {self.cast(fn, st.value, fn.ret)};"]
         if isinstance(st, ast.If):
-            lines = [f"{pad}if ({self.expr(fn, st.test)}) {{"]
+            lines = [f"{pad}if ({self.cond(fn, st.test)}) {{"]
             for s in st.body:
                 lines += self.stmt(fn, s, depth + 1)
             if st.orelse:
@@ -309,12 +334,42 @@ class Translator:
             return []
         raise NotImplementedError(f"{fn.name}: statement {type(st).__name__}")
 
+    def glsl_name(self, name: str) -> str:
+        """The GLSL name of a translated function: the prefix and the Python name without leading underscores
+        (GLSL reserves names containing ``__``)."""
+        return self.prefix + name.lstrip("_")
+
+    def tname(self, fn, t: str) -> str:
+        """The GLSL type of an inferred type in ``fn`` (``float`` is ``fn``'s precision)."""
+        if t == "i64":
+            return "uvec2"
+        if fn.real == "double" and (t == "float" or t.startswith("vec")):
+            return "double" if t == "float" else "d" + t
+        return t
+
     def cast(self, fn, e, want: str) -> str:
         text = self.expr(fn, e)
         have = self.etype(fn, e)
         if want == "float" and have == "int":
-            return f"float({text})"
+            return f"{fn.real}({text})"
+        if want == "i64" and have == "int":
+            return f"i64_from({text})"
+        if want != have and "i64" in (want, have):
+            raise NotImplementedError(f"{fn.name}: {have} used as {want}")
         return text
+
+    def cond(self, fn, e) -> str:
+        """``e`` as a GLSL bool (Python's truth of an int or float: != 0)."""
+        t = self.etype(fn, e)
+        if t == "bool":
+            return self.expr(fn, e)
+        if t in ("int", "float"):
+            return f"({self.expr(fn, e)} != {'0' if t == 'int' else self.lit(fn, 0.0)})"
+        raise NotImplementedError(f"{fn.name}: truth value of a {t}")
+
+    def lit(self, fn, v: float) -> str:
+        text = _flt(float(v))
+        return text + "LF" if fn.real == "double" and not text.startswith("(") else text
 
     def expr(self, fn, e) -> str:
         if isinstance(e, ast.Constant):
@@ -322,14 +377,16 @@ class Translator:
                 return "true" if e.value else "false"
             if isinstance(e.value, int):
                 return str(e.value)
-            return _flt(float(e.value))
+            return self.lit(fn, e.value)
         if isinstance(e, ast.Name):
+            if e.id in self.shared:
+                return e.id
             if e.id in self.consts:
                 return f"{self.prefix.upper()}{e.id}"
             return e.id
         if isinstance(e, ast.Attribute):
             if isinstance(e.value, ast.Name) and e.value.id == "math" and e.attr == "pi":
-                return _flt(math.pi)
+                return self.lit(fn, math.pi)
             raise NotImplementedError(f"{fn.name}: attribute {ast.dump(e)}")
         if isinstance(e, ast.Subscript):
             if not self._is_array(e.value):
@@ -337,6 +394,10 @@ class Translator:
             return f"{self.array_name}[{self.expr(fn, e.slice)}]"
         if isinstance(e, ast.BinOp):
             a, b = self.expr(fn, e.left), self.expr(fn, e.right)
+            if "i64" in (self.etype(fn, e.left), self.etype(fn, e.right)):
+                return self.i64_op(fn, e)
+            if isinstance(e.op, ast.Mod) and "float" in (self.etype(fn, e.left), self.etype(fn, e.right)):
+                return f"mod({self.cast(fn, e.left, 'float')}, {self.cast(fn, e.right, 'float')})"  # Python's sign
             if isinstance(e.op, ast.Pow):
                 return f"pow({self.cast(fn, e.left, 'float')}, {self.cast(fn, e.right, 'float')})"
             if isinstance(e.op, ast.Div):
@@ -345,18 +406,18 @@ class Translator:
                 raise NotImplementedError(f"{fn.name}: operator {type(e.op).__name__}")
             ta, tb = self.etype(fn, e.left), self.etype(fn, e.right)
             if ta != tb:  # GLSL converts implicitly, but say it (and keep int/float mixing visible)
-                a = f"float({a})" if ta == "int" else a
-                b = f"float({b})" if tb == "int" else b
+                a = f"{fn.real}({a})" if ta == "int" else a
+                b = f"{fn.real}({b})" if tb == "int" else b
             return f"({a} {_BINOPS[type(e.op)]} {b})"
         if isinstance(e, ast.UnaryOp):
             if isinstance(e.op, ast.USub):
                 return f"(-{self.expr(fn, e.operand)})"
             if isinstance(e.op, ast.Not):
-                return f"(!{self.expr(fn, e.operand)})"
+                return f"(!{self.cond(fn, e.operand)})"
             raise NotImplementedError(f"{fn.name}: unary {type(e.op).__name__}")
         if isinstance(e, ast.BoolOp):
             op = " && " if isinstance(e.op, ast.And) else " || "
-            return "(" + op.join(self.expr(fn, v) for v in e.values) + ")"
+            return "(" + op.join(self.cond(fn, v) for v in e.values) + ")"
         if isinstance(e, ast.Compare):
             if len(e.ops) != 1:
                 raise NotImplementedError(f"{fn.name}: chained comparison")
@@ -364,14 +425,36 @@ class Translator:
             return f"({a} {_CMPOPS[type(e.ops[0])]} {b})"
         if isinstance(e, ast.IfExp):
             want = self.etype(fn, e)
-            return (f"({self.expr(fn, e.test)} ? {self.cast(fn, e.body, want)} : "
+            return (f"({self.cond(fn, e.test)} ? {self.cast(fn, e.body, want)} : "
                     f"{self.cast(fn, e.orelse, want)})")
         if isinstance(e, ast.Call):
             return self.call(fn, e)
         raise NotImplementedError(f"{fn.name}: expression {type(e).__name__}")
 
+    def i64_op(self, fn, e) -> str:
+        """numba's int64 arithmetic (the texture hash) on (lo, hi) halves: ``+``, ``^``, ``*`` and ``&`` by a
+        constant, ``>>`` (arithmetic) by a constant below 32."""
+        ta, tb = self.etype(fn, e.left), self.etype(fn, e.right)
+        a, b = self.expr(fn, e.left), self.expr(fn, e.right)
+        const = e.right.value if isinstance(e.right, ast.Constant) and isinstance(e.right.value, int) else None
+        if isinstance(e.op, ast.Add):
+            return f"i64_add({self.cast(fn, e.left, 'i64')}, {self.cast(fn, e.right, 'i64')})"
+        if isinstance(e.op, ast.BitXor) and ta == tb == "i64":
+            return f"({a} ^ {b})"
+        if isinstance(e.op, ast.Mult) and ta == "i64" and const is not None and 0 <= const < 2 ** 32:
+            return f"i64_mul({a}, {const}u)"
+        if isinstance(e.op, ast.RShift) and ta == "i64" and const is not None and 0 < const < 32:
+            return f"i64_sar({a}, {const})"
+        if isinstance(e.op, ast.BitAnd) and ta == "i64" and const is not None and 0 <= const < 2 ** 31:
+            return f"int({a}.x & {const}u)"
+        raise NotImplementedError(f"{fn.name}: int64 operation {ta} {type(e.op).__name__} {tb}"
+                                  + ("" if const is None else f" {const}"))
+
     def call(self, fn, e) -> str:
         f = e.func
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
+                and f.attr == "int64":
+            return f"i64_from(int({self.expr(fn, e.args[0])}))"
         if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "math":
             args = [self.cast(fn, a, "float") for a in e.args]
             if f.attr == "hypot":
@@ -392,11 +475,45 @@ class Translator:
                 return f"abs({self.expr(fn, e.args[0])})"
             if f.id in self.fns:
                 callee = self.fns[f.id]
+                if callee.real != fn.real:
+                    raise NotImplementedError(f"{fn.name}: call of {f.id} across precisions ({fn.real} -> "
+                                              f"{callee.real})")
                 params = [p for p in callee.params if p != self.array_param]
                 args = [a for a in e.args if not self._is_array(a)]
                 text = ", ".join(self.cast(fn, a, callee.param_types[p]) for p, a in zip(params, args))
-                return f"{self.prefix}{f.id}({text})"
+                return f"{self.glsl_name(f.id)}({text})"
         raise NotImplementedError(f"{fn.name}: call of {ast.dump(f)}")
+
+
+def _join_types(conflicts: list, fn: str, what: str, types: set[str]) -> str:
+    """One type for the values given to a name: itself when they agree, ``float`` for ints and floats mixed;
+    otherwise ``float`` for now, the conflict noted in ``conflicts`` (an error if it remains at the fixed point)."""
+    if len(types) == 1:
+        return next(iter(types))
+    if types == {"int", "float"}:
+        return "float"
+    conflicts.append(f"{fn}: {what} takes values of types {sorted(types)}")
+    other = sorted(types - {"int", "float", "bool"})   # e.g. h = h ^ (h >> 13): h's own float guess yields
+    return other[0] if len(other) == 1 else "float"
+
+
+#: numba's int64 arithmetic on two 32-bit halves (lo, hi), two's complement: what the texture hash needs.
+_I64_HELPERS = """
+uvec2 i64_from(int x) { return uvec2(uint(x), x < 0 ? 0xFFFFFFFFu : 0u); }
+uvec2 i64_add(uvec2 a, uvec2 b) {
+    uint carry;
+    uint lo = uaddCarry(a.x, b.x, carry);
+    return uvec2(lo, a.y + b.y + carry);
+}
+uvec2 i64_mul(uvec2 a, uint c) {   // a c mod 2^64
+    uint hi, lo;
+    umulExtended(a.x, c, hi, lo);
+    return uvec2(lo, hi + a.y * c);
+}
+uvec2 i64_sar(uvec2 a, int s) {    // arithmetic shift right, 0 < s < 32
+    return uvec2((a.x >> s) | (a.y << (32 - s)), uint(int(a.y) >> s));
+}
+"""
 
 
 _BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Mod: "%", ast.BitAnd: "&", ast.BitOr: "|",
@@ -423,11 +540,45 @@ def foveation_glsl() -> str:
         + tr.emit(names)
 
 
+def shade_glsl(module=None) -> str:
+    """GLSL of the shading kernels of :mod:`renderers._shade` (textures and the value-noise hash in double
+    precision, the BRDF lobes and light terms in float), prefixed ``shade_``. ``module``: another module of the
+    same kernels (tests translate a changed copy)."""
+    if module is None:
+        return _shade_glsl_cached()
+    return _shade_glsl(module)
+
+
 @functools.lru_cache(maxsize=None)
-def constants_glsl() -> str:
-    """The integer codes of :mod:`renderers._shade` as GLSL constants."""
+def _shade_glsl_cached() -> str:
     from .. import _shade
 
-    names = ("TEX_NONE", "TEX_CHECKER", "TEX_BRICK", "TEX_NOISE", "KIND_DIFFUSE", "KIND_GLOSSY", "KIND_METALLIC",
-             "LIGHT_POINT", "LIGHT_EMITTER", "LIGHT_DIRECTIONAL")
-    return "".join(f"const int {n} = {getattr(_shade, n)};\n" for n in names)
+    return _shade_glsl(_shade)
+
+
+def _shade_glsl(module) -> str:
+    source = inspect.getsource(module)
+    tr = Translator(module, "shade_", source=source)
+    doubles = tr.closure(module.GLSL_DOUBLE_ROOTS)
+    floats = [n for n in tr.closure(module.GLSL_FLOAT_ROOTS) if n not in doubles]
+    for n in doubles:
+        tr.fns[n].real = "double"
+    int_params = {"texture_weight": {"kind": "int"}, "light_direction": {"kind": "int"},
+                  "irradiance_factor": {"kind": "int"}}
+    tr.infer(doubles + floats, {r: int_params.get(r, {}) for r in (*module.GLSL_DOUBLE_ROOTS,
+                                                                       *module.GLSL_FLOAT_ROOTS)})
+    return (f"// Generated from {module.__name__.replace('.', '/')}.py by renderers/gpu/codegen.py: do not edit.\n"
+            '#include "constants_gen.glsl"\n' + tr.emit(doubles + floats, helpers=False))
+
+
+@functools.lru_cache(maxsize=None)
+def constants_glsl() -> str:
+    """Every constant of the shared table :mod:`renderers.constants` (upper-case ints and floats) as a GLSL
+    ``const`` of the same name."""
+    from .. import constants
+
+    out = []
+    for k, v in vars(constants).items():
+        if k.isupper() and isinstance(v, (int, float)) and not isinstance(v, bool):
+            out.append(f"const int {k} = {v};\n" if isinstance(v, int) else f"const float {k} = {_flt(v)};\n")
+    return "".join(out)

@@ -306,6 +306,10 @@ def generated_source(fname: str) -> str | None:
         from .codegen import foveation_glsl
 
         return foveation_glsl()
+    if fname == "shade_gen.glsl":
+        from .codegen import shade_glsl
+
+        return shade_glsl()
     if fname == "constants_gen.glsl":
         from .codegen import constants_glsl
 
