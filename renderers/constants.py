@@ -29,4 +29,5 @@ ACUITY_FLOOR = 0.02
 # the shadow-ray origin offset (fraction of the scene's half-diagonal) and how much of a shadow segment is tested
 LC_CLAMP_FRACTION = 1e-3
 LC_OFFSET_FRACTION = 1e-4
-LC_SHADOW_END = 0.999
+LC_SHADOW_EPS = 1e-3
+LC_SHADOW_END = 1.0 - LC_SHADOW_EPS

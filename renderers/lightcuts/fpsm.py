@@ -32,9 +32,10 @@ from data_schema.ranges import Range
 
 from .options import FPSM_READINGS
 
+from ..constants import ACUITY_FLOOR, ACUITY_INTERCEPT, ACUITY_SLOPE, LUMA_B, LUMA_G, LUMA_R
+
 EPSILON = 0.01
-ACUITY_FLOOR = 0.02
-LUMA = np.array([0.2126, 0.7152, 0.0722])
+LUMA = np.array([LUMA_R, LUMA_G, LUMA_B])
 _BINOMIAL = np.array([1.0, 4.0, 6.0, 4.0, 1.0]) / 16.0
 
 
@@ -61,7 +62,7 @@ def acuity_map(eccentricity_rad) -> np.ndarray:
     e = _finite("eccentricity", eccentricity_rad)
     if np.any(e < 0):
         raise UserError("eccentricity must be >= 0")
-    return np.clip(1.1715 - 2.45 * e, ACUITY_FLOOR, 1.0)
+    return np.clip(ACUITY_INTERCEPT - ACUITY_SLOPE * e, ACUITY_FLOOR, 1.0)
 
 
 def eccentricity_map(geometry) -> np.ndarray:

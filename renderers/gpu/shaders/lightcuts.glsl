@@ -215,12 +215,12 @@ vec3 light_estimate(vec3 p, vec3 n, vec3 alb, int leaf, float pdf) {
 bool occluded(vec3 p, vec3 n, int leaf, float offset) {
     vec3 o = p + offset * n;
     float t;
-    return trace(o, light_pos(leaf - u_n_leaves) - o, 0.999, true, t) >= 0;
+    return trace(o, light_pos(leaf - u_n_leaves) - o, LC_SHADOW_END, true, t) >= 0;
 }
 
 // Shadow-ray origin offset (sampling.ray_offset_for): 1e-4 of the half diagonal of the lights' box and the
 // G-buffer's points (`lo`, `hi`).
 float ray_offset(vec3 lo, vec3 hi) {
     vec3 a = min(node_min(1), lo), c = max(node_max(1), hi);
-    return 1e-4 * max(0.5 * length(c - a), 1e-9);
+    return LC_OFFSET_FRACTION * max(0.5 * length(c - a), 1e-9);
 }
