@@ -43,7 +43,8 @@ def test_every_shared_constant_is_written_once():
 
     assert fpsm.ACUITY_FLOOR is constants.ACUITY_FLOOR and sampling.LC_OFFSET_FRACTION is constants.LC_OFFSET_FRACTION
     hand = "\n".join(p.read_text() for p in sorted(SHADERS.glob("*")) if p.suffix in (".glsl", ".comp"))
-    for literal in ("1.1715", "2.45", "0.2126", "0.7152", "0.0722", "73856093", "0.3183098861837907", "65535.0"):
+    for literal in ("1.1715", "2.45", "0.2126", "0.7152", "0.0722", "73856093", "0.3183098861837907", "65535.0",
+                    "9E3779B9", "umulExtended"):
         assert literal not in hand, literal
 
 

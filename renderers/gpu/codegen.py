@@ -96,6 +96,10 @@ class Translator:
         #: constants taken from the shared table (renderers/constants.py): declared once by constants_gen.glsl
         #: under their own names, not re-emitted with the prefix
         self.shared = {k for k, v in self.consts.items() if getattr(shared, k, None) == v}
+        import numpy as np
+
+        #: module-level np.uint64 constants (the random numbers' multipliers), emitted as uvec2(lo, hi)
+        self.u64_consts = {k: int(v) for k, v in vars(module).items() if isinstance(v, np.uint64)}
 
     # -- analysis ----------------------------------------------------------------------------------------------
     def closure(self, roots) -> list[str]:
@@ -201,6 +205,8 @@ class Translator:
             return fn.param_types[name]
         if name in fn.var_types:
             return fn.var_types[name]
+        if name in self.u64_consts:
+            return "u64"
         v = self.consts.get(name)
         if v is not None:
             return "int" if isinstance(v, int) else "float"
@@ -217,6 +223,8 @@ class Translator:
             a, b = self.etype(fn, e.left), self.etype(fn, e.right)
             if "i64" in (a, b):
                 return "int" if isinstance(e.op, ast.BitAnd) else "i64"
+            if "u64" in (a, b):
+                return "u64"
             return "int" if a == b == "int" else "float"
         if isinstance(e, (ast.Compare, ast.BoolOp)) or (isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.Not)):
             return "bool"
@@ -228,8 +236,8 @@ class Translator:
         if isinstance(e, ast.Call):
             f = e.func
             if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
-                    and f.attr == "int64":
-                return "i64"
+                    and f.attr in ("int64", "uint64"):
+                return "i64" if f.attr == "int64" else "u64"
             if isinstance(f, ast.Name):
                 if f.id == "int":
                     return "int"
@@ -244,15 +252,18 @@ class Translator:
     # -- emission ----------------------------------------------------------------------------------------------
     def emit(self, names, helpers: bool = True) -> str:
         out = [_HELPERS] if helpers else []
-        if any(t == "i64" for n in names for t in [*self.fns[n].var_types.values(), *self.fns[n].param_types.values()]):
-            out.append(_I64_HELPERS)
+        types = {t for n in names for t in [*self.fns[n].var_types.values(), *self.fns[n].param_types.values()]}
+        if types & {"i64", "u64"}:   # one copy per shader: the include is expanded once
+            out.append('#include "int64_gen.glsl"')
+        for k, v in sorted(self.u64_consts.items()):
+            out.append(f"const uvec2 {self.const_name(k)} = uvec2({v & 0xFFFFFFFF}u, {v >> 32}u);")
         for k, v in sorted(self.consts.items()):
             if k in self.shared:
                 continue
             if isinstance(v, int):
-                out.append(f"const int {self.prefix.upper()}{k} = {v};")
+                out.append(f"const int {self.const_name(k)} = {v};")
             else:
-                out.append(f"const float {self.prefix.upper()}{k} = {_flt(v)};")
+                out.append(f"const float {self.const_name(k)} = {_flt(v)};")
         out.append("")
         for name in names:
             out.append(self.emit_fn(self.fns[name]))
@@ -301,6 +312,9 @@ class Translator:
                 return lines
             return [f"{pad}{target.id} = {self.cast(fn, value, self.vtype(fn, target.id))};"]
         if isinstance(st, ast.AugAssign):
+            if self.vtype(fn, st.target.id) in ("i64", "u64"):   # x op= y on (lo, hi) halves: x = x op y
+                binop = ast.BinOp(left=ast.Name(id=st.target.id, ctx=ast.Load()), op=st.op, right=st.value)
+                return [f"{pad}{st.target.id} = {self.expr(fn, binop)};"]
             op = _BINOPS[type(st.op)]
             return [f"{pad}{st.target.id} {op}= {self.expr(fn, st.value)};"]
         if isinstance(st, ast.Return):
@@ -334,6 +348,9 @@ class Translator:
             return []
         raise NotImplementedError(f"{fn.name}: statement {type(st).__name__}")
 
+    def const_name(self, name: str) -> str:
+        return self.prefix.upper() + name.lstrip("_")
+
     def glsl_name(self, name: str) -> str:
         """The GLSL name of a translated function: the prefix and the Python name without leading underscores
         (GLSL reserves names containing ``__``)."""
@@ -341,7 +358,7 @@ class Translator:
 
     def tname(self, fn, t: str) -> str:
         """The GLSL type of an inferred type in ``fn`` (``float`` is ``fn``'s precision)."""
-        if t == "i64":
+        if t in ("i64", "u64"):
             return "uvec2"
         if fn.real == "double" and (t == "float" or t.startswith("vec")):
             return "double" if t == "float" else "d" + t
@@ -381,8 +398,12 @@ class Translator:
         if isinstance(e, ast.Name):
             if e.id in self.shared:
                 return e.id
+            if e.id in self.u64_consts:
+                return self.const_name(e.id)
             if e.id in self.consts:
-                return f"{self.prefix.upper()}{e.id}"
+                if fn.real == "double" and isinstance(self.consts[e.id], float):
+                    return self.lit(fn, self.consts[e.id])   # the float64 value, not its float32 constant
+                return self.const_name(e.id)
             return e.id
         if isinstance(e, ast.Attribute):
             if isinstance(e.value, ast.Name) and e.value.id == "math" and e.attr == "pi":
@@ -396,6 +417,8 @@ class Translator:
             a, b = self.expr(fn, e.left), self.expr(fn, e.right)
             if "i64" in (self.etype(fn, e.left), self.etype(fn, e.right)):
                 return self.i64_op(fn, e)
+            if "u64" in (self.etype(fn, e.left), self.etype(fn, e.right)):
+                return self.u64_op(fn, e)
             if isinstance(e.op, ast.Mod) and "float" in (self.etype(fn, e.left), self.etype(fn, e.right)):
                 return f"mod({self.cast(fn, e.left, 'float')}, {self.cast(fn, e.right, 'float')})"  # Python's sign
             if isinstance(e.op, ast.Pow):
@@ -450,11 +473,33 @@ class Translator:
         raise NotImplementedError(f"{fn.name}: int64 operation {ta} {type(e.op).__name__} {tb}"
                                   + ("" if const is None else f" {const}"))
 
+    def u64_op(self, fn, e) -> str:
+        """numba's uint64 arithmetic (the counter-based random numbers) on (lo, hi) halves: ``+``, ``*``, ``^``
+        and ``>>`` by a constant below 32, all modulo 2^64."""
+        ta, tb = self.etype(fn, e.left), self.etype(fn, e.right)
+        a, b = self.expr(fn, e.left), self.expr(fn, e.right)
+        shift = _const_int(e.right)
+        if ta == tb == "u64" and type(e.op) in (ast.Add, ast.Mult, ast.BitXor):
+            return {ast.Add: f"i64_add({a}, {b})", ast.Mult: f"u64_mul({a}, {b})",
+                    ast.BitXor: f"({a} ^ {b})"}[type(e.op)]
+        if ta == "u64" and isinstance(e.op, ast.RShift) and shift is not None and 0 < shift < 32:
+            return f"u64_shr({a}, {shift})"
+        raise NotImplementedError(f"{fn.name}: uint64 operation {ta} {type(e.op).__name__} {tb}")
+
     def call(self, fn, e) -> str:
         f = e.func
         if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
                 and f.attr == "int64":
             return f"i64_from(int({self.expr(fn, e.args[0])}))"
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
+                and f.attr == "uint64":
+            if _const_int(e) is not None:
+                return f"uvec2({_const_int(e) & 0xFFFFFFFF}u, {_const_int(e) >> 32}u)"
+            if self.etype(fn, e.args[0]) == "u64":
+                return self.expr(fn, e.args[0])
+            raise NotImplementedError(f"{fn.name}: np.uint64 of a {self.etype(fn, e.args[0])}")
+        if isinstance(f, ast.Name) and f.id == "float" and self.etype(fn, e.args[0]) == "u64":
+            return f"u64_to_{fn.real}({self.expr(fn, e.args[0])})"
         if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "math":
             args = [self.cast(fn, a, "float") for a in e.args]
             if f.attr == "hypot":
@@ -513,7 +558,25 @@ uvec2 i64_mul(uvec2 a, uint c) {   // a c mod 2^64
 uvec2 i64_sar(uvec2 a, int s) {    // arithmetic shift right, 0 < s < 32
     return uvec2((a.x >> s) | (a.y << (32 - s)), uint(int(a.y) >> s));
 }
+uvec2 u64_mul(uvec2 a, uvec2 b) {  // a b mod 2^64
+    uint hi, lo;
+    umulExtended(a.x, b.x, hi, lo);
+    return uvec2(lo, hi + a.x * b.y + a.y * b.x);
+}
+uvec2 u64_shr(uvec2 a, int s) {    // logical shift right, 0 < s < 32
+    return uvec2((a.x >> s) | (a.y << (32 - s)), a.y >> s);
+}
+double u64_to_double(uvec2 a) { return double(a.y) * 4294967296.0LF + double(a.x); }   // exact below 2^53
 """
+
+
+def _const_int(e) -> int | None:
+    """The value of an integer literal or of ``np.uint64(literal)``, else None."""
+    if isinstance(e, ast.Constant) and isinstance(e.value, int) and not isinstance(e.value, bool):
+        return e.value
+    if isinstance(e, ast.Call) and isinstance(e.func, ast.Attribute) and e.func.attr == "uint64" and e.args:
+        return _const_int(e.args[0])
+    return None
 
 
 _BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Mod: "%", ast.BitAnd: "&", ast.BitOr: "|",
@@ -569,6 +632,28 @@ def _shade_glsl(module) -> str:
                                                                        *module.GLSL_FLOAT_ROOTS)})
     return (f"// Generated from {module.__name__.replace('.', '/')}.py by renderers/gpu/codegen.py: do not edit.\n"
             '#include "constants_gen.glsl"\n' + tr.emit(doubles + floats, helpers=False))
+
+
+@functools.lru_cache(maxsize=None)
+def lightcuts_glsl() -> str:
+    """GLSL of the lightcuts kernels translated so far from :mod:`renderers.lightcuts._kernels`: the
+    counter-based random numbers ``lc_uniform(seed, pixel, slot)`` (splitmix64 in uint64 on 32-bit halves, the
+    result in double precision, equal to the CPU's)."""
+    from ..lightcuts import _kernels
+
+    tr = Translator(_kernels, "lc_")
+    names = tr.closure(_kernels.GLSL_DOUBLE_ROOTS)
+    for n in names:
+        tr.fns[n].real = "double"
+    tr.infer(names, {"uniform": {"seed": "u64", "pixel": "u64", "slot": "u64"}})
+    return "// Generated from renderers/lightcuts/_kernels.py by renderers/gpu/codegen.py: do not edit.\n" \
+        + tr.emit(names, helpers=False)
+
+
+def int64_glsl() -> str:
+    """The 64-bit integer helpers of the generated kernels (``int64_gen.glsl``)."""
+    return "// 64-bit integers on (lo, hi) halves for the generated kernels (renderers/gpu/codegen.py).\n" \
+        + _I64_HELPERS
 
 
 @functools.lru_cache(maxsize=None)

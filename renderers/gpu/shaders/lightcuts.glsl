@@ -1,7 +1,7 @@
 // Stochastic lightcuts on the GPU (renderers/gpu/lightcuts.py): the light tree of renderers/lightcuts/tree.py
 // and, line for line in float32, the kernels of renderers/lightcuts/_kernels.py (bounds, the cut-refinement
 // error, hierarchical importance sampling, the Lambertian contribution), the reuse of multires.py (seed 003
-// Algorithm 2, Eq 9) and the CPU's random numbers (splitmix64 of seed, pixel, slot), so that both backends draw
+// Algorithm 2, Eq 9) and the CPU's random numbers (generated from _kernels.uniform), so that both backends draw
 // the same samples up to the float32 rounding of the probabilities. Needs scene.glsl (fetch, trace).
 
 // The tree in an RGBA32UI image (image unit 4; 6 N texels): node k (1 <= k < 2N) at texels 2k, 2k + 1:
@@ -20,37 +20,12 @@ vec3 light_pos(int j) { return node_min(u_n_leaves + j); }
 vec3 light_rgb(int j) { return fetchf(t_tree, 4 * u_n_leaves + 2 * j).xyz; }
 vec3 light_nrm(int j) { return fetchf(t_tree, 4 * u_n_leaves + 2 * j + 1).xyz; }
 
-// -- random numbers: _kernels.uniform, splitmix64 in 64-bit arithmetic emulated with 32-bit halves (lo, hi) ---
-uvec2 lc_add64(uvec2 a, uvec2 b) {
-    uint carry;
-    uint lo = uaddCarry(a.x, b.x, carry);
-    return uvec2(lo, a.y + b.y + carry);
-}
-uvec2 lc_mul64(uvec2 a, uvec2 b) {   // a b mod 2^64
-    uint hi, lo;
-    umulExtended(a.x, b.x, hi, lo);
-    return uvec2(lo, hi + a.x * b.y + a.y * b.x);
-}
-uvec2 lc_xorshr(uvec2 a, int s) {   // a ^ (a >> s), 0 < s < 32
-    return a ^ uvec2((a.x >> s) | (a.y << (32 - s)), a.y >> s);
-}
-const uvec2 SM_M1 = uvec2(0x7F4A7C15u, 0x9E3779B9u);
-const uvec2 SM_M2 = uvec2(0x1CE4E5B9u, 0xBF58476Du);
-const uvec2 SM_M3 = uvec2(0x133111EBu, 0x94D049BBu);
-// Uniform in [0, 1) from (seed, pixel, slot), equal to the CPU's float64 value.
-double lc_uniform(uvec2 seed, uvec2 pixel, uint slot) {
-    uvec2 x = lc_add64(lc_add64(lc_mul64(seed, SM_M1), lc_mul64(pixel, SM_M2)),
-                       lc_add64(lc_mul64(uvec2(slot, 0u), SM_M3), SM_M1));
-    x = lc_mul64(lc_xorshr(x, 30), SM_M2);
-    x = lc_mul64(lc_xorshr(x, 27), SM_M3);
-    x = lc_xorshr(x, 31);
-    uint hi = x.y >> 11, lo = (x.x >> 11) | (x.y << 21);   // x >> 11: 53 bits
-    return (double(hi) * 4294967296.0LF + double(lo)) * (1.0LF / 9007199254740992.0LF);
-}
+// -- random numbers: _kernels.uniform, generated (lightcuts_gen.glsl): equal to the CPU's float64 value ---------
+#include "lightcuts_gen.glsl"
 const float LC_ONE_MINUS_F = 0.99999994;   // the largest float below 1
 // The same as a float32 in [0, 1).
 float lc_uniform_f(uvec2 seed, uvec2 pixel, uint slot) {
-    return min(float(lc_uniform(seed, pixel, slot)), LC_ONE_MINUS_F);
+    return min(float(lc_uniform(seed, pixel, uvec2(slot, 0u))), LC_ONE_MINUS_F);
 }
 
 // -- bounds (_kernels.frame, box_terms, error_bound, prob_left) -----------------------------------------------
