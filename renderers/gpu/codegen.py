@@ -83,8 +83,17 @@ class _Fn:
 class Translator:
     """Translate functions of one module (see the module docstring for the supported subset)."""
 
-    def __init__(self, module, prefix: str, array_param: str = "P", array_name: str = "FP", source: str | None = None):
+    def __init__(self, module, prefix: str, array_param: str = "P", array_name: str = "FP", source: str | None = None,
+                 bindings: dict[str, str] | None = None):
         self.module = module
+        #: parameters that are not GLSL parameters but data the shader reads: name -> expression, with ``{0}``,
+        #: ``{1}`` for the subscripts of an array (``bmin[k, a]`` -> ``node_min(k)[a]``) or none for a scalar
+        #: (``n_leaves`` -> ``u_n_leaves``); ``array_param`` is the foveation kernels' one such array
+        self.bindings = {array_param: f"{array_name}[{{0}}]", **(bindings or {})}
+        #: float32 values of float64 constants whose float32 rounding would change their meaning (1 - 2^-53 -> 1)
+        self.float32_values: dict[str, float] = {}
+        #: functions whose float locals are ``precise`` (no fused multiply-add: the rounding of the CPU's sums)
+        self.precise: set[str] = set()
         self.prefix = prefix
         self.array_param = array_param
         self.array_name = array_name
@@ -143,7 +152,7 @@ class Translator:
                         assigned.setdefault(node.target.id, set()).add(self.etype(fn, node.value))
                     elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in self.fns:
                         callee = self.fns[node.func.id]
-                        params = [q for q in callee.params if q != self.array_param]
+                        params = [q for q in callee.params if q not in self.bindings]
                         args = [a for a in node.args if not self._is_array(a)]
                         for p, a in zip(params, args):
                             site_types.setdefault(callee.name, {}).setdefault(p, set()).add(self.etype(fn, a))
@@ -164,7 +173,7 @@ class Translator:
                     continue
                 fn = self.fns[name]
                 for p in fn.param_types:
-                    if p == self.array_param:
+                    if p in self.bindings:
                         continue
                     t = _join(name, p, site_types.get(name, {}).get(p, {"float"}))
                     if fn.param_types[p] != t:
@@ -198,7 +207,7 @@ class Translator:
         return self.etype(fn, value)
 
     def _is_array(self, node) -> bool:
-        return isinstance(node, ast.Name) and node.id == self.array_param
+        return isinstance(node, ast.Name) and node.id in self.bindings
 
     def vtype(self, fn, name: str) -> str:
         if name in fn.param_types:
@@ -270,12 +279,13 @@ class Translator:
         return "\n".join(out) + "\n"
 
     def emit_fn(self, fn: _Fn) -> str:
-        params = ", ".join(f"{self.tname(fn, fn.param_types[p])} {p}" for p in fn.params if p != self.array_param)
+        params = ", ".join(f"{self.tname(fn, fn.param_types[p])} {p}" for p in fn.params if p not in self.bindings)
         lines = [f"{self.tname(fn, fn.ret)} {self.glsl_name(fn.name)}({params}) {{"]
         loop_vars = {n.target.id for n in ast.walk(fn.node) if isinstance(n, ast.For)}
+        precise = "precise " if fn.name in self.precise else ""
         for var, t in sorted(fn.var_types.items()):
             if var not in loop_vars and var != "_":
-                lines.append(f"    {self.tname(fn, t)} {var};")
+                lines.append(f"    {precise if t == 'float' else ''}{self.tname(fn, t)} {var};")
         self._tmp = 0
         body = fn.node.body
         if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
@@ -344,6 +354,12 @@ class Translator:
                 lines += self.stmt(fn, s, depth + 1)
             lines.append(f"{pad}}}")
             return lines
+        if isinstance(st, ast.While) and not st.orelse:
+            lines = [f"{pad}while ({self.cond(fn, st.test)}) {{"]
+            for s in st.body:
+                lines += self.stmt(fn, s, depth + 1)
+            lines.append(f"{pad}}}")
+            return lines
         if isinstance(st, ast.Expr) and isinstance(st.value, ast.Constant):
             return []
         raise NotImplementedError(f"{fn.name}: statement {type(st).__name__}")
@@ -398,11 +414,15 @@ class Translator:
         if isinstance(e, ast.Name):
             if e.id in self.shared:
                 return e.id
+            if e.id in self.bindings:
+                return self.bindings[e.id]
             if e.id in self.u64_consts:
                 return self.const_name(e.id)
             if e.id in self.consts:
                 if fn.real == "double" and isinstance(self.consts[e.id], float):
                     return self.lit(fn, self.consts[e.id])   # the float64 value, not its float32 constant
+                if e.id in self.float32_values:
+                    return self.lit(fn, self.float32_values[e.id])
                 return self.const_name(e.id)
             return e.id
         if isinstance(e, ast.Attribute):
@@ -410,9 +430,12 @@ class Translator:
                 return self.lit(fn, math.pi)
             raise NotImplementedError(f"{fn.name}: attribute {ast.dump(e)}")
         if isinstance(e, ast.Subscript):
-            if not self._is_array(e.value):
-                raise NotImplementedError(f"{fn.name}: subscript of {ast.dump(e.value)}")
-            return f"{self.array_name}[{self.expr(fn, e.slice)}]"
+            idx = e.slice.elts if isinstance(e.slice, ast.Tuple) else [e.slice]
+            if self._is_array(e.value):
+                return self.bindings[e.value.id].format(*(self.expr(fn, i) for i in idx))
+            if isinstance(e.value, ast.Name) and self.vtype(fn, e.value.id) in ("vec3", "vec4") and len(idx) == 1:
+                return f"{e.value.id}[{self.expr(fn, idx[0])}]"
+            raise NotImplementedError(f"{fn.name}: subscript of {ast.dump(e.value)}")
         if isinstance(e, ast.BinOp):
             a, b = self.expr(fn, e.left), self.expr(fn, e.right)
             if "i64" in (self.etype(fn, e.left), self.etype(fn, e.right)):
@@ -442,10 +465,15 @@ class Translator:
             op = " && " if isinstance(e.op, ast.And) else " || "
             return "(" + op.join(self.cond(fn, v) for v in e.values) + ")"
         if isinstance(e, ast.Compare):
-            if len(e.ops) != 1:
-                raise NotImplementedError(f"{fn.name}: chained comparison")
-            a, b = self.expr(fn, e.left), self.expr(fn, e.comparators[0])
-            return f"({a} {_CMPOPS[type(e.ops[0])]} {b})"
+            terms, left = [], e.left   # a <= b <= c: (a <= b) && (b <= c), b being a name or a constant
+            for op, right in zip(e.ops, e.comparators):
+                if type(op) not in _CMPOPS:
+                    raise NotImplementedError(f"{fn.name}: comparison {type(op).__name__}")
+                if len(e.ops) > 1 and not isinstance(right, (ast.Name, ast.Constant)):
+                    raise NotImplementedError(f"{fn.name}: chained comparison through an expression")
+                terms.append(f"({self.expr(fn, left)} {_CMPOPS[type(op)]} {self.expr(fn, right)})")
+                left = right
+            return terms[0] if len(terms) == 1 else "(" + " && ".join(terms) + ")"
         if isinstance(e, ast.IfExp):
             want = self.etype(fn, e)
             return (f"({self.cond(fn, e.test)} ? {self.cast(fn, e.body, want)} : "
@@ -523,7 +551,7 @@ class Translator:
                 if callee.real != fn.real:
                     raise NotImplementedError(f"{fn.name}: call of {f.id} across precisions ({fn.real} -> "
                                               f"{callee.real})")
-                params = [p for p in callee.params if p != self.array_param]
+                params = [p for p in callee.params if p not in self.bindings]
                 args = [a for a in e.args if not self._is_array(a)]
                 text = ", ".join(self.cast(fn, a, callee.param_types[p]) for p, a in zip(params, args))
                 return f"{self.glsl_name(f.id)}({text})"
@@ -638,16 +666,26 @@ def _shade_glsl(module) -> str:
 def lightcuts_glsl() -> str:
     """GLSL of the lightcuts kernels translated so far from :mod:`renderers.lightcuts._kernels`: the
     counter-based random numbers ``lc_uniform(seed, pixel, slot)`` (splitmix64 in uint64 on 32-bit halves, the
-    result in double precision, equal to the CPU's)."""
+    result in double precision, equal to the CPU's) and, in float32, the bounds of a node's box
+    (``lc_box_terms``), the cut-refinement error (``lc_error_bound``), the branch probability (``lc_prob_left``)
+    and the hierarchical importance sampling (``lc_descend``, returning ``vec2(leaf, pdf)``)."""
     from ..lightcuts import _kernels
 
-    tr = Translator(_kernels, "lc_")
-    names = tr.closure(_kernels.GLSL_DOUBLE_ROOTS)
-    for n in names:
+    # the tree's arrays and the scalars every call passes are the shader's tree image and uniforms (lightcuts.glsl)
+    tr = Translator(_kernels, "lc_", bindings={"bmin": "node_min({0})[{1}]", "bmax": "node_max({0})[{1}]",
+                                               "inten": "node_inten({0})", "n_leaves": "u_n_leaves",
+                                               "clamp2": "u_clamp2"})
+    tr.float32_values["ONE_MINUS"] = 1.0 - 2.0 ** -24   # the largest float32 below 1, as 1 - 2^-53 in float64
+    tr.precise = {"box_terms"}   # a parent's bound never below a leaf's cosine: the CPU's per-axis rounding
+    doubles = tr.closure(_kernels.GLSL_DOUBLE_ROOTS)
+    floats = [n for n in tr.closure(_kernels.GLSL_FLOAT_ROOTS) if n not in doubles]
+    for n in doubles:
         tr.fns[n].real = "double"
-    tr.infer(names, {"uniform": {"seed": "u64", "pixel": "u64", "slot": "u64"}})
+    point = {"p": "vec3", "n": "vec3", "t": "vec3", "b": "vec3", "k": "int", "node": "int"}
+    tr.infer(doubles + floats, {"uniform": {"seed": "u64", "pixel": "u64", "slot": "u64"},
+                                **{r: point for r in _kernels.GLSL_FLOAT_ROOTS}})
     return "// Generated from renderers/lightcuts/_kernels.py by renderers/gpu/codegen.py: do not edit.\n" \
-        + tr.emit(names, helpers=False)
+        + tr.emit(doubles + floats, helpers=False)
 
 
 def int64_glsl() -> str:

@@ -27,8 +27,10 @@ _M3 = np.uint64(0x94D049BB133111EB)
 _INV53 = 1.0 / 9007199254740992.0
 ONE_MINUS = 1.0 - 2.0 ** -53
 
-#: The kernels renderers/gpu/codegen.py translates into GLSL (``lightcuts_gen.glsl``), in double precision.
+#: The kernels renderers/gpu/codegen.py translates into GLSL (``lightcuts_gen.glsl``), in double precision ...
 GLSL_DOUBLE_ROOTS = ("uniform",)
+#: ... and in float32 (the tree's arrays become the shader's tree image, codegen.lightcuts_glsl).
+GLSL_FLOAT_ROOTS = ("error_bound", "prob_left", "descend")
 
 
 @njit(cache=True)

@@ -28,7 +28,7 @@ float lc_uniform_f(uvec2 seed, uvec2 pixel, uint slot) {
     return min(float(lc_uniform(seed, pixel, uvec2(slot, 0u))), LC_ONE_MINUS_F);
 }
 
-// -- bounds (_kernels.frame, box_terms, error_bound, prob_left) -----------------------------------------------
+// -- bounds (_kernels.frame; the rest generated) -----------------------------------------------
 // Orthonormal tangents (T, B) of a unit normal (Duff et al. 2017).
 void lc_frame(vec3 n, out vec3 t, out vec3 b) {
     float sgn = n.z >= 0.0 ? 1.0 : -1.0;
@@ -38,87 +38,22 @@ void lc_frame(vec3 n, out vec3 t, out vec3 b) {
     b = vec3(c, sgn + n.y * n.y * a, -n.y);
 }
 
-// (geometry bound, dmin^2, dmax^2) of node k's box from p: an upper bound of cos(theta) over the box (0 when it
-// is behind the surface), summed per axis in the order the contribution sums N.(x - p), so that a parent's bound
-// is never below a leaf's cosine (`precise`: no fused multiply-add may change the rounding).
-vec3 box_terms(vec3 p, vec3 n, vec3 t, vec3 b, int k) {
-    precise vec3 lo = node_min(k) - p;
-    precise vec3 hi = node_max(k) - p;
-    precise float nlo = 0.0, nhi = 0.0, tlo = 0.0, thi = 0.0, blo = 0.0, bhi = 0.0, dmin = 0.0, dmax = 0.0;
-    for (int a = 0; a < 3; a++) {
-        precise float x0 = n[a] * lo[a], x1 = n[a] * hi[a];
-        nlo += min(x0, x1);
-        nhi += max(x0, x1);
-        x0 = t[a] * lo[a];
-        x1 = t[a] * hi[a];
-        tlo += min(x0, x1);
-        thi += max(x0, x1);
-        x0 = b[a] * lo[a];
-        x1 = b[a] * hi[a];
-        blo += min(x0, x1);
-        bhi += max(x0, x1);
-        float c = max(lo[a], 0.0) + min(hi[a], 0.0);
-        dmin += c * c;
-        float m = max(-lo[a], hi[a]);
-        dmax += m * m;
-    }
-    if (nhi <= 0.0) return vec3(0.0, dmin, dmax);
-    float tt = (tlo <= 0.0 && 0.0 <= thi) ? 0.0 : min(abs(tlo), abs(thi));
-    float bb = (blo <= 0.0 && 0.0 <= bhi) ? 0.0 : min(abs(blo), abs(bhi));
-    return vec3(nhi / sqrt(nhi * nhi + tt * tt + bb * bb), dmin, dmax);
-}
-
-// Cut-refinement error I geom / max(dmin^2, clamp^2); 0 for leaves and empty nodes (Lin & Yuksel 2020).
-float error_bound(vec3 p, vec3 n, vec3 t, vec3 b, int k) {
-    float inten = node_inten(k);
-    if (k >= u_n_leaves || inten <= 0.0) return 0.0;
-    vec3 g = box_terms(p, n, t, b, k);
-    if (g.x <= 0.0) return 0.0;
-    return inten * g.x / max(g.y, u_clamp2);
-}
+// Generated (lightcuts_gen.glsl, float32): lc_box_terms (geometry bound, dmin^2, dmax^2 of a node's box, `precise`
+// sums in the CPU's axis order so that a parent's bound is never below a leaf's cosine), lc_error_bound (the
+// cut-refinement error), lc_prob_left and lc_descend (hierarchical importance sampling; float32 where the CPU has
+// float64: the rescaling loses about a bit per level, so deep in the tree a decision may differ from the CPU's;
+// measured on cornell_many the images are those of a float64 u).
 
 // Node k can contribute at p (non-zero intensity and geometry bound).
 bool node_live(vec3 p, vec3 n, vec3 t, vec3 b, int k) {
-    return node_inten(k) > 0.0 && box_terms(p, n, t, b, k).x > 0.0;
+    return node_inten(k) > 0.0 && lc_box_terms(p, n, t, b, k).x > 0.0;
 }
 
-// Probability of descending from node k to its left child 2k: the mean of the weights I geom normalised by the
-// closest-point and by the farthest-point squared distances; 0 / 1 when a child cannot contribute.
-float prob_left(vec3 p, vec3 n, vec3 t, vec3 b, int k) {
-    int c0 = 2 * k, c1 = c0 + 1;
-    float i0 = node_inten(c0), i1 = node_inten(c1);
-    if (i0 <= 0.0) return 0.0;
-    if (i1 <= 0.0) return 1.0;
-    vec3 g0 = box_terms(p, n, t, b, c0), g1 = box_terms(p, n, t, b, c1);
-    float w0 = i0 * g0.x, w1 = i1 * g1.x;
-    if (w0 + w1 <= 0.0) return i0 / (i0 + i1);
-    if (w0 <= 0.0) return 0.0;
-    if (w1 <= 0.0) return 1.0;
-    float a0 = w0 / max(g0.y, u_clamp2), a1 = w1 / max(g1.y, u_clamp2);
-    float f0 = w0 / max(g0.z, u_clamp2), f1 = w1 / max(g1.z, u_clamp2);
-    return 0.5 * (a0 / (a0 + a1) + f0 / (f0 + f1));
-}
-
-// Hierarchical importance sampling from `node` to a leaf with one uniform u rescaled per level; returns the leaf
-// node, `pdf` the product of the branch probabilities. float32 where the CPU has float64: the rescaling loses
-// about a bit per level, so deep in the tree a decision may differ from the CPU's; measured on cornell_many the
-// images are those of a float64 u (fast float64 is rare on GPUs).
+// The leaf node reached from `node` with uniform u; `pdf` the product of the branch probabilities.
 int descend(vec3 p, vec3 n, vec3 t, vec3 b, int node, float u, out float pdf) {
-    pdf = 1.0;
-    while (node < u_n_leaves) {
-        float pl = prob_left(p, n, t, b, node);
-        if (u < pl) {
-            node = 2 * node;
-            u = u / pl;
-            pdf *= pl;
-        } else {
-            node = 2 * node + 1;
-            u = (u - pl) / (1.0 - pl);
-            pdf *= 1.0 - pl;
-        }
-        u = min(u, LC_ONE_MINUS_F);
-    }
-    return node;
+    vec2 r = lc_descend(p, n, t, b, node, u);
+    pdf = r.y;
+    return int(r.x);
 }
 
 // -- cuts (_kernels.build_cuts) --------------------------------------------------------------------------------
@@ -132,7 +67,7 @@ float lc_err[CUT_MAX];
 int build_cut(vec3 p, vec3 n, vec3 t, vec3 b, int budget) {
     if (budget <= 0) return 0;
     lc_cut[0] = 1;
-    lc_err[0] = error_bound(p, n, t, b, 1);
+    lc_err[0] = lc_error_bound(p, n, t, b, 1);
     int m = 1;
     while (m < budget) {
         int j = 0;
@@ -141,9 +76,9 @@ int build_cut(vec3 p, vec3 n, vec3 t, vec3 b, int budget) {
         if (lc_err[j] <= 0.0) break;
         int k = lc_cut[j];
         lc_cut[j] = 2 * k;
-        lc_err[j] = error_bound(p, n, t, b, 2 * k);
+        lc_err[j] = lc_error_bound(p, n, t, b, 2 * k);
         lc_cut[m] = 2 * k + 1;
-        lc_err[m] = error_bound(p, n, t, b, 2 * k + 1);
+        lc_err[m] = lc_error_bound(p, n, t, b, 2 * k + 1);
         m++;
     }
     for (int q = 1; q < m; q++) {   // insertion sort by heap offset
