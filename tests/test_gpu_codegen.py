@@ -152,13 +152,13 @@ def _copy_of_shade(tmp_path, name: str, edits: list[tuple[str, str]]):
 
 
 @pytest.mark.parametrize("old,new,message", [
-    ("        return 1.0\n    ax, ay, az", "        return 1.0\n    while scale > 1.0:\n        scale = scale / 2.0\n"
-     "    ax, ay, az", "texture_weight: statement While"),
+    ("        return 1.0\n    ax, ay, az", "        return 1.0\n    for f in (1.0, 2.0):\n        scale = scale / f\n"
+     "    ax, ay, az", "texture_weight: for loop over Tuple"),
     ("    h = h ^ (h >> 16)", "    h = h ^ (h >> 16)\n    h = h * x", "_hash3: int64 operation i64 Mult i64"),
     ("    return LUMA_R * r + LUMA_G * g + LUMA_B * b", "    return [r, g, b][0]", "luminance: subscript of List"),
     ("    return LUMA_R * r + LUMA_G * g + LUMA_B * b", "    return r, g, b, r, g", "luminance: tuple of 5 values"),
     ("    cos_t = nx * wx", "    cos_t = np.dot(nx, wx)\n    cos_t = nx * wx", "irradiance_factor: call of "),
-], ids=["while", "int64-product", "list", "5-tuple", "numpy-call"])
+], ids=["for-over-tuple", "int64-product", "list", "5-tuple", "numpy-call"])
 def test_generator_names_what_it_cannot_translate(tmp_path, old, new, message):
     mod = _copy_of_shade(tmp_path, "_shade_bad", [(old, new)])
     try:
