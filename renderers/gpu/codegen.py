@@ -1,19 +1,25 @@
-"""GLSL generated from the CPU code, so that the GPU evaluates the same formulas without a second copy.
+"""GLSL generated from the CPU code, so that the GPU evaluates the same formulas without a second copy
+(issue 29: one source for the per-pixel physics; docs/gpu.md lists what is generated and what is not).
 
-:func:`foveation_glsl` translates the scalar kernels of :mod:`renderers.foveation._kernels` (the forward and
-inverse mappings of VaFR, LMFR and LaFR; seed 001 Eq 1, 3-12, 14-15) from their Python source into GLSL
-functions prefixed ``fov_``. The parameter vector ``P`` becomes the storage buffer ``FP[]`` (the CPU's
-``FoveationMapping._params_vector()``, uploaded as float32), tuples of two floats become ``vec2``. Types are
-inferred: a name is ``int`` when every value given to it is an integer expression (``int(...)``, an integer
-literal, a ``range`` loop variable, a call returning ``int``), otherwise ``float``.
+* :func:`foveation_glsl` translates the scalar kernels of :mod:`renderers.foveation._kernels` (the forward and
+  inverse mappings of VaFR, LMFR and LaFR; seed 001 Eq 1, 3-12, 14-15) into functions prefixed ``fov_``. The
+  parameter vector ``P`` becomes the storage buffer ``FP[]`` (the CPU's ``FoveationMapping._params_vector()``,
+  uploaded as float32).
+* :func:`shade_glsl` translates the shading kernels of :mod:`renderers._shade` (textures and value noise in
+  double precision, BRDF lobes and light terms in float32), prefixed ``shade_``.
+* :func:`lightcuts_glsl` translates the random numbers (double) and the bounds, cut error, branch probability and
+  descent (float32) of :mod:`renderers.lightcuts._kernels`, prefixed ``lc_``; the tree's arrays are bound to the
+  shader's tree image (``Translator.bindings``).
+* :func:`constants_glsl` emits the shared constant table :mod:`renderers.constants`; :func:`int64_glsl` the
+  64-bit integer helpers.
 
-The translator knows the small Python subset these kernels use (assignments, tuple unpacking of calls,
-``if``/``elif``/``else``, ``for ... in range``, ``return``, arithmetic, comparisons, ``math`` functions) and
-raises ``NotImplementedError`` naming the construct otherwise, so a kernel change that it cannot follow fails
-loudly in the tests rather than drifting apart.
-
-:func:`constants_glsl` emits the integer codes shared with :mod:`renderers._shade` (texture, material and
-light kinds).
+Types are inferred to a fixed point: a name is ``int`` when every value given to it is an integer expression,
+``i64``/``u64`` (numba's ``np.int64``/``np.uint64``, on 32-bit halves) when it holds those, ``vec2``-``vec4`` for
+tuples, otherwise ``float`` (``double`` in a double-precision closure). The translator knows the small Python
+subset these kernels use (assignments, tuple unpacking, ``if``/``elif``/``else``, ``for ... in range``,
+``while``, ``return``, arithmetic, comparisons including chained ones, ``math`` functions) and raises
+``NotImplementedError`` naming the function and the construct otherwise, so a kernel change that it cannot follow
+fails loudly in the tests rather than drifting apart.
 """
 
 from __future__ import annotations
@@ -95,8 +101,6 @@ class Translator:
         #: functions whose float locals are ``precise`` (no fused multiply-add: the rounding of the CPU's sums)
         self.precise: set[str] = set()
         self.prefix = prefix
-        self.array_param = array_param
-        self.array_name = array_name
         tree = ast.parse(source if source is not None else inspect.getsource(module))
         self.fns = {n.name: _Fn(n) for n in tree.body if isinstance(n, ast.FunctionDef)}
         self.consts = {k: v for k, v in vars(module).items()
