@@ -678,14 +678,16 @@ def lightcuts_glsl() -> str:
     # the tree's arrays and the scalars every call passes are the shader's tree image and uniforms (lightcuts.glsl)
     tr = Translator(_kernels, "lc_", bindings={"bmin": "node_min({0})[{1}]", "bmax": "node_max({0})[{1}]",
                                                "inten": "node_inten({0})", "n_leaves": "u_n_leaves",
-                                               "clamp2": "u_clamp2"})
+                                               "clamp2": "u_clamp2", "light_pos": "light_pos({0})[{1}]",
+                                               "light_nrm": "light_nrm({0})[{1}]", "one_sided": "(u_one_sided != 0)"})
     tr.float32_values["ONE_MINUS"] = 1.0 - 2.0 ** -24   # the largest float32 below 1, as 1 - 2^-53 in float64
-    tr.precise = {"box_terms"}   # a parent's bound never below a leaf's cosine: the CPU's per-axis rounding
+    tr.precise = {"box_terms", "sample_weight"}   # a parent's bound never below a leaf's cosine: the CPU's rounding
     doubles = tr.closure(_kernels.GLSL_DOUBLE_ROOTS)
     floats = [n for n in tr.closure(_kernels.GLSL_FLOAT_ROOTS) if n not in doubles]
     for n in doubles:
         tr.fns[n].real = "double"
-    point = {"p": "vec3", "n": "vec3", "t": "vec3", "b": "vec3", "k": "int", "node": "int"}
+    point = {"p": "vec3", "n": "vec3", "t": "vec3", "b": "vec3", "k": "int", "node": "int", "j": "int",
+             "one_sided": "bool"}
     tr.infer(doubles + floats, {"uniform": {"seed": "u64", "pixel": "u64", "slot": "u64"},
                                 **{r: point for r in _kernels.GLSL_FLOAT_ROOTS}})
     return "// Generated from renderers/lightcuts/_kernels.py by renderers/gpu/codegen.py: do not edit.\n" \

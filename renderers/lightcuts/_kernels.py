@@ -30,7 +30,7 @@ ONE_MINUS = 1.0 - 2.0 ** -53
 #: The kernels renderers/gpu/codegen.py translates into GLSL (``lightcuts_gen.glsl``), in double precision ...
 GLSL_DOUBLE_ROOTS = ("uniform",)
 #: ... and in float32 (the tree's arrays become the shader's tree image, codegen.lightcuts_glsl).
-GLSL_FLOAT_ROOTS = ("error_bound", "prob_left", "descend")
+GLSL_FLOAT_ROOTS = ("error_bound", "prob_left", "descend", "sample_weight")
 
 
 @njit(cache=True)
@@ -305,6 +305,30 @@ def sample_cuts(pos, nrm, pix_id, cut, size, bmin, bmax, inten, n_leaves, clamp2
             pdf[i, s] = 0.0
 
 
+@njit(cache=True, inline="always")
+def sample_weight(p, n, light_pos, light_nrm, one_sided, j, pdf, clamp2):
+    """``cos / max(d^2, clamp2) / (pi pdf)`` of light ``j`` drawn with probability ``pdf`` at ``p`` (normal ``n``),
+    times the emitter cosine ``n_l . (p - x_l) / d`` when ``one_sided``; 0 when the light is behind the point or
+    the point behind the emitter. ``N.(x - p)`` is summed per axis as in ``box_terms``."""
+    cosnum = 0.0
+    d2 = 0.0
+    for a in range(3):
+        d = light_pos[j, a] - p[a]
+        cosnum += n[a] * d
+        d2 += d * d
+    if cosnum <= 0.0:
+        return 0.0
+    g = cosnum / math.sqrt(d2) / max(d2, clamp2) / (math.pi * pdf)
+    if one_sided and (light_nrm[j, 0] != 0.0 or light_nrm[j, 1] != 0.0 or light_nrm[j, 2] != 0.0):
+        em = 0.0
+        for a in range(3):
+            em -= light_nrm[j, a] * (light_pos[j, a] - p[a])
+        if em <= 0.0:
+            return 0.0
+        g *= em / math.sqrt(d2)
+    return g
+
+
 @njit(cache=True, parallel=True)
 def shade_samples(pos, nrm, alb, leaf, pdf, light_pos, light_rgb, light_nrm, one_sided, n_leaves, clamp2,
                   contrib):
@@ -326,22 +350,9 @@ def shade_samples(pos, nrm, alb, leaf, pdf, light_pos, light_rgb, light_nrm, one
             if lf < 0 or pdf[i, s] <= 0.0:
                 continue
             j = lf - n_leaves
-            cosnum = 0.0
-            d2 = 0.0
-            for a in range(3):
-                d = light_pos[j, a] - p[a]
-                cosnum += nn[a] * d
-                d2 += d * d
-            if cosnum <= 0.0:
+            g = sample_weight(p, nn, light_pos, light_nrm, one_sided, j, pdf[i, s], clamp2)
+            if g == 0.0:
                 continue
-            g = cosnum / math.sqrt(d2) / max(d2, clamp2) / (math.pi * pdf[i, s])
-            if one_sided and (light_nrm[j, 0] != 0.0 or light_nrm[j, 1] != 0.0 or light_nrm[j, 2] != 0.0):
-                em = 0.0
-                for a in range(3):
-                    em -= light_nrm[j, a] * (light_pos[j, a] - p[a])
-                if em <= 0.0:
-                    continue
-                g *= em / math.sqrt(d2)
             tot = 0.0
             for c in range(3):
                 v = alb[i, c] * light_rgb[j, c] * g

@@ -99,25 +99,7 @@ int build_cut(vec3 p, vec3 n, vec3 t, vec3 b, int budget) {
 vec3 light_estimate(vec3 p, vec3 n, vec3 alb, int leaf, float pdf) {
     if (leaf < 0 || pdf <= 0.0) return vec3(0.0);
     int j = leaf - u_n_leaves;
-    vec3 lp = light_pos(j);
-    precise float cosnum = 0.0, d2 = 0.0;
-    for (int a = 0; a < 3; a++) {
-        precise float d = lp[a] - p[a];
-        cosnum += n[a] * d;
-        d2 += d * d;
-    }
-    if (cosnum <= 0.0) return vec3(0.0);
-    float g = cosnum / sqrt(d2) / max(d2, u_clamp2) / (3.141592653589793 * pdf);
-    if (u_one_sided != 0) {
-        vec3 ln = light_nrm(j);
-        if (ln != vec3(0.0)) {
-            precise float em = 0.0;
-            for (int a = 0; a < 3; a++) em -= ln[a] * (lp[a] - p[a]);
-            if (em <= 0.0) return vec3(0.0);
-            g *= em / sqrt(d2);
-        }
-    }
-    return alb * light_rgb(j) * g;
+    return alb * light_rgb(j) * lc_sample_weight(p, n, j, pdf);   // generated from _kernels.sample_weight
 }
 
 // Shadow segment of visibility.EmbreeOccluder: from p offset along n towards the light, shortened to (1 - 1e-3)
