@@ -198,3 +198,28 @@ def test_a_kernel_change_moves_both_backends_together(tmp_path, monkeypatch):
     assert psnr >= 35.0 and within >= 0.99, (psnr, within)
     d_cpu, d_gpu = after[0] - before[0], after[1] - before[1]
     assert np.abs(d_gpu - d_cpu).max() <= 0.02 * np.abs(d_cpu).max()   # the same change
+
+
+def test_an_acuity_constant_changed_in_the_table_moves_both_fpsms(monkeypatch):
+    """Change seed 003 Eq 2's slope in renderers/constants.py (2.45 -> 1.2 per radian: a wider fovea): the CPU's
+    FPSM (numpy) and the GPU's (GLSL generated from fpsm.acuity and the table) both change and still agree."""
+    from renderers import registry
+    from renderers.gpu.context import get_device
+    from renderers.lightcuts import fpsm
+
+    def maps():
+        args = ("cornell_many", "fsl", {"max_rspp": 2}, 57, 33)
+        return (registry.render(*args, gaze=(20, 12))[1]["fpsm"],
+                registry.render(*args, gaze=(20, 12), backend="gpu")[1]["fpsm"])
+
+    before = maps()
+    monkeypatch.setattr(constants, "ACUITY_SLOPE", 1.2)
+    monkeypatch.setattr(fpsm, "ACUITY_SLOPE", 1.2)
+    monkeypatch.setattr(codegen, "constants_glsl", codegen.constants_glsl.__wrapped__)   # re-read the table
+    monkeypatch.setattr(codegen, "fpsm_glsl", codegen.fpsm_glsl.__wrapped__)
+    monkeypatch.setattr(get_device(), "_programs", {})
+    after = maps()
+    np.testing.assert_allclose(before[1], before[0], rtol=0, atol=1e-4)
+    np.testing.assert_allclose(after[1], after[0], rtol=0, atol=1e-4)
+    for b, a in zip(before, after):
+        assert float(np.mean(a - b)) > 0.02   # a wider fovea: the map rises on both backends

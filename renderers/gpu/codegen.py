@@ -541,6 +541,10 @@ class Translator:
             if f.attr in _MATH:
                 return f"{_MATH[f.attr]}({', '.join(args)})"
             raise NotImplementedError(f"{fn.name}: math.{f.attr}")
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
+                and f.attr == "clip" and len(e.args) == 3:   # numpy on arrays, GLSL clamp on scalars
+            a, lo, hi = (self.cast(fn, x, "float") for x in e.args)
+            return f"clamp({a}, {lo}, {hi})"
         if isinstance(f, ast.Name):
             if f.id == "int":
                 return f"int({self.expr(fn, e.args[0])})"
@@ -692,6 +696,19 @@ def lightcuts_glsl() -> str:
                                 **{r: point for r in _kernels.GLSL_FLOAT_ROOTS}})
     return "// Generated from renderers/lightcuts/_kernels.py by renderers/gpu/codegen.py: do not edit.\n" \
         + tr.emit(doubles + floats, helpers=False)
+
+
+@functools.lru_cache(maxsize=None)
+def fpsm_glsl() -> str:
+    """GLSL of the FPSM's per-pixel kernels of :mod:`renderers.lightcuts.fpsm` (Eq 2's acuity), prefixed
+    ``fpsm_``."""
+    from ..lightcuts import fpsm
+
+    tr = Translator(fpsm, "fpsm_")
+    names = tr.closure(fpsm.GLSL_FLOAT_ROOTS)
+    tr.infer(names, {r: {} for r in fpsm.GLSL_FLOAT_ROOTS})
+    return "// Generated from renderers/lightcuts/fpsm.py by renderers/gpu/codegen.py: do not edit.\n" \
+        '#include "constants_gen.glsl"\n' + tr.emit(names, helpers=False)
 
 
 def int64_glsl() -> str:

@@ -306,6 +306,10 @@ def generated_source(fname: str) -> str | None:
         from .codegen import foveation_glsl
 
         return foveation_glsl()
+    if fname == "fpsm_gen.glsl":
+        from .codegen import fpsm_glsl
+
+        return fpsm_glsl()
     if fname == "int64_gen.glsl":
         from .codegen import int64_glsl
 
