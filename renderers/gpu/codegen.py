@@ -98,6 +98,8 @@ class Translator:
         self.bindings = {array_param: f"{array_name}[{{0}}]", **(bindings or {})}
         #: float32 values of float64 constants whose float32 rounding would change their meaning (1 - 2^-53 -> 1)
         self.float32_values: dict[str, float] = {}
+        #: the element type of a bound array that is not ``float`` (``cut`` -> ``int``)
+        self.binding_types: dict[str, str] = {}
         #: functions whose float locals are ``precise`` (no fused multiply-add: the rounding of the CPU's sums)
         self.precise: set[str] = set()
         self.prefix = prefix
@@ -200,7 +202,7 @@ class Translator:
                         assigned.setdefault(t.id, set()).add("float")
         elif isinstance(target, ast.Name):
             assigned.setdefault(target.id, set()).add(self.etype(fn, value))
-        else:
+        elif not (isinstance(target, ast.Subscript) and self._is_array(target.value)):
             raise NotImplementedError(f"{fn.name}: assignment to {ast.dump(target)}")
 
     def _ret_type(self, fn, value):
@@ -241,6 +243,8 @@ class Translator:
             return "int" if a == b == "int" else "float"
         if isinstance(e, (ast.Compare, ast.BoolOp)) or (isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.Not)):
             return "bool"
+        if isinstance(e, ast.Subscript) and self._is_array(e.value):
+            return self.binding_types.get(e.value.id, "float")
         if isinstance(e, ast.UnaryOp):
             return self.etype(fn, e.operand)
         if isinstance(e, ast.IfExp):
@@ -324,6 +328,8 @@ class Translator:
                     if t.id != "_":
                         lines.append(f"{pad}{t.id} = {tmp}.{comp};")
                 return lines
+            if isinstance(target, ast.Subscript):   # an element of a bound array
+                return [f"{pad}{self.expr(fn, target)} = {self.cast(fn, value, self.etype(fn, target))};"]
             return [f"{pad}{target.id} = {self.cast(fn, value, self.vtype(fn, target.id))};"]
         if isinstance(st, ast.AugAssign):
             if self.vtype(fn, st.target.id) in ("i64", "u64"):   # x op= y on (lo, hi) halves: x = x op y
@@ -364,6 +370,8 @@ class Translator:
                 lines += self.stmt(fn, s, depth + 1)
             lines.append(f"{pad}}}")
             return lines
+        if isinstance(st, ast.Break):
+            return [f"{pad}break;"]
         if isinstance(st, ast.Expr) and isinstance(st.value, ast.Constant):
             return []
         raise NotImplementedError(f"{fn.name}: statement {type(st).__name__}")
@@ -683,7 +691,9 @@ def lightcuts_glsl() -> str:
     tr = Translator(_kernels, "lc_", bindings={"bmin": "node_min({0})[{1}]", "bmax": "node_max({0})[{1}]",
                                                "inten": "node_inten({0})", "n_leaves": "u_n_leaves",
                                                "clamp2": "u_clamp2", "light_pos": "light_pos({0})[{1}]",
-                                               "light_nrm": "light_nrm({0})[{1}]", "one_sided": "(u_one_sided != 0)"})
+                                               "light_nrm": "light_nrm({0})[{1}]", "one_sided": "(u_one_sided != 0)",
+                                               "cut": "lc_cut[{0}]", "err": "lc_err[{0}]"})
+    tr.binding_types["cut"] = "int"
     tr.float32_values["ONE_MINUS"] = 1.0 - 2.0 ** -24   # the largest float32 below 1, as 1 - 2^-53 in float64
     tr.precise = {"box_terms", "sample_weight"}   # a parent's bound never below a leaf's cosine: the CPU's rounding
     doubles = tr.closure(_kernels.GLSL_DOUBLE_ROOTS)
@@ -691,7 +701,7 @@ def lightcuts_glsl() -> str:
     for n in doubles:
         tr.fns[n].real = "double"
     point = {"p": "vec3", "n": "vec3", "t": "vec3", "b": "vec3", "k": "int", "node": "int", "j": "int",
-             "one_sided": "bool"}
+             "one_sided": "bool", "budget": "int"}
     tr.infer(doubles + floats, {"uniform": {"seed": "u64", "pixel": "u64", "slot": "u64"},
                                 **{r: point for r in _kernels.GLSL_FLOAT_ROOTS}})
     return "// Generated from renderers/lightcuts/_kernels.py by renderers/gpu/codegen.py: do not edit.\n" \

@@ -30,7 +30,7 @@ ONE_MINUS = 1.0 - 2.0 ** -53
 #: The kernels renderers/gpu/codegen.py translates into GLSL (``lightcuts_gen.glsl``), in double precision ...
 GLSL_DOUBLE_ROOTS = ("uniform",)
 #: ... and in float32 (the tree's arrays become the shader's tree image, codegen.lightcuts_glsl).
-GLSL_FLOAT_ROOTS = ("error_bound", "prob_left", "descend", "sample_weight")
+GLSL_FLOAT_ROOTS = ("refine_cut", "prob_left", "descend", "sample_weight")
 
 
 @njit(cache=True)
@@ -233,6 +233,39 @@ def leaf_pdf(p, n, t, b, bmin, bmax, inten, n_leaves, node, leaf, clamp2):
     return pdf
 
 
+@njit(cache=True)
+def refine_cut(p, n, t, b, bmin, bmax, inten, n_leaves, clamp2, budget, cut, err):
+    """Refine one point's cut from the root to ``budget`` nodes, always splitting the first node of largest
+    error; stops early when no node has error left. ``cut`` receives the node ids sorted by heap offset, ``err``
+    is scratch (both of length >= budget). Returns the cut size."""
+    if budget <= 0:
+        return 0
+    cut[0] = 1
+    err[0] = error_bound(p, n, t, b, bmin, bmax, inten, n_leaves, 1, clamp2)
+    m = 1
+    while m < budget:
+        j = 0
+        for q in range(1, m):
+            if err[q] > err[j]:
+                j = q
+        if err[j] <= 0.0:
+            break
+        k = cut[j]
+        cut[j] = 2 * k
+        err[j] = error_bound(p, n, t, b, bmin, bmax, inten, n_leaves, 2 * k, clamp2)
+        cut[m] = 2 * k + 1
+        err[m] = error_bound(p, n, t, b, bmin, bmax, inten, n_leaves, 2 * k + 1, clamp2)
+        m += 1
+    for q in range(1, m):  # insertion sort by heap offset
+        v = cut[q]
+        r = q - 1
+        while r >= 0 and cut[r] > v:
+            cut[r + 1] = cut[r]
+            r -= 1
+        cut[r + 1] = v
+    return m
+
+
 @njit(cache=True, parallel=True)
 def build_cuts(pos, nrm, budget, bmin, bmax, inten, n_leaves, clamp2, cut, err):
     """Refine each pixel's cut from the root to ``budget[i]`` nodes by the largest error bound.
@@ -250,30 +283,7 @@ def build_cuts(pos, nrm, budget, bmin, bmax, inten, n_leaves, clamp2, cut, err):
         p = pos[i]
         nn = nrm[i]
         t, b = frame(nn[0], nn[1], nn[2])
-        cut[i, 0] = 1
-        err[i, 0] = error_bound(p, nn, t, b, bmin, bmax, inten, n_leaves, 1, clamp2)
-        m = 1
-        while m < nb:
-            j = 0
-            for q in range(1, m):
-                if err[i, q] > err[i, j]:
-                    j = q
-            if err[i, j] <= 0.0:
-                break
-            k = cut[i, j]
-            cut[i, j] = 2 * k
-            err[i, j] = error_bound(p, nn, t, b, bmin, bmax, inten, n_leaves, 2 * k, clamp2)
-            cut[i, m] = 2 * k + 1
-            err[i, m] = error_bound(p, nn, t, b, bmin, bmax, inten, n_leaves, 2 * k + 1, clamp2)
-            m += 1
-        for q in range(1, m):  # insertion sort by heap offset
-            v = cut[i, q]
-            r = q - 1
-            while r >= 0 and cut[i, r] > v:
-                cut[i, r + 1] = cut[i, r]
-                r -= 1
-            cut[i, r + 1] = v
-        size[i] = m
+        size[i] = refine_cut(p, nn, t, b, bmin, bmax, inten, n_leaves, clamp2, nb, cut[i], err[i])
     return size
 
 

@@ -21,6 +21,10 @@ vec3 light_rgb(int j) { return fetchf(t_tree, 4 * u_n_leaves + 2 * j).xyz; }
 vec3 light_nrm(int j) { return fetchf(t_tree, 4 * u_n_leaves + 2 * j + 1).xyz; }
 
 // -- random numbers: _kernels.uniform, generated (lightcuts_gen.glsl): equal to the CPU's float64 value ---------
+// The cut of the current shading point (lc_refine_cut, generated from _kernels.refine_cut): CUT_MAX (a define)
+// node ids, sorted by heap offset (Algorithm 2 reads them in that order; the sample slots follow it).
+int lc_cut[CUT_MAX];
+float lc_err[CUT_MAX];
 #include "lightcuts_gen.glsl"
 const float LC_ONE_MINUS_F = 0.99999994;   // the largest float below 1
 // The same as a float32 in [0, 1).
@@ -28,7 +32,7 @@ float lc_uniform_f(uvec2 seed, uvec2 pixel, uint slot) {
     return min(float(lc_uniform(seed, pixel, uvec2(slot, 0u))), LC_ONE_MINUS_F);
 }
 
-// -- bounds (_kernels.frame; the rest generated) -----------------------------------------------
+// -- bounds (_kernels.frame; the rest, and the cut refinement, generated) -----------------------------------------------
 // Orthonormal tangents (T, B) of a unit normal (Duff et al. 2017).
 void lc_frame(vec3 n, out vec3 t, out vec3 b) {
     float sgn = n.z >= 0.0 ? 1.0 : -1.0;
@@ -54,43 +58,6 @@ int descend(vec3 p, vec3 n, vec3 t, vec3 b, int node, float u, out float pdf) {
     vec2 r = lc_descend(p, n, t, b, node, u);
     pdf = r.y;
     return int(r.x);
-}
-
-// -- cuts (_kernels.build_cuts) --------------------------------------------------------------------------------
-// The cut of the current shading point: CUT_MAX (a define) node ids, sorted by heap offset (Algorithm 2 reads
-// them in that order; the sample slots follow it).
-int lc_cut[CUT_MAX];
-float lc_err[CUT_MAX];
-
-// Refine from the root to `budget` nodes, always splitting the first node of largest error; stops early when no
-// node has error left. Returns the cut size.
-int build_cut(vec3 p, vec3 n, vec3 t, vec3 b, int budget) {
-    if (budget <= 0) return 0;
-    lc_cut[0] = 1;
-    lc_err[0] = lc_error_bound(p, n, t, b, 1);
-    int m = 1;
-    while (m < budget) {
-        int j = 0;
-        for (int q = 1; q < m; q++)
-            if (lc_err[q] > lc_err[j]) j = q;
-        if (lc_err[j] <= 0.0) break;
-        int k = lc_cut[j];
-        lc_cut[j] = 2 * k;
-        lc_err[j] = lc_error_bound(p, n, t, b, 2 * k);
-        lc_cut[m] = 2 * k + 1;
-        lc_err[m] = lc_error_bound(p, n, t, b, 2 * k + 1);
-        m++;
-    }
-    for (int q = 1; q < m; q++) {   // insertion sort by heap offset
-        int v = lc_cut[q];
-        int r = q - 1;
-        while (r >= 0 && lc_cut[r] > v) {
-            lc_cut[r + 1] = lc_cut[r];
-            r--;
-        }
-        lc_cut[r + 1] = v;
-    }
-    return m;
 }
 
 // -- shading (_kernels.shade_samples, sampling.shade_tile) ----------------------------------------------------
