@@ -26,10 +26,13 @@ import math
 import numpy as np
 from numba import njit, prange
 
-TEX_NONE, TEX_CHECKER, TEX_BRICK, TEX_NOISE = 0, 1, 2, 3
-KIND_DIFFUSE, KIND_GLOSSY, KIND_METALLIC = 0, 1, 2
-LIGHT_POINT, LIGHT_EMITTER, LIGHT_DIRECTIONAL = 0, 1, 2
-INV_PI = 1.0 / math.pi
+from .constants import (INV_PI, KIND_DIFFUSE, KIND_GLOSSY, KIND_METALLIC, LIGHT_DIRECTIONAL, LIGHT_EMITTER,  # noqa: F401
+                        LIGHT_POINT, LUMA_B, LUMA_G, LUMA_R, TEX_BRICK, TEX_CHECKER, TEX_NONE, TEX_NOISE)
+
+#: The scalar kernels that renderers/gpu/codegen.py translates into GLSL (``shade_gen.glsl``): the texture
+#: closure in double precision (as on the CPU: lattice lines fall on the same side), the lobes in float.
+GLSL_DOUBLE_ROOTS = ("texture_weight",)
+GLSL_FLOAT_ROOTS = ("material_lobes", "light_direction", "irradiance_factor", "specular_lobe", "luminance")
 
 
 @njit(cache=True, inline="always")
@@ -90,6 +93,59 @@ def texture_weight(kind, scale, px, py, pz, nx, ny, nz):
     return min(1.0, max(0.0, 1.6 * (n - 0.5) + 0.5))
 
 
+@njit(cache=True, inline="always")
+def material_lobes(metallic_flag, glossy_flag, s_exp):
+    """``(k_d, glossy, metallic, norm)`` of a material: the Lambert weight ``1/pi`` (0 for metallic), whether the
+    Blinn-Phong lobe is evaluated and whether it is tinted by the albedo (1.0 or 0.0), and the lobe's energy
+    normalisation ``(s + 8) / (8 pi)`` (module docstring)."""
+    metallic = 1.0 if metallic_flag > 0.5 else 0.0
+    glossy = 1.0 if (glossy_flag > 0.5 or metallic_flag > 0.5) else 0.0
+    kd = 0.0 if metallic_flag > 0.5 else INV_PI
+    return kd, glossy, metallic, (s_exp + 8.0) / (8.0 * math.pi)
+
+
+@njit(cache=True, inline="always")
+def light_direction(kind, lx, ly, lz, dx, dy, dz, px, py, pz):
+    """Unit direction ``w_i`` from ``p`` to a light at ``l`` (directional: ``-d``) and ``1 / d^2`` (1)."""
+    if kind == LIGHT_DIRECTIONAL:
+        return -dx, -dy, -dz, 1.0
+    wx, wy, wz = lx - px, ly - py, lz - pz
+    d2 = wx * wx + wy * wy + wz * wz
+    inv_d = 1.0 / math.sqrt(d2)
+    return wx * inv_d, wy * inv_d, wz * inv_d, inv_d * inv_d
+
+
+@njit(cache=True, inline="always")
+def irradiance_factor(kind, dx, dy, dz, nx, ny, nz, wx, wy, wz, inv_d2):
+    """``E / I = max(0, n.w_i) / d^2``, times ``max(0, -n_l.w_i)`` for an emitter (normal ``d``); 0 when the
+    light is behind the point or below its horizon."""
+    cos_t = nx * wx + ny * wy + nz * wz
+    e = cos_t * inv_d2
+    if kind == LIGHT_EMITTER:
+        e *= max(0.0, -(dx * wx + dy * wy + dz * wz))
+    if cos_t <= 0.0 or e <= 0.0:
+        return 0.0
+    return e
+
+
+@njit(cache=True, inline="always")
+def specular_lobe(norm, s_exp, nx, ny, nz, wx, wy, wz, vx, vy, vz):
+    """Normalised Blinn-Phong ``norm * max(0, n.h)^s``, ``h = normalize(w_i + w_o)`` (0 when ``h`` vanishes)."""
+    hx, hy, hz = wx + vx, wy + vy, wz + vz
+    hl = math.sqrt(hx * hx + hy * hy + hz * hz)
+    if hl > 0.0:
+        nh = (nx * hx + ny * hy + nz * hz) / hl
+        if nh > 0.0:
+            return norm * nh ** s_exp
+    return 0.0
+
+
+@njit(cache=True, inline="always")
+def luminance(r, g, b):
+    """Luminance of linear Rec. 709 RGB."""
+    return LUMA_R * r + LUMA_G * g + LUMA_B * b
+
+
 @njit(cache=True, parallel=True)
 def shade_contributions(P, N, V, mid, mat_f, mat_i, L_pos, L_int, L_dir, L_kind, ambient, eps,
                         contrib, base, need, counts):
@@ -117,49 +173,33 @@ def shade_contributions(P, N, V, mid, mat_f, mat_i, L_pos, L_int, L_dir, L_kind,
         ag = w * mat_f[m, 1] + (1.0 - w) * mat_f[m, 4]
         ab = w * mat_f[m, 2] + (1.0 - w) * mat_f[m, 5]
         s_exp = mat_f[m, 10]
-        metallic = mat_f[m, 12] > 0.5
-        glossy = mat_f[m, 13] > 0.5 or metallic
-        kd = 0.0 if metallic else INV_PI
+        kd, glossy_w, metal_w, norm = material_lobes(mat_f[m, 12], mat_f[m, 13], s_exp)
+        metallic = metal_w > 0.5
+        glossy = glossy_w > 0.5
         if metallic:
             ksr, ksg, ksb = ar, ag, ab
         else:
             ksr = ksg = ksb = mat_f[m, 11]
-        norm = (s_exp + 8.0) / (8.0 * math.pi)
-        base[i, 0] = mat_f[m, 6] + ambient[0] * ar * (0.0 if metallic else 1.0)
-        base[i, 1] = mat_f[m, 7] + ambient[1] * ag * (0.0 if metallic else 1.0)
-        base[i, 2] = mat_f[m, 8] + ambient[2] * ab * (0.0 if metallic else 1.0)
+        base[i, 0] = mat_f[m, 6] + ambient[0] * ar * (1.0 - metal_w)
+        base[i, 1] = mat_f[m, 7] + ambient[1] * ag * (1.0 - metal_w)
+        base[i, 2] = mat_f[m, 8] + ambient[2] * ab * (1.0 - metal_w)
         lum = np.empty(k)
         total = 0.0
         n_gloss = 0
         for j in range(k):
-            if L_kind[j] == LIGHT_DIRECTIONAL:
-                wx, wy, wz = -L_dir[j, 0], -L_dir[j, 1], -L_dir[j, 2]
-                inv_d2 = 1.0
-            else:
-                wx, wy, wz = L_pos[j, 0] - px, L_pos[j, 1] - py, L_pos[j, 2] - pz
-                d2 = wx * wx + wy * wy + wz * wz
-                inv_d = 1.0 / math.sqrt(d2)
-                wx, wy, wz = wx * inv_d, wy * inv_d, wz * inv_d
-                inv_d2 = inv_d * inv_d
-            cos_t = nx * wx + ny * wy + nz * wz
-            e = cos_t * inv_d2
-            if L_kind[j] == LIGHT_EMITTER:
-                e *= max(0.0, -(L_dir[j, 0] * wx + L_dir[j, 1] * wy + L_dir[j, 2] * wz))
-            if cos_t <= 0.0 or e <= 0.0:
+            wx, wy, wz, inv_d2 = light_direction(L_kind[j], L_pos[j, 0], L_pos[j, 1], L_pos[j, 2], L_dir[j, 0],
+                                                 L_dir[j, 1], L_dir[j, 2], px, py, pz)
+            e = irradiance_factor(L_kind[j], L_dir[j, 0], L_dir[j, 1], L_dir[j, 2], nx, ny, nz, wx, wy, wz, inv_d2)
+            if e == 0.0:
                 contrib[i, j, 0] = contrib[i, j, 1] = contrib[i, j, 2] = 0.0
                 lum[j] = 0.0
                 continue
             fr, fg, fb = kd * ar, kd * ag, kd * ab
             if glossy:
-                hx, hy, hz = wx + vx, wy + vy, wz + vz
-                hl = math.sqrt(hx * hx + hy * hy + hz * hz)
-                if hl > 0:
-                    nh = (nx * hx + ny * hy + nz * hz) / hl
-                    if nh > 0:
-                        sp = norm * nh ** s_exp
-                        fr += ksr * sp
-                        fg += ksg * sp
-                        fb += ksb * sp
+                sp = specular_lobe(norm, s_exp, nx, ny, nz, wx, wy, wz, vx, vy, vz)
+                fr += ksr * sp
+                fg += ksg * sp
+                fb += ksb * sp
                 n_gloss += 1
             cr = fr * e * L_int[j, 0]
             cg = fg * e * L_int[j, 1]
@@ -167,7 +207,7 @@ def shade_contributions(P, N, V, mid, mat_f, mat_i, L_pos, L_int, L_dir, L_kind,
             contrib[i, j, 0] = cr
             contrib[i, j, 1] = cg
             contrib[i, j, 2] = cb
-            lum[j] = 0.2126 * cr + 0.7152 * cg + 0.0722 * cb
+            lum[j] = luminance(cr, cg, cb)
             total += lum[j]
         culled = 0
         for j in range(k):

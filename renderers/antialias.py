@@ -19,6 +19,7 @@ import numpy as np
 from numba import njit, prange
 
 from . import _lp
+from .constants import LUMA_B, LUMA_G, LUMA_R
 
 FXAA_STEPS_12 = np.array([1.0, 1.5, 2.0, 4.0, 12.0])
 FOVEAL_BANDS_DEG = np.array([5.0, 15.0, 30.0])
@@ -164,7 +165,7 @@ def _fxaa(rgb, luma, steps, subpix, edge_threshold, edge_threshold_min, row0, ro
 
 def fxaa_luma(rgb: np.ndarray, exposure: float = 1.0) -> np.ndarray:
     """FXAA's luma channel: ``sqrt(clip(exposure * (0.2126 R + 0.7152 G + 0.0722 B), 0, 1))``, (h, w, 1)."""
-    y = exposure * (0.2126 * rgb[..., 0] + 0.7152 * rgb[..., 1] + 0.0722 * rgb[..., 2])
+    y = exposure * (LUMA_R * rgb[..., 0] + LUMA_G * rgb[..., 1] + LUMA_B * rgb[..., 2])
     return np.sqrt(np.clip(y, 0.0, 1.0)).astype(np.float32)[..., None]
 
 

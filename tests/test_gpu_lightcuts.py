@@ -50,7 +50,8 @@ def test_gpu_is_statistically_equal_to_cpu(name, params):
 
 
 def test_random_numbers_are_the_cpus():
-    """lightcuts.glsl's splitmix64 in 32-bit halves gives the CPU's float64 uniforms exactly."""
+    """The GLSL generated from _kernels.uniform (splitmix64 in uint64 on 32-bit halves) gives the CPU's float64
+    uniforms exactly."""
     from renderers.gpu.context import get_device
     from renderers.lightcuts import _kernels as K
 
@@ -65,18 +66,18 @@ layout(std430, binding = 2) writeonly buffer Out { double u[]; };
 uniform int u_n;
 void main() {
     uint i = gl_GlobalInvocationID.x;
-    if (i < uint(u_n)) u[i] = lc_uniform(q[2 * i].xy, q[2 * i].zw, q[2 * i + 1].x);
+    if (i < uint(u_n)) u[i] = lc_uniform(q[2 * i].xy, q[2 * i].zw, q[2 * i + 1].xy);
 }
 """
     rng = np.random.default_rng(5)
     n = 512
     seed = rng.integers(0, 2 ** 48, n, dtype=np.uint64)
     pixel = rng.integers(0, 2 ** 46, n, dtype=np.uint64)
-    slot = rng.integers(0, 2 ** 25, n, dtype=np.uint64)
+    slot = rng.integers(0, 2 ** 40, n, dtype=np.uint64)
     q = np.zeros((n, 8), dtype=np.uint32)
     q[:, 0], q[:, 1] = seed & 0xFFFFFFFF, seed >> np.uint64(32)
     q[:, 2], q[:, 3] = pixel & 0xFFFFFFFF, pixel >> np.uint64(32)
-    q[:, 4] = slot
+    q[:, 4], q[:, 5] = slot & 0xFFFFFFFF, slot >> np.uint64(32)
     dev = get_device()
     prog = dev.program("uniform_test.comp", {}, source=src)
     inp, out = dev.buffer(q), dev.buffer(reserve=8 * n)

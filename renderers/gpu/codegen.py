@@ -1,19 +1,25 @@
-"""GLSL generated from the CPU code, so that the GPU evaluates the same formulas without a second copy.
+"""GLSL generated from the CPU code, so that the GPU evaluates the same formulas without a second copy
+(issue 29: one source for the per-pixel physics; docs/gpu.md lists what is generated and what is not).
 
-:func:`foveation_glsl` translates the scalar kernels of :mod:`renderers.foveation._kernels` (the forward and
-inverse mappings of VaFR, LMFR and LaFR; seed 001 Eq 1, 3-12, 14-15) from their Python source into GLSL
-functions prefixed ``fov_``. The parameter vector ``P`` becomes the storage buffer ``FP[]`` (the CPU's
-``FoveationMapping._params_vector()``, uploaded as float32), tuples of two floats become ``vec2``. Types are
-inferred: a name is ``int`` when every value given to it is an integer expression (``int(...)``, an integer
-literal, a ``range`` loop variable, a call returning ``int``), otherwise ``float``.
+* :func:`foveation_glsl` translates the scalar kernels of :mod:`renderers.foveation._kernels` (the forward and
+  inverse mappings of VaFR, LMFR and LaFR; seed 001 Eq 1, 3-12, 14-15) into functions prefixed ``fov_``. The
+  parameter vector ``P`` becomes the storage buffer ``FP[]`` (the CPU's ``FoveationMapping._params_vector()``,
+  uploaded as float32).
+* :func:`shade_glsl` translates the shading kernels of :mod:`renderers._shade` (textures and value noise in
+  double precision, BRDF lobes and light terms in float32), prefixed ``shade_``.
+* :func:`lightcuts_glsl` translates the random numbers (double) and the bounds, cut error, branch probability and
+  descent (float32) of :mod:`renderers.lightcuts._kernels`, prefixed ``lc_``; the tree's arrays are bound to the
+  shader's tree image (``Translator.bindings``).
+* :func:`constants_glsl` emits the shared constant table :mod:`renderers.constants`; :func:`int64_glsl` the
+  64-bit integer helpers.
 
-The translator knows the small Python subset these kernels use (assignments, tuple unpacking of calls,
-``if``/``elif``/``else``, ``for ... in range``, ``return``, arithmetic, comparisons, ``math`` functions) and
-raises ``NotImplementedError`` naming the construct otherwise, so a kernel change that it cannot follow fails
-loudly in the tests rather than drifting apart.
-
-:func:`constants_glsl` emits the integer codes shared with :mod:`renderers._shade` (texture, material and
-light kinds).
+Types are inferred to a fixed point: a name is ``int`` when every value given to it is an integer expression,
+``i64``/``u64`` (numba's ``np.int64``/``np.uint64``, on 32-bit halves) when it holds those, ``vec2``-``vec4`` for
+tuples, otherwise ``float`` (``double`` in a double-precision closure). The translator knows the small Python
+subset these kernels use (assignments, tuple unpacking, ``if``/``elif``/``else``, ``for ... in range``,
+``while``, ``return``, arithmetic, comparisons including chained ones, ``math`` functions) and raises
+``NotImplementedError`` naming the function and the construct otherwise, so a kernel change that it cannot follow
+fails loudly in the tests rather than drifting apart.
 """
 
 from __future__ import annotations
@@ -77,20 +83,38 @@ class _Fn:
         self.param_types = {p: "float" for p in self.params}
         self.var_types: dict[str, str] = {}
         self.calls: set[str] = set()
+        self.real = "float"   # "double" for the functions of a double-precision closure
 
 
 class Translator:
     """Translate functions of one module (see the module docstring for the supported subset)."""
 
-    def __init__(self, module, prefix: str, array_param: str = "P", array_name: str = "FP", source: str | None = None):
+    def __init__(self, module, prefix: str, array_param: str = "P", array_name: str = "FP", source: str | None = None,
+                 bindings: dict[str, str] | None = None):
         self.module = module
+        #: parameters that are not GLSL parameters but data the shader reads: name -> expression, with ``{0}``,
+        #: ``{1}`` for the subscripts of an array (``bmin[k, a]`` -> ``node_min(k)[a]``) or none for a scalar
+        #: (``n_leaves`` -> ``u_n_leaves``); ``array_param`` is the foveation kernels' one such array
+        self.bindings = {array_param: f"{array_name}[{{0}}]", **(bindings or {})}
+        #: float32 values of float64 constants whose float32 rounding would change their meaning (1 - 2^-53 -> 1)
+        self.float32_values: dict[str, float] = {}
+        #: the element type of a bound array that is not ``float`` (``cut`` -> ``int``)
+        self.binding_types: dict[str, str] = {}
+        #: functions whose float locals are ``precise`` (no fused multiply-add: the rounding of the CPU's sums)
+        self.precise: set[str] = set()
         self.prefix = prefix
-        self.array_param = array_param
-        self.array_name = array_name
         tree = ast.parse(source if source is not None else inspect.getsource(module))
         self.fns = {n.name: _Fn(n) for n in tree.body if isinstance(n, ast.FunctionDef)}
         self.consts = {k: v for k, v in vars(module).items()
                        if k.isupper() and isinstance(v, (int, float)) and not isinstance(v, bool)}
+        from .. import constants as shared
+        #: constants taken from the shared table (renderers/constants.py): declared once by constants_gen.glsl
+        #: under their own names, not re-emitted with the prefix
+        self.shared = {k for k, v in self.consts.items() if getattr(shared, k, None) == v}
+        import numpy as np
+
+        #: module-level np.uint64 constants (the random numbers' multipliers), emitted as uvec2(lo, hi)
+        self.u64_consts = {k: int(v) for k, v in vars(module).items() if isinstance(v, np.uint64)}
 
     # -- analysis ----------------------------------------------------------------------------------------------
     def closure(self, roots) -> list[str]:
@@ -119,6 +143,8 @@ class Translator:
         roots = set(root_params or {})
         for _ in range(20):
             changed = False
+            conflicts: list[str] = []
+            _join = functools.partial(_join_types, conflicts)
             site_types: dict[str, dict[str, set[str]]] = {}
             for name in names:
                 fn = self.fns[name]
@@ -132,19 +158,19 @@ class Translator:
                         assigned.setdefault(node.target.id, set()).add(self.etype(fn, node.value))
                     elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in self.fns:
                         callee = self.fns[node.func.id]
-                        params = [q for q in callee.params if q != self.array_param]
+                        params = [q for q in callee.params if q not in self.bindings]
                         args = [a for a in node.args if not self._is_array(a)]
                         for p, a in zip(params, args):
                             site_types.setdefault(callee.name, {}).setdefault(p, set()).add(self.etype(fn, a))
                 for var, types in assigned.items():
                     if var in fn.params:
                         continue
-                    t = "int" if types == {"int"} else ("vec2" if types == {"vec2"} else "float")
+                    t = _join(fn.name, var, types)
                     if fn.var_types.get(var) != t:
                         fn.var_types[var] = t
                         changed = True
                 rets = {self._ret_type(fn, r.value) for r in ast.walk(fn.node) if isinstance(r, ast.Return)}
-                ret = "vec2" if "vec2" in rets else ("int" if rets == {"int"} else "float")
+                ret = _join(fn.name, "return value", rets)
                 if fn.ret != ret:
                     fn.ret = ret
                     changed = True
@@ -153,13 +179,15 @@ class Translator:
                     continue
                 fn = self.fns[name]
                 for p in fn.param_types:
-                    if p == self.array_param:
+                    if p in self.bindings:
                         continue
-                    t = "int" if site_types.get(name, {}).get(p) == {"int"} else "float"
+                    t = _join(name, p, site_types.get(name, {}).get(p, {"float"}))
                     if fn.param_types[p] != t:
                         fn.param_types[p] = t
                         changed = True
             if not changed:
+                if conflicts:  # at the fixed point: a name really takes values of two types
+                    raise NotImplementedError(conflicts[0])
                 return
         raise NotImplementedError("type inference did not converge")
 
@@ -174,22 +202,26 @@ class Translator:
                         assigned.setdefault(t.id, set()).add("float")
         elif isinstance(target, ast.Name):
             assigned.setdefault(target.id, set()).add(self.etype(fn, value))
-        else:
+        elif not (isinstance(target, ast.Subscript) and self._is_array(target.value)):
             raise NotImplementedError(f"{fn.name}: assignment to {ast.dump(target)}")
 
     def _ret_type(self, fn, value):
         if isinstance(value, ast.Tuple):
-            return "vec2"
+            if not 2 <= len(value.elts) <= 4:
+                raise NotImplementedError(f"{fn.name}: tuple of {len(value.elts)} values (GLSL vectors hold 2-4)")
+            return f"vec{len(value.elts)}"
         return self.etype(fn, value)
 
     def _is_array(self, node) -> bool:
-        return isinstance(node, ast.Name) and node.id == self.array_param
+        return isinstance(node, ast.Name) and node.id in self.bindings
 
     def vtype(self, fn, name: str) -> str:
         if name in fn.param_types:
             return fn.param_types[name]
         if name in fn.var_types:
             return fn.var_types[name]
+        if name in self.u64_consts:
+            return "u64"
         v = self.consts.get(name)
         if v is not None:
             return "int" if isinstance(v, int) else "float"
@@ -204,7 +236,15 @@ class Translator:
             if isinstance(e.op, (ast.Div, ast.Pow)):
                 return "float"
             a, b = self.etype(fn, e.left), self.etype(fn, e.right)
+            if "i64" in (a, b):
+                return "int" if isinstance(e.op, ast.BitAnd) else "i64"
+            if "u64" in (a, b):
+                return "u64"
             return "int" if a == b == "int" else "float"
+        if isinstance(e, (ast.Compare, ast.BoolOp)) or (isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.Not)):
+            return "bool"
+        if isinstance(e, ast.Subscript) and self._is_array(e.value):
+            return self.binding_types.get(e.value.id, "float")
         if isinstance(e, ast.UnaryOp):
             return self.etype(fn, e.operand)
         if isinstance(e, ast.IfExp):
@@ -212,6 +252,9 @@ class Translator:
             return "int" if a == b == "int" else "float"
         if isinstance(e, ast.Call):
             f = e.func
+            if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
+                    and f.attr in ("int64", "uint64"):
+                return "i64" if f.attr == "int64" else "u64"
             if isinstance(f, ast.Name):
                 if f.id == "int":
                     return "int"
@@ -224,25 +267,33 @@ class Translator:
         return "float"
 
     # -- emission ----------------------------------------------------------------------------------------------
-    def emit(self, names) -> str:
-        out = [_HELPERS]
+    def emit(self, names, helpers: bool = True) -> str:
+        out = [_HELPERS] if helpers else []
+        types = {t for n in names for t in [*self.fns[n].var_types.values(), *self.fns[n].param_types.values()]}
+        if types & {"i64", "u64"}:   # one copy per shader: the include is expanded once
+            out.append('#include "int64_gen.glsl"')
+        for k, v in sorted(self.u64_consts.items()):
+            out.append(f"const uvec2 {self.const_name(k)} = uvec2({v & 0xFFFFFFFF}u, {v >> 32}u);")
         for k, v in sorted(self.consts.items()):
+            if k in self.shared:
+                continue
             if isinstance(v, int):
-                out.append(f"const int {self.prefix.upper()}{k} = {v};")
+                out.append(f"const int {self.const_name(k)} = {v};")
             else:
-                out.append(f"const float {self.prefix.upper()}{k} = {_flt(v)};")
+                out.append(f"const float {self.const_name(k)} = {_flt(v)};")
         out.append("")
         for name in names:
             out.append(self.emit_fn(self.fns[name]))
         return "\n".join(out) + "\n"
 
     def emit_fn(self, fn: _Fn) -> str:
-        params = ", ".join(f"{fn.param_types[p]} {p}" for p in fn.params if p != self.array_param)
-        lines = [f"{fn.ret} {self.prefix}{fn.name}({params}) {{"]
+        params = ", ".join(f"{self.tname(fn, fn.param_types[p])} {p}" for p in fn.params if p not in self.bindings)
+        lines = [f"{self.tname(fn, fn.ret)} {self.glsl_name(fn.name)}({params}) {{"]
         loop_vars = {n.target.id for n in ast.walk(fn.node) if isinstance(n, ast.For)}
+        precise = "precise " if fn.name in self.precise else ""
         for var, t in sorted(fn.var_types.items()):
             if var not in loop_vars and var != "_":
-                lines.append(f"    {t} {var};")
+                lines.append(f"    {precise if t == 'float' else ''}{self.tname(fn, t)} {var};")
         self._tmp = 0
         body = fn.node.body
         if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
@@ -263,28 +314,36 @@ class Translator:
                         self._tmp += 1
                         tmp = f"_v{self._tmp}"
                         tmps.append(tmp)
-                        lines.append(f"{pad}{self.etype(fn, v)} {tmp} = {self.expr(fn, v)};")
+                        lines.append(f"{pad}{self.tname(fn, self.etype(fn, v))} {tmp} = {self.expr(fn, v)};")
                     for t, tmp in zip(target.elts, tmps):
                         lines.append(f"{pad}{t.id} = {tmp};")
                     return lines
                 self._tmp += 1
                 tmp = f"_t{self._tmp}"
-                lines = [f"{pad}vec2 {tmp} = {self.expr(fn, value)};"]
-                for comp, t in zip("xy", target.elts):
+                have = self.etype(fn, value)
+                if have != f"vec{len(target.elts)}":
+                    raise NotImplementedError(f"{fn.name}: unpacking {len(target.elts)} names from a {have}")
+                lines = [f"{pad}{self.tname(fn, have)} {tmp} = {self.expr(fn, value)};"]
+                for comp, t in zip("xyzw", target.elts):
                     if t.id != "_":
                         lines.append(f"{pad}{t.id} = {tmp}.{comp};")
                 return lines
+            if isinstance(target, ast.Subscript):   # an element of a bound array
+                return [f"{pad}{self.expr(fn, target)} = {self.cast(fn, value, self.etype(fn, target))};"]
             return [f"{pad}{target.id} = {self.cast(fn, value, self.vtype(fn, target.id))};"]
         if isinstance(st, ast.AugAssign):
+            if self.vtype(fn, st.target.id) in ("i64", "u64"):   # x op= y on (lo, hi) halves: x = x op y
+                binop = ast.BinOp(left=ast.Name(id=st.target.id, ctx=ast.Load()), op=st.op, right=st.value)
+                return [f"{pad}{st.target.id} = {self.expr(fn, binop)};"]
             op = _BINOPS[type(st.op)]
             return [f"{pad}{st.target.id} {op}= {self.expr(fn, st.value)};"]
         if isinstance(st, ast.Return):
             if isinstance(st.value, ast.Tuple):
-                a, b = (self.expr(fn, v) for v in st.value.elts)
-                return [f"{pad}return vec2({a}, {b});"]
+                vals = ", ".join(self.cast(fn, v, "float") for v in st.value.elts)
+                return [f"{pad}return {self.tname(fn, self._ret_type(fn, st.value))}({vals});"]
             return [f"{pad}return {self.cast(fn, st.value, fn.ret)};"]
         if isinstance(st, ast.If):
-            lines = [f"{pad}if ({self.expr(fn, st.test)}) {{"]
+            lines = [f"{pad}if ({self.cond(fn, st.test)}) {{"]
             for s in st.body:
                 lines += self.stmt(fn, s, depth + 1)
             if st.orelse:
@@ -305,16 +364,57 @@ class Translator:
                 lines += self.stmt(fn, s, depth + 1)
             lines.append(f"{pad}}}")
             return lines
+        if isinstance(st, ast.While) and not st.orelse:
+            lines = [f"{pad}while ({self.cond(fn, st.test)}) {{"]
+            for s in st.body:
+                lines += self.stmt(fn, s, depth + 1)
+            lines.append(f"{pad}}}")
+            return lines
+        if isinstance(st, ast.Break):
+            return [f"{pad}break;"]
         if isinstance(st, ast.Expr) and isinstance(st.value, ast.Constant):
             return []
         raise NotImplementedError(f"{fn.name}: statement {type(st).__name__}")
+
+    def const_name(self, name: str) -> str:
+        return self.prefix.upper() + name.lstrip("_")
+
+    def glsl_name(self, name: str) -> str:
+        """The GLSL name of a translated function: the prefix and the Python name without leading underscores
+        (GLSL reserves names containing ``__``)."""
+        return self.prefix + name.lstrip("_")
+
+    def tname(self, fn, t: str) -> str:
+        """The GLSL type of an inferred type in ``fn`` (``float`` is ``fn``'s precision)."""
+        if t in ("i64", "u64"):
+            return "uvec2"
+        if fn.real == "double" and (t == "float" or t.startswith("vec")):
+            return "double" if t == "float" else "d" + t
+        return t
 
     def cast(self, fn, e, want: str) -> str:
         text = self.expr(fn, e)
         have = self.etype(fn, e)
         if want == "float" and have == "int":
-            return f"float({text})"
+            return f"{fn.real}({text})"
+        if want == "i64" and have == "int":
+            return f"i64_from({text})"
+        if want != have and "i64" in (want, have):
+            raise NotImplementedError(f"{fn.name}: {have} used as {want}")
         return text
+
+    def cond(self, fn, e) -> str:
+        """``e`` as a GLSL bool (Python's truth of an int or float: != 0)."""
+        t = self.etype(fn, e)
+        if t == "bool":
+            return self.expr(fn, e)
+        if t in ("int", "float"):
+            return f"({self.expr(fn, e)} != {'0' if t == 'int' else self.lit(fn, 0.0)})"
+        raise NotImplementedError(f"{fn.name}: truth value of a {t}")
+
+    def lit(self, fn, v: float) -> str:
+        text = _flt(float(v))
+        return text + "LF" if fn.real == "double" and not text.startswith("(") else text
 
     def expr(self, fn, e) -> str:
         if isinstance(e, ast.Constant):
@@ -322,21 +422,40 @@ class Translator:
                 return "true" if e.value else "false"
             if isinstance(e.value, int):
                 return str(e.value)
-            return _flt(float(e.value))
+            return self.lit(fn, e.value)
         if isinstance(e, ast.Name):
+            if e.id in self.shared:
+                return e.id
+            if e.id in self.bindings:
+                return self.bindings[e.id]
+            if e.id in self.u64_consts:
+                return self.const_name(e.id)
             if e.id in self.consts:
-                return f"{self.prefix.upper()}{e.id}"
+                if fn.real == "double" and isinstance(self.consts[e.id], float):
+                    return self.lit(fn, self.consts[e.id])   # the float64 value, not its float32 constant
+                if e.id in self.float32_values:
+                    return self.lit(fn, self.float32_values[e.id])
+                return self.const_name(e.id)
             return e.id
         if isinstance(e, ast.Attribute):
             if isinstance(e.value, ast.Name) and e.value.id == "math" and e.attr == "pi":
-                return _flt(math.pi)
+                return self.lit(fn, math.pi)
             raise NotImplementedError(f"{fn.name}: attribute {ast.dump(e)}")
         if isinstance(e, ast.Subscript):
-            if not self._is_array(e.value):
-                raise NotImplementedError(f"{fn.name}: subscript of {ast.dump(e.value)}")
-            return f"{self.array_name}[{self.expr(fn, e.slice)}]"
+            idx = e.slice.elts if isinstance(e.slice, ast.Tuple) else [e.slice]
+            if self._is_array(e.value):
+                return self.bindings[e.value.id].format(*(self.expr(fn, i) for i in idx))
+            if isinstance(e.value, ast.Name) and self.vtype(fn, e.value.id) in ("vec3", "vec4") and len(idx) == 1:
+                return f"{e.value.id}[{self.expr(fn, idx[0])}]"
+            raise NotImplementedError(f"{fn.name}: subscript of {ast.dump(e.value)}")
         if isinstance(e, ast.BinOp):
             a, b = self.expr(fn, e.left), self.expr(fn, e.right)
+            if "i64" in (self.etype(fn, e.left), self.etype(fn, e.right)):
+                return self.i64_op(fn, e)
+            if "u64" in (self.etype(fn, e.left), self.etype(fn, e.right)):
+                return self.u64_op(fn, e)
+            if isinstance(e.op, ast.Mod) and "float" in (self.etype(fn, e.left), self.etype(fn, e.right)):
+                return f"mod({self.cast(fn, e.left, 'float')}, {self.cast(fn, e.right, 'float')})"  # Python's sign
             if isinstance(e.op, ast.Pow):
                 return f"pow({self.cast(fn, e.left, 'float')}, {self.cast(fn, e.right, 'float')})"
             if isinstance(e.op, ast.Div):
@@ -345,33 +464,82 @@ class Translator:
                 raise NotImplementedError(f"{fn.name}: operator {type(e.op).__name__}")
             ta, tb = self.etype(fn, e.left), self.etype(fn, e.right)
             if ta != tb:  # GLSL converts implicitly, but say it (and keep int/float mixing visible)
-                a = f"float({a})" if ta == "int" else a
-                b = f"float({b})" if tb == "int" else b
+                a = f"{fn.real}({a})" if ta == "int" else a
+                b = f"{fn.real}({b})" if tb == "int" else b
             return f"({a} {_BINOPS[type(e.op)]} {b})"
         if isinstance(e, ast.UnaryOp):
             if isinstance(e.op, ast.USub):
                 return f"(-{self.expr(fn, e.operand)})"
             if isinstance(e.op, ast.Not):
-                return f"(!{self.expr(fn, e.operand)})"
+                return f"(!{self.cond(fn, e.operand)})"
             raise NotImplementedError(f"{fn.name}: unary {type(e.op).__name__}")
         if isinstance(e, ast.BoolOp):
             op = " && " if isinstance(e.op, ast.And) else " || "
-            return "(" + op.join(self.expr(fn, v) for v in e.values) + ")"
+            return "(" + op.join(self.cond(fn, v) for v in e.values) + ")"
         if isinstance(e, ast.Compare):
-            if len(e.ops) != 1:
-                raise NotImplementedError(f"{fn.name}: chained comparison")
-            a, b = self.expr(fn, e.left), self.expr(fn, e.comparators[0])
-            return f"({a} {_CMPOPS[type(e.ops[0])]} {b})"
+            terms, left = [], e.left   # a <= b <= c: (a <= b) && (b <= c), b being a name or a constant
+            for op, right in zip(e.ops, e.comparators):
+                if type(op) not in _CMPOPS:
+                    raise NotImplementedError(f"{fn.name}: comparison {type(op).__name__}")
+                if len(e.ops) > 1 and not isinstance(right, (ast.Name, ast.Constant)):
+                    raise NotImplementedError(f"{fn.name}: chained comparison through an expression")
+                terms.append(f"({self.expr(fn, left)} {_CMPOPS[type(op)]} {self.expr(fn, right)})")
+                left = right
+            return terms[0] if len(terms) == 1 else "(" + " && ".join(terms) + ")"
         if isinstance(e, ast.IfExp):
             want = self.etype(fn, e)
-            return (f"({self.expr(fn, e.test)} ? {self.cast(fn, e.body, want)} : "
+            return (f"({self.cond(fn, e.test)} ? {self.cast(fn, e.body, want)} : "
                     f"{self.cast(fn, e.orelse, want)})")
         if isinstance(e, ast.Call):
             return self.call(fn, e)
         raise NotImplementedError(f"{fn.name}: expression {type(e).__name__}")
 
+    def i64_op(self, fn, e) -> str:
+        """numba's int64 arithmetic (the texture hash) on (lo, hi) halves: ``+``, ``^``, ``*`` and ``&`` by a
+        constant, ``>>`` (arithmetic) by a constant below 32."""
+        ta, tb = self.etype(fn, e.left), self.etype(fn, e.right)
+        a, b = self.expr(fn, e.left), self.expr(fn, e.right)
+        const = e.right.value if isinstance(e.right, ast.Constant) and isinstance(e.right.value, int) else None
+        if isinstance(e.op, ast.Add):
+            return f"i64_add({self.cast(fn, e.left, 'i64')}, {self.cast(fn, e.right, 'i64')})"
+        if isinstance(e.op, ast.BitXor) and ta == tb == "i64":
+            return f"({a} ^ {b})"
+        if isinstance(e.op, ast.Mult) and ta == "i64" and const is not None and 0 <= const < 2 ** 32:
+            return f"i64_mul({a}, {const}u)"
+        if isinstance(e.op, ast.RShift) and ta == "i64" and const is not None and 0 < const < 32:
+            return f"i64_sar({a}, {const})"
+        if isinstance(e.op, ast.BitAnd) and ta == "i64" and const is not None and 0 <= const < 2 ** 31:
+            return f"int({a}.x & {const}u)"
+        raise NotImplementedError(f"{fn.name}: int64 operation {ta} {type(e.op).__name__} {tb}"
+                                  + ("" if const is None else f" {const}"))
+
+    def u64_op(self, fn, e) -> str:
+        """numba's uint64 arithmetic (the counter-based random numbers) on (lo, hi) halves: ``+``, ``*``, ``^``
+        and ``>>`` by a constant below 32, all modulo 2^64."""
+        ta, tb = self.etype(fn, e.left), self.etype(fn, e.right)
+        a, b = self.expr(fn, e.left), self.expr(fn, e.right)
+        shift = _const_int(e.right)
+        if ta == tb == "u64" and type(e.op) in (ast.Add, ast.Mult, ast.BitXor):
+            return {ast.Add: f"i64_add({a}, {b})", ast.Mult: f"u64_mul({a}, {b})",
+                    ast.BitXor: f"({a} ^ {b})"}[type(e.op)]
+        if ta == "u64" and isinstance(e.op, ast.RShift) and shift is not None and 0 < shift < 32:
+            return f"u64_shr({a}, {shift})"
+        raise NotImplementedError(f"{fn.name}: uint64 operation {ta} {type(e.op).__name__} {tb}")
+
     def call(self, fn, e) -> str:
         f = e.func
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
+                and f.attr == "int64":
+            return f"i64_from(int({self.expr(fn, e.args[0])}))"
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
+                and f.attr == "uint64":
+            if _const_int(e) is not None:
+                return f"uvec2({_const_int(e) & 0xFFFFFFFF}u, {_const_int(e) >> 32}u)"
+            if self.etype(fn, e.args[0]) == "u64":
+                return self.expr(fn, e.args[0])
+            raise NotImplementedError(f"{fn.name}: np.uint64 of a {self.etype(fn, e.args[0])}")
+        if isinstance(f, ast.Name) and f.id == "float" and self.etype(fn, e.args[0]) == "u64":
+            return f"u64_to_{fn.real}({self.expr(fn, e.args[0])})"
         if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "math":
             args = [self.cast(fn, a, "float") for a in e.args]
             if f.attr == "hypot":
@@ -381,6 +549,10 @@ class Translator:
             if f.attr in _MATH:
                 return f"{_MATH[f.attr]}({', '.join(args)})"
             raise NotImplementedError(f"{fn.name}: math.{f.attr}")
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
+                and f.attr == "clip" and len(e.args) == 3:   # numpy on arrays, GLSL clamp on scalars
+            a, lo, hi = (self.cast(fn, x, "float") for x in e.args)
+            return f"clamp({a}, {lo}, {hi})"
         if isinstance(f, ast.Name):
             if f.id == "int":
                 return f"int({self.expr(fn, e.args[0])})"
@@ -392,11 +564,63 @@ class Translator:
                 return f"abs({self.expr(fn, e.args[0])})"
             if f.id in self.fns:
                 callee = self.fns[f.id]
-                params = [p for p in callee.params if p != self.array_param]
+                if callee.real != fn.real:
+                    raise NotImplementedError(f"{fn.name}: call of {f.id} across precisions ({fn.real} -> "
+                                              f"{callee.real})")
+                params = [p for p in callee.params if p not in self.bindings]
                 args = [a for a in e.args if not self._is_array(a)]
                 text = ", ".join(self.cast(fn, a, callee.param_types[p]) for p, a in zip(params, args))
-                return f"{self.prefix}{f.id}({text})"
+                return f"{self.glsl_name(f.id)}({text})"
         raise NotImplementedError(f"{fn.name}: call of {ast.dump(f)}")
+
+
+def _join_types(conflicts: list, fn: str, what: str, types: set[str]) -> str:
+    """One type for the values given to a name: itself when they agree, ``float`` for ints and floats mixed;
+    otherwise ``float`` for now, the conflict noted in ``conflicts`` (an error if it remains at the fixed point)."""
+    if len(types) == 1:
+        return next(iter(types))
+    if types == {"int", "float"}:
+        return "float"
+    conflicts.append(f"{fn}: {what} takes values of types {sorted(types)}")
+    other = sorted(types - {"int", "float", "bool"})   # e.g. h = h ^ (h >> 13): h's own float guess yields
+    return other[0] if len(other) == 1 else "float"
+
+
+#: numba's int64 arithmetic on two 32-bit halves (lo, hi), two's complement: what the texture hash needs.
+_I64_HELPERS = """
+uvec2 i64_from(int x) { return uvec2(uint(x), x < 0 ? 0xFFFFFFFFu : 0u); }
+uvec2 i64_add(uvec2 a, uvec2 b) {
+    uint carry;
+    uint lo = uaddCarry(a.x, b.x, carry);
+    return uvec2(lo, a.y + b.y + carry);
+}
+uvec2 i64_mul(uvec2 a, uint c) {   // a c mod 2^64
+    uint hi, lo;
+    umulExtended(a.x, c, hi, lo);
+    return uvec2(lo, hi + a.y * c);
+}
+uvec2 i64_sar(uvec2 a, int s) {    // arithmetic shift right, 0 < s < 32
+    return uvec2((a.x >> s) | (a.y << (32 - s)), uint(int(a.y) >> s));
+}
+uvec2 u64_mul(uvec2 a, uvec2 b) {  // a b mod 2^64
+    uint hi, lo;
+    umulExtended(a.x, b.x, hi, lo);
+    return uvec2(lo, hi + a.x * b.y + a.y * b.x);
+}
+uvec2 u64_shr(uvec2 a, int s) {    // logical shift right, 0 < s < 32
+    return uvec2((a.x >> s) | (a.y << (32 - s)), a.y >> s);
+}
+double u64_to_double(uvec2 a) { return double(a.y) * 4294967296.0LF + double(a.x); }   // exact below 2^53
+"""
+
+
+def _const_int(e) -> int | None:
+    """The value of an integer literal or of ``np.uint64(literal)``, else None."""
+    if isinstance(e, ast.Constant) and isinstance(e.value, int) and not isinstance(e.value, bool):
+        return e.value
+    if isinstance(e, ast.Call) and isinstance(e.func, ast.Attribute) and e.func.attr == "uint64" and e.args:
+        return _const_int(e.args[0])
+    return None
 
 
 _BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Mod: "%", ast.BitAnd: "&", ast.BitOr: "|",
@@ -423,11 +647,94 @@ def foveation_glsl() -> str:
         + tr.emit(names)
 
 
+def shade_glsl(module=None) -> str:
+    """GLSL of the shading kernels of :mod:`renderers._shade` (textures and the value-noise hash in double
+    precision, the BRDF lobes and light terms in float), prefixed ``shade_``. ``module``: another module of the
+    same kernels (tests translate a changed copy)."""
+    if module is None:
+        return _shade_glsl_cached()
+    return _shade_glsl(module)
+
+
 @functools.lru_cache(maxsize=None)
-def constants_glsl() -> str:
-    """The integer codes of :mod:`renderers._shade` as GLSL constants."""
+def _shade_glsl_cached() -> str:
     from .. import _shade
 
-    names = ("TEX_NONE", "TEX_CHECKER", "TEX_BRICK", "TEX_NOISE", "KIND_DIFFUSE", "KIND_GLOSSY", "KIND_METALLIC",
-             "LIGHT_POINT", "LIGHT_EMITTER", "LIGHT_DIRECTIONAL")
-    return "".join(f"const int {n} = {getattr(_shade, n)};\n" for n in names)
+    return _shade_glsl(_shade)
+
+
+def _shade_glsl(module) -> str:
+    source = inspect.getsource(module)
+    tr = Translator(module, "shade_", source=source)
+    doubles = tr.closure(module.GLSL_DOUBLE_ROOTS)
+    floats = [n for n in tr.closure(module.GLSL_FLOAT_ROOTS) if n not in doubles]
+    for n in doubles:
+        tr.fns[n].real = "double"
+    int_params = {"texture_weight": {"kind": "int"}, "light_direction": {"kind": "int"},
+                  "irradiance_factor": {"kind": "int"}}
+    tr.infer(doubles + floats, {r: int_params.get(r, {}) for r in (*module.GLSL_DOUBLE_ROOTS,
+                                                                       *module.GLSL_FLOAT_ROOTS)})
+    return (f"// Generated from {module.__name__.replace('.', '/')}.py by renderers/gpu/codegen.py: do not edit.\n"
+            '#include "constants_gen.glsl"\n' + tr.emit(doubles + floats, helpers=False))
+
+
+@functools.lru_cache(maxsize=None)
+def lightcuts_glsl() -> str:
+    """GLSL of the lightcuts kernels translated so far from :mod:`renderers.lightcuts._kernels`: the
+    counter-based random numbers ``lc_uniform(seed, pixel, slot)`` (splitmix64 in uint64 on 32-bit halves, the
+    result in double precision, equal to the CPU's) and, in float32, the bounds of a node's box
+    (``lc_box_terms``), the cut-refinement error (``lc_error_bound``), the branch probability (``lc_prob_left``)
+    and the hierarchical importance sampling (``lc_descend``, returning ``vec2(leaf, pdf)``)."""
+    from ..lightcuts import _kernels
+
+    # the tree's arrays and the scalars every call passes are the shader's tree image and uniforms (lightcuts.glsl)
+    tr = Translator(_kernels, "lc_", bindings={"bmin": "node_min({0})[{1}]", "bmax": "node_max({0})[{1}]",
+                                               "inten": "node_inten({0})", "n_leaves": "u_n_leaves",
+                                               "clamp2": "u_clamp2", "light_pos": "light_pos({0})[{1}]",
+                                               "light_nrm": "light_nrm({0})[{1}]", "one_sided": "(u_one_sided != 0)",
+                                               "cut": "lc_cut[{0}]", "err": "lc_err[{0}]"})
+    tr.binding_types["cut"] = "int"
+    tr.float32_values["ONE_MINUS"] = 1.0 - 2.0 ** -24   # the largest float32 below 1, as 1 - 2^-53 in float64
+    tr.precise = {"box_terms", "sample_weight"}   # a parent's bound never below a leaf's cosine: the CPU's rounding
+    doubles = tr.closure(_kernels.GLSL_DOUBLE_ROOTS)
+    floats = [n for n in tr.closure(_kernels.GLSL_FLOAT_ROOTS) if n not in doubles]
+    for n in doubles:
+        tr.fns[n].real = "double"
+    point = {"p": "vec3", "n": "vec3", "t": "vec3", "b": "vec3", "k": "int", "node": "int", "j": "int",
+             "one_sided": "bool", "budget": "int"}
+    tr.infer(doubles + floats, {"uniform": {"seed": "u64", "pixel": "u64", "slot": "u64"},
+                                **{r: point for r in _kernels.GLSL_FLOAT_ROOTS}})
+    return "// Generated from renderers/lightcuts/_kernels.py by renderers/gpu/codegen.py: do not edit.\n" \
+        + tr.emit(doubles + floats, helpers=False)
+
+
+@functools.lru_cache(maxsize=None)
+def fpsm_glsl() -> str:
+    """GLSL of the FPSM's per-pixel kernels of :mod:`renderers.lightcuts.fpsm` (Eq 2's acuity), prefixed
+    ``fpsm_``."""
+    from ..lightcuts import fpsm
+
+    tr = Translator(fpsm, "fpsm_")
+    names = tr.closure(fpsm.GLSL_FLOAT_ROOTS)
+    tr.infer(names, {r: {} for r in fpsm.GLSL_FLOAT_ROOTS})
+    return "// Generated from renderers/lightcuts/fpsm.py by renderers/gpu/codegen.py: do not edit.\n" \
+        '#include "constants_gen.glsl"\n' + tr.emit(names, helpers=False)
+
+
+def int64_glsl() -> str:
+    """The 64-bit integer helpers of the generated kernels (``int64_gen.glsl``)."""
+    return "// 64-bit integers on (lo, hi) halves for the generated kernels (renderers/gpu/codegen.py).\n" \
+        + _I64_HELPERS
+
+
+@functools.lru_cache(maxsize=None)
+def constants_glsl() -> str:
+    """Every constant of the shared table :mod:`renderers.constants` (upper-case ints and floats) as a GLSL
+    ``const`` of the same name."""
+    from .. import constants
+
+    out = []
+    for k, v in vars(constants).items():
+        if k.isupper() and isinstance(v, (int, float)) and not isinstance(v, bool):
+            out.append(f"const int {k} = {v};\n" if isinstance(v, int) else f"const float {k} = {_flt(v)};\n")
+    return "".join(out)

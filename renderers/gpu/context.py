@@ -306,6 +306,22 @@ def generated_source(fname: str) -> str | None:
         from .codegen import foveation_glsl
 
         return foveation_glsl()
+    if fname == "fpsm_gen.glsl":
+        from .codegen import fpsm_glsl
+
+        return fpsm_glsl()
+    if fname == "int64_gen.glsl":
+        from .codegen import int64_glsl
+
+        return int64_glsl()
+    if fname == "lightcuts_gen.glsl":
+        from .codegen import lightcuts_glsl
+
+        return lightcuts_glsl()
+    if fname == "shade_gen.glsl":
+        from .codegen import shade_glsl
+
+        return shade_glsl()
     if fname == "constants_gen.glsl":
         from .codegen import constants_glsl
 

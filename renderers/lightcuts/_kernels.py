@@ -27,6 +27,11 @@ _M3 = np.uint64(0x94D049BB133111EB)
 _INV53 = 1.0 / 9007199254740992.0
 ONE_MINUS = 1.0 - 2.0 ** -53
 
+#: The kernels renderers/gpu/codegen.py translates into GLSL (``lightcuts_gen.glsl``), in double precision ...
+GLSL_DOUBLE_ROOTS = ("uniform",)
+#: ... and in float32 (the tree's arrays become the shader's tree image, codegen.lightcuts_glsl).
+GLSL_FLOAT_ROOTS = ("refine_cut", "prob_left", "descend", "sample_weight")
+
 
 @njit(cache=True)
 def uniform(seed, pixel, slot):
@@ -228,6 +233,39 @@ def leaf_pdf(p, n, t, b, bmin, bmax, inten, n_leaves, node, leaf, clamp2):
     return pdf
 
 
+@njit(cache=True)
+def refine_cut(p, n, t, b, bmin, bmax, inten, n_leaves, clamp2, budget, cut, err):
+    """Refine one point's cut from the root to ``budget`` nodes, always splitting the first node of largest
+    error; stops early when no node has error left. ``cut`` receives the node ids sorted by heap offset, ``err``
+    is scratch (both of length >= budget). Returns the cut size."""
+    if budget <= 0:
+        return 0
+    cut[0] = 1
+    err[0] = error_bound(p, n, t, b, bmin, bmax, inten, n_leaves, 1, clamp2)
+    m = 1
+    while m < budget:
+        j = 0
+        for q in range(1, m):
+            if err[q] > err[j]:
+                j = q
+        if err[j] <= 0.0:
+            break
+        k = cut[j]
+        cut[j] = 2 * k
+        err[j] = error_bound(p, n, t, b, bmin, bmax, inten, n_leaves, 2 * k, clamp2)
+        cut[m] = 2 * k + 1
+        err[m] = error_bound(p, n, t, b, bmin, bmax, inten, n_leaves, 2 * k + 1, clamp2)
+        m += 1
+    for q in range(1, m):  # insertion sort by heap offset
+        v = cut[q]
+        r = q - 1
+        while r >= 0 and cut[r] > v:
+            cut[r + 1] = cut[r]
+            r -= 1
+        cut[r + 1] = v
+    return m
+
+
 @njit(cache=True, parallel=True)
 def build_cuts(pos, nrm, budget, bmin, bmax, inten, n_leaves, clamp2, cut, err):
     """Refine each pixel's cut from the root to ``budget[i]`` nodes by the largest error bound.
@@ -245,30 +283,7 @@ def build_cuts(pos, nrm, budget, bmin, bmax, inten, n_leaves, clamp2, cut, err):
         p = pos[i]
         nn = nrm[i]
         t, b = frame(nn[0], nn[1], nn[2])
-        cut[i, 0] = 1
-        err[i, 0] = error_bound(p, nn, t, b, bmin, bmax, inten, n_leaves, 1, clamp2)
-        m = 1
-        while m < nb:
-            j = 0
-            for q in range(1, m):
-                if err[i, q] > err[i, j]:
-                    j = q
-            if err[i, j] <= 0.0:
-                break
-            k = cut[i, j]
-            cut[i, j] = 2 * k
-            err[i, j] = error_bound(p, nn, t, b, bmin, bmax, inten, n_leaves, 2 * k, clamp2)
-            cut[i, m] = 2 * k + 1
-            err[i, m] = error_bound(p, nn, t, b, bmin, bmax, inten, n_leaves, 2 * k + 1, clamp2)
-            m += 1
-        for q in range(1, m):  # insertion sort by heap offset
-            v = cut[i, q]
-            r = q - 1
-            while r >= 0 and cut[i, r] > v:
-                cut[i, r + 1] = cut[i, r]
-                r -= 1
-            cut[i, r + 1] = v
-        size[i] = m
+        size[i] = refine_cut(p, nn, t, b, bmin, bmax, inten, n_leaves, clamp2, nb, cut[i], err[i])
     return size
 
 
@@ -300,6 +315,30 @@ def sample_cuts(pos, nrm, pix_id, cut, size, bmin, bmax, inten, n_leaves, clamp2
             pdf[i, s] = 0.0
 
 
+@njit(cache=True, inline="always")
+def sample_weight(p, n, light_pos, light_nrm, one_sided, j, pdf, clamp2):
+    """``cos / max(d^2, clamp2) / (pi pdf)`` of light ``j`` drawn with probability ``pdf`` at ``p`` (normal ``n``),
+    times the emitter cosine ``n_l . (p - x_l) / d`` when ``one_sided``; 0 when the light is behind the point or
+    the point behind the emitter. ``N.(x - p)`` is summed per axis as in ``box_terms``."""
+    cosnum = 0.0
+    d2 = 0.0
+    for a in range(3):
+        d = light_pos[j, a] - p[a]
+        cosnum += n[a] * d
+        d2 += d * d
+    if cosnum <= 0.0:
+        return 0.0
+    g = cosnum / math.sqrt(d2) / max(d2, clamp2) / (math.pi * pdf)
+    if one_sided and (light_nrm[j, 0] != 0.0 or light_nrm[j, 1] != 0.0 or light_nrm[j, 2] != 0.0):
+        em = 0.0
+        for a in range(3):
+            em -= light_nrm[j, a] * (light_pos[j, a] - p[a])
+        if em <= 0.0:
+            return 0.0
+        g *= em / math.sqrt(d2)
+    return g
+
+
 @njit(cache=True, parallel=True)
 def shade_samples(pos, nrm, alb, leaf, pdf, light_pos, light_rgb, light_nrm, one_sided, n_leaves, clamp2,
                   contrib):
@@ -321,22 +360,9 @@ def shade_samples(pos, nrm, alb, leaf, pdf, light_pos, light_rgb, light_nrm, one
             if lf < 0 or pdf[i, s] <= 0.0:
                 continue
             j = lf - n_leaves
-            cosnum = 0.0
-            d2 = 0.0
-            for a in range(3):
-                d = light_pos[j, a] - p[a]
-                cosnum += nn[a] * d
-                d2 += d * d
-            if cosnum <= 0.0:
+            g = sample_weight(p, nn, light_pos, light_nrm, one_sided, j, pdf[i, s], clamp2)
+            if g == 0.0:
                 continue
-            g = cosnum / math.sqrt(d2) / max(d2, clamp2) / (math.pi * pdf[i, s])
-            if one_sided and (light_nrm[j, 0] != 0.0 or light_nrm[j, 1] != 0.0 or light_nrm[j, 2] != 0.0):
-                em = 0.0
-                for a in range(3):
-                    em -= light_nrm[j, a] * (light_pos[j, a] - p[a])
-                if em <= 0.0:
-                    continue
-                g *= em / math.sqrt(d2)
             tot = 0.0
             for c in range(3):
                 v = alb[i, c] * light_rgb[j, c] * g

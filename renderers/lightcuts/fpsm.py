@@ -32,9 +32,10 @@ from data_schema.ranges import Range
 
 from .options import FPSM_READINGS
 
+from ..constants import ACUITY_FLOOR, ACUITY_INTERCEPT, ACUITY_SLOPE, LUMA_B, LUMA_G, LUMA_R
+
 EPSILON = 0.01
-ACUITY_FLOOR = 0.02
-LUMA = np.array([0.2126, 0.7152, 0.0722])
+LUMA = np.array([LUMA_R, LUMA_G, LUMA_B])
 _BINOMIAL = np.array([1.0, 4.0, 6.0, 4.0, 1.0]) / 16.0
 
 
@@ -56,12 +57,22 @@ def _finite(name: str, x) -> np.ndarray:
     return a
 
 
+#: The kernels renderers/gpu/codegen.py translates into GLSL (``fpsm_gen.glsl``, float32).
+GLSL_FLOAT_ROOTS = ("acuity",)
+
+
+def acuity(e):
+    """Eq 2's fall-off at eccentricity ``e`` (radians, scalar or array): ``clamp(1.1715 - 2.45 e, 0.02, 1)``,
+    the constants from renderers/constants.py; the GPU's FPSM pass runs the GLSL generated from this function."""
+    return np.clip(ACUITY_INTERCEPT - ACUITY_SLOPE * e, ACUITY_FLOOR, 1.0)
+
+
 def acuity_map(eccentricity_rad) -> np.ndarray:
-    """Eq 2: ``fb_f = clamp(1.1715 - 2.45 e, 0.02, 1)``, ``e`` in radians (>= 0)."""
+    """Eq 2: ``fb_f = clamp(1.1715 - 2.45 e, 0.02, 1)``, ``e`` in radians (>= 0) (:func:`acuity`)."""
     e = _finite("eccentricity", eccentricity_rad)
     if np.any(e < 0):
         raise UserError("eccentricity must be >= 0")
-    return np.clip(1.1715 - 2.45 * e, ACUITY_FLOOR, 1.0)
+    return acuity(e)
 
 
 def eccentricity_map(geometry) -> np.ndarray:

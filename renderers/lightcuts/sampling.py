@@ -23,6 +23,7 @@ import numpy as np
 
 from data_schema.errors import UserError
 
+from ..constants import LC_CLAMP_FRACTION, LC_OFFSET_FRACTION
 from . import _kernels as K
 from .tree import LightTree
 
@@ -85,7 +86,7 @@ class ShadingResult:
 
 def clamp2(tree: LightTree) -> float:
     """Squared distance clamp ``(0.001 * scene light radius)^2``."""
-    return (1e-3 * tree.scene_radius) ** 2
+    return (LC_CLAMP_FRACTION * tree.scene_radius) ** 2
 
 
 def ray_offset_for(tree: LightTree, gbuf: GBuffer) -> float:
@@ -93,7 +94,7 @@ def ray_offset_for(tree: LightTree, gbuf: GBuffer) -> float:
     pts = gbuf.position[gbuf.valid]
     lo = np.minimum(tree.bmin[1], pts.min(axis=0)) if pts.size else tree.bmin[1]
     hi = np.maximum(tree.bmax[1], pts.max(axis=0)) if pts.size else tree.bmax[1]
-    return 1e-4 * max(0.5 * float(np.linalg.norm(hi - lo)), 1e-9)
+    return LC_OFFSET_FRACTION * max(0.5 * float(np.linalg.norm(hi - lo)), 1e-9)
 
 
 def _tick(timings: dict | None, step: str, t0: float) -> float:

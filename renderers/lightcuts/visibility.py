@@ -6,6 +6,8 @@ import numpy as np
 
 from data_schema.errors import UserError
 
+from ..constants import LC_SHADOW_EPS
+
 
 class EmbreeOccluder:
     """``occluded(origins, targets)``: True where a triangle lies between each origin and its target.
@@ -15,7 +17,7 @@ class EmbreeOccluder:
     ``(1 - end_eps)`` of its length so that a light sitting on an emitter triangle is not hidden by it.
     """
 
-    def __init__(self, vertices, faces, end_eps: float = 1e-3):
+    def __init__(self, vertices, faces, end_eps: float = LC_SHADOW_EPS):
         from embreex import mesh_construction, rtcore_scene
 
         v = np.ascontiguousarray(vertices, dtype=np.float32)

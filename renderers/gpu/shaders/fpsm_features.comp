@@ -5,6 +5,7 @@
 // 0 without one) and, with LUMINANCE, Eq 3's fb_l = max(fb_f, |LP_1| / (LP_3 + eps)) (fpsm.luminance_contrast).
 layout(local_size_x = 64) in;
 #include "common.glsl"
+#include "fpsm_gen.glsl"
 #include "lc_buffers.glsl"
 #include "fpsm.glsl"
 uniform vec2 u_gaze;
@@ -38,7 +39,7 @@ void main() {
     uint i = gid();
     if (i < uint(u_n)) {
         int x = int(i) % u_width, y = int(i) / u_width;
-        float fb_f = clamp(1.1715 - 2.45 * atan(u_c_r * length(vec2(x, y) + 0.5 - u_gaze)), 0.02, 1.0);
+        float fb_f = fpsm_acuity(atan(u_c_r * length(vec2(x, y) + 0.5 - u_gaze)));   // Eq 2, generated
         vec3 gxn = vec3(0.0), gyn = vec3(0.0), gxa = vec3(0.0), gya = vec3(0.0);
         vec2 gxv = vec2(0.0), gyv = vec2(0.0);
         for (int dy = -1; dy <= 1; dy++) {

@@ -17,7 +17,7 @@ void main() {
         if (g_pos[px].w > 0.0) {
             vec3 p = g_pos[px].xyz, n = g_nrm[px].xyz, t, b;
             lc_frame(n, t, b);
-            m = build_cut(p, n, t, b, u_budget >= 0 ? u_budget : ctl[px].x);
+            m = lc_refine_cut(p, n, t, b, u_budget >= 0 ? u_budget : ctl[px].x);
             for (int s = 0; s < m; s++) smp[i * uint(CUT_MAX) + uint(s)] = uvec4(uint(lc_cut[s]), 0u, 0u, 0u);
         }
         pix[px].x = m;

@@ -63,7 +63,7 @@ void main() {
                     radiance = sf.base;
                     vec3 alb = sf.kd == 0.0 ? vec3(0.0) : sf.a, bt, bb;
                     lc_frame(sf.n, bt, bb);
-                    int m = build_cut(sf.p, sf.n, bt, bb, u_bounce_lspp);
+                    int m = lc_refine_cut(sf.p, sf.n, bt, bb, u_bounce_lspp);
                     uvec2 id = uvec2((uint(px) << 20) | uint(r), uint(px) >> 12);
                     for (int s = 0; s < m; s++) {
                         if (!node_live(sf.p, sf.n, bt, bb, lc_cut[s])) continue;

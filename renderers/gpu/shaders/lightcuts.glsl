@@ -1,7 +1,7 @@
 // Stochastic lightcuts on the GPU (renderers/gpu/lightcuts.py): the light tree of renderers/lightcuts/tree.py
 // and, line for line in float32, the kernels of renderers/lightcuts/_kernels.py (bounds, the cut-refinement
 // error, hierarchical importance sampling, the Lambertian contribution), the reuse of multires.py (seed 003
-// Algorithm 2, Eq 9) and the CPU's random numbers (splitmix64 of seed, pixel, slot), so that both backends draw
+// Algorithm 2, Eq 9) and the CPU's random numbers (generated from _kernels.uniform), so that both backends draw
 // the same samples up to the float32 rounding of the probabilities. Needs scene.glsl (fetch, trace).
 
 // The tree in an RGBA32UI image (image unit 4; 6 N texels): node k (1 <= k < 2N) at texels 2k, 2k + 1:
@@ -20,40 +20,19 @@ vec3 light_pos(int j) { return node_min(u_n_leaves + j); }
 vec3 light_rgb(int j) { return fetchf(t_tree, 4 * u_n_leaves + 2 * j).xyz; }
 vec3 light_nrm(int j) { return fetchf(t_tree, 4 * u_n_leaves + 2 * j + 1).xyz; }
 
-// -- random numbers: _kernels.uniform, splitmix64 in 64-bit arithmetic emulated with 32-bit halves (lo, hi) ---
-uvec2 lc_add64(uvec2 a, uvec2 b) {
-    uint carry;
-    uint lo = uaddCarry(a.x, b.x, carry);
-    return uvec2(lo, a.y + b.y + carry);
-}
-uvec2 lc_mul64(uvec2 a, uvec2 b) {   // a b mod 2^64
-    uint hi, lo;
-    umulExtended(a.x, b.x, hi, lo);
-    return uvec2(lo, hi + a.x * b.y + a.y * b.x);
-}
-uvec2 lc_xorshr(uvec2 a, int s) {   // a ^ (a >> s), 0 < s < 32
-    return a ^ uvec2((a.x >> s) | (a.y << (32 - s)), a.y >> s);
-}
-const uvec2 SM_M1 = uvec2(0x7F4A7C15u, 0x9E3779B9u);
-const uvec2 SM_M2 = uvec2(0x1CE4E5B9u, 0xBF58476Du);
-const uvec2 SM_M3 = uvec2(0x133111EBu, 0x94D049BBu);
-// Uniform in [0, 1) from (seed, pixel, slot), equal to the CPU's float64 value.
-double lc_uniform(uvec2 seed, uvec2 pixel, uint slot) {
-    uvec2 x = lc_add64(lc_add64(lc_mul64(seed, SM_M1), lc_mul64(pixel, SM_M2)),
-                       lc_add64(lc_mul64(uvec2(slot, 0u), SM_M3), SM_M1));
-    x = lc_mul64(lc_xorshr(x, 30), SM_M2);
-    x = lc_mul64(lc_xorshr(x, 27), SM_M3);
-    x = lc_xorshr(x, 31);
-    uint hi = x.y >> 11, lo = (x.x >> 11) | (x.y << 21);   // x >> 11: 53 bits
-    return (double(hi) * 4294967296.0LF + double(lo)) * (1.0LF / 9007199254740992.0LF);
-}
+// -- random numbers: _kernels.uniform, generated (lightcuts_gen.glsl): equal to the CPU's float64 value ---------
+// The cut of the current shading point (lc_refine_cut, generated from _kernels.refine_cut): CUT_MAX (a define)
+// node ids, sorted by heap offset (Algorithm 2 reads them in that order; the sample slots follow it).
+int lc_cut[CUT_MAX];
+float lc_err[CUT_MAX];
+#include "lightcuts_gen.glsl"
 const float LC_ONE_MINUS_F = 0.99999994;   // the largest float below 1
 // The same as a float32 in [0, 1).
 float lc_uniform_f(uvec2 seed, uvec2 pixel, uint slot) {
-    return min(float(lc_uniform(seed, pixel, slot)), LC_ONE_MINUS_F);
+    return min(float(lc_uniform(seed, pixel, uvec2(slot, 0u))), LC_ONE_MINUS_F);
 }
 
-// -- bounds (_kernels.frame, box_terms, error_bound, prob_left) -----------------------------------------------
+// -- bounds (_kernels.frame; the rest, and the cut refinement, generated) -----------------------------------------------
 // Orthonormal tangents (T, B) of a unit normal (Duff et al. 2017).
 void lc_frame(vec3 n, out vec3 t, out vec3 b) {
     float sgn = n.z >= 0.0 ? 1.0 : -1.0;
@@ -63,124 +42,22 @@ void lc_frame(vec3 n, out vec3 t, out vec3 b) {
     b = vec3(c, sgn + n.y * n.y * a, -n.y);
 }
 
-// (geometry bound, dmin^2, dmax^2) of node k's box from p: an upper bound of cos(theta) over the box (0 when it
-// is behind the surface), summed per axis in the order the contribution sums N.(x - p), so that a parent's bound
-// is never below a leaf's cosine (`precise`: no fused multiply-add may change the rounding).
-vec3 box_terms(vec3 p, vec3 n, vec3 t, vec3 b, int k) {
-    precise vec3 lo = node_min(k) - p;
-    precise vec3 hi = node_max(k) - p;
-    precise float nlo = 0.0, nhi = 0.0, tlo = 0.0, thi = 0.0, blo = 0.0, bhi = 0.0, dmin = 0.0, dmax = 0.0;
-    for (int a = 0; a < 3; a++) {
-        precise float x0 = n[a] * lo[a], x1 = n[a] * hi[a];
-        nlo += min(x0, x1);
-        nhi += max(x0, x1);
-        x0 = t[a] * lo[a];
-        x1 = t[a] * hi[a];
-        tlo += min(x0, x1);
-        thi += max(x0, x1);
-        x0 = b[a] * lo[a];
-        x1 = b[a] * hi[a];
-        blo += min(x0, x1);
-        bhi += max(x0, x1);
-        float c = max(lo[a], 0.0) + min(hi[a], 0.0);
-        dmin += c * c;
-        float m = max(-lo[a], hi[a]);
-        dmax += m * m;
-    }
-    if (nhi <= 0.0) return vec3(0.0, dmin, dmax);
-    float tt = (tlo <= 0.0 && 0.0 <= thi) ? 0.0 : min(abs(tlo), abs(thi));
-    float bb = (blo <= 0.0 && 0.0 <= bhi) ? 0.0 : min(abs(blo), abs(bhi));
-    return vec3(nhi / sqrt(nhi * nhi + tt * tt + bb * bb), dmin, dmax);
-}
-
-// Cut-refinement error I geom / max(dmin^2, clamp^2); 0 for leaves and empty nodes (Lin & Yuksel 2020).
-float error_bound(vec3 p, vec3 n, vec3 t, vec3 b, int k) {
-    float inten = node_inten(k);
-    if (k >= u_n_leaves || inten <= 0.0) return 0.0;
-    vec3 g = box_terms(p, n, t, b, k);
-    if (g.x <= 0.0) return 0.0;
-    return inten * g.x / max(g.y, u_clamp2);
-}
+// Generated (lightcuts_gen.glsl, float32): lc_box_terms (geometry bound, dmin^2, dmax^2 of a node's box, `precise`
+// sums in the CPU's axis order so that a parent's bound is never below a leaf's cosine), lc_error_bound (the
+// cut-refinement error), lc_prob_left and lc_descend (hierarchical importance sampling; float32 where the CPU has
+// float64: the rescaling loses about a bit per level, so deep in the tree a decision may differ from the CPU's;
+// measured on cornell_many the images are those of a float64 u).
 
 // Node k can contribute at p (non-zero intensity and geometry bound).
 bool node_live(vec3 p, vec3 n, vec3 t, vec3 b, int k) {
-    return node_inten(k) > 0.0 && box_terms(p, n, t, b, k).x > 0.0;
+    return node_inten(k) > 0.0 && lc_box_terms(p, n, t, b, k).x > 0.0;
 }
 
-// Probability of descending from node k to its left child 2k: the mean of the weights I geom normalised by the
-// closest-point and by the farthest-point squared distances; 0 / 1 when a child cannot contribute.
-float prob_left(vec3 p, vec3 n, vec3 t, vec3 b, int k) {
-    int c0 = 2 * k, c1 = c0 + 1;
-    float i0 = node_inten(c0), i1 = node_inten(c1);
-    if (i0 <= 0.0) return 0.0;
-    if (i1 <= 0.0) return 1.0;
-    vec3 g0 = box_terms(p, n, t, b, c0), g1 = box_terms(p, n, t, b, c1);
-    float w0 = i0 * g0.x, w1 = i1 * g1.x;
-    if (w0 + w1 <= 0.0) return i0 / (i0 + i1);
-    if (w0 <= 0.0) return 0.0;
-    if (w1 <= 0.0) return 1.0;
-    float a0 = w0 / max(g0.y, u_clamp2), a1 = w1 / max(g1.y, u_clamp2);
-    float f0 = w0 / max(g0.z, u_clamp2), f1 = w1 / max(g1.z, u_clamp2);
-    return 0.5 * (a0 / (a0 + a1) + f0 / (f0 + f1));
-}
-
-// Hierarchical importance sampling from `node` to a leaf with one uniform u rescaled per level; returns the leaf
-// node, `pdf` the product of the branch probabilities. float32 where the CPU has float64: the rescaling loses
-// about a bit per level, so deep in the tree a decision may differ from the CPU's; measured on cornell_many the
-// images are those of a float64 u (fast float64 is rare on GPUs).
+// The leaf node reached from `node` with uniform u; `pdf` the product of the branch probabilities.
 int descend(vec3 p, vec3 n, vec3 t, vec3 b, int node, float u, out float pdf) {
-    pdf = 1.0;
-    while (node < u_n_leaves) {
-        float pl = prob_left(p, n, t, b, node);
-        if (u < pl) {
-            node = 2 * node;
-            u = u / pl;
-            pdf *= pl;
-        } else {
-            node = 2 * node + 1;
-            u = (u - pl) / (1.0 - pl);
-            pdf *= 1.0 - pl;
-        }
-        u = min(u, LC_ONE_MINUS_F);
-    }
-    return node;
-}
-
-// -- cuts (_kernels.build_cuts) --------------------------------------------------------------------------------
-// The cut of the current shading point: CUT_MAX (a define) node ids, sorted by heap offset (Algorithm 2 reads
-// them in that order; the sample slots follow it).
-int lc_cut[CUT_MAX];
-float lc_err[CUT_MAX];
-
-// Refine from the root to `budget` nodes, always splitting the first node of largest error; stops early when no
-// node has error left. Returns the cut size.
-int build_cut(vec3 p, vec3 n, vec3 t, vec3 b, int budget) {
-    if (budget <= 0) return 0;
-    lc_cut[0] = 1;
-    lc_err[0] = error_bound(p, n, t, b, 1);
-    int m = 1;
-    while (m < budget) {
-        int j = 0;
-        for (int q = 1; q < m; q++)
-            if (lc_err[q] > lc_err[j]) j = q;
-        if (lc_err[j] <= 0.0) break;
-        int k = lc_cut[j];
-        lc_cut[j] = 2 * k;
-        lc_err[j] = error_bound(p, n, t, b, 2 * k);
-        lc_cut[m] = 2 * k + 1;
-        lc_err[m] = error_bound(p, n, t, b, 2 * k + 1);
-        m++;
-    }
-    for (int q = 1; q < m; q++) {   // insertion sort by heap offset
-        int v = lc_cut[q];
-        int r = q - 1;
-        while (r >= 0 && lc_cut[r] > v) {
-            lc_cut[r + 1] = lc_cut[r];
-            r--;
-        }
-        lc_cut[r + 1] = v;
-    }
-    return m;
+    vec2 r = lc_descend(p, n, t, b, node, u);
+    pdf = r.y;
+    return int(r.x);
 }
 
 // -- shading (_kernels.shade_samples, sampling.shade_tile) ----------------------------------------------------
@@ -189,25 +66,7 @@ int build_cut(vec3 p, vec3 n, vec3 t, vec3 b, int budget) {
 vec3 light_estimate(vec3 p, vec3 n, vec3 alb, int leaf, float pdf) {
     if (leaf < 0 || pdf <= 0.0) return vec3(0.0);
     int j = leaf - u_n_leaves;
-    vec3 lp = light_pos(j);
-    precise float cosnum = 0.0, d2 = 0.0;
-    for (int a = 0; a < 3; a++) {
-        precise float d = lp[a] - p[a];
-        cosnum += n[a] * d;
-        d2 += d * d;
-    }
-    if (cosnum <= 0.0) return vec3(0.0);
-    float g = cosnum / sqrt(d2) / max(d2, u_clamp2) / (3.141592653589793 * pdf);
-    if (u_one_sided != 0) {
-        vec3 ln = light_nrm(j);
-        if (ln != vec3(0.0)) {
-            precise float em = 0.0;
-            for (int a = 0; a < 3; a++) em -= ln[a] * (lp[a] - p[a]);
-            if (em <= 0.0) return vec3(0.0);
-            g *= em / sqrt(d2);
-        }
-    }
-    return alb * light_rgb(j) * g;
+    return alb * light_rgb(j) * lc_sample_weight(p, n, j, pdf);   // generated from _kernels.sample_weight
 }
 
 // Shadow segment of visibility.EmbreeOccluder: from p offset along n towards the light, shortened to (1 - 1e-3)
@@ -215,12 +74,12 @@ vec3 light_estimate(vec3 p, vec3 n, vec3 alb, int leaf, float pdf) {
 bool occluded(vec3 p, vec3 n, int leaf, float offset) {
     vec3 o = p + offset * n;
     float t;
-    return trace(o, light_pos(leaf - u_n_leaves) - o, 0.999, true, t) >= 0;
+    return trace(o, light_pos(leaf - u_n_leaves) - o, LC_SHADOW_END, true, t) >= 0;
 }
 
 // Shadow-ray origin offset (sampling.ray_offset_for): 1e-4 of the half diagonal of the lights' box and the
 // G-buffer's points (`lo`, `hi`).
 float ray_offset(vec3 lo, vec3 hi) {
     vec3 a = min(node_min(1), lo), c = max(node_max(1), hi);
-    return 1e-4 * max(0.5 * length(c - a), 1e-9);
+    return LC_OFFSET_FRACTION * max(0.5 * length(c - a), 1e-9);
 }

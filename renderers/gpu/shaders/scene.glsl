@@ -1,6 +1,7 @@
 // The uploaded scene (renderers/gpu/upload.py): BVH nodes and triangles (renderers/gpu/bvh.py),
 // materials and lights packed like renderers/tracer.py, and the ray-triangle and BVH traversal code.
 #include "constants_gen.glsl"
+#include "shade_gen.glsl"
 
 // Scene tables live in RGBA32UI images, TEX_WIDTH texels per row, read with imageLoad: on llvmpipe that is
 // ~10x faster than a storage-buffer load (and ~2x a texelFetch). Floats are stored as their bits (no
@@ -13,7 +14,6 @@ layout(binding = 3, rgba32ui) uniform restrict readonly uimage2D t_lights;  // p
 #define fetchf(t, k) uintBitsToFloat(fetch(t, k))
 
 const float INF = 1.0 / 0.0;
-const float INV_PI = 0.3183098861837907;
 #define BVH_STACK 66
 
 // Möller-Trumbore with exact barycentric bounds: on the scenes' 1.4 M test rays it agrees with Embree on every
@@ -95,69 +95,10 @@ int trace(vec3 o, vec3 d, float tmax, bool any_hit, out float t_hit) {
     return best_tri;
 }
 
-// -- shading (renderers/_shade.py, line for line) ------------------------------------------------------------
+// -- shading: the data plumbing around the kernels generated from renderers/_shade.py (shade_gen.glsl) --------
 uniform vec3 u_ambient;
 uniform vec3 u_background;
 uniform float u_light_cull;
-
-// _hash3 of _shade.py in 64-bit two's-complement arithmetic (numba int64), emulated with 32-bit halves:
-// the low 16 bits of the result depend on bits up to 44 of the products.
-uvec2 mul64(uvec2 a, uint c) {            // (lo, hi) * c mod 2^64
-    uint hi, lo;
-    umulExtended(a.x, c, hi, lo);
-    return uvec2(lo, hi + a.y * c);
-}
-uvec2 sar64(uvec2 a, int s) {             // arithmetic shift right, 0 < s < 32
-    return uvec2((a.x >> s) | (a.y << (32 - s)), uint(int(a.y) >> s));
-}
-uvec2 to64(int x) { return uvec2(uint(x), x < 0 ? 0xFFFFFFFFu : 0u); }
-float hash3(int x, int y, int z) {
-    uvec2 h = mul64(to64(x), 73856093u) ^ mul64(to64(y), 19349663u) ^ mul64(to64(z), 83492791u);
-    h = mul64(h ^ sar64(h, 13), 1274126177u);
-    h = h ^ sar64(h, 16);
-    return float(h.x & 0xFFFFu) / 65535.0;
-}
-float smooth_w(float t) { return t * t * (3.0 - 2.0 * t); }
-float value_noise(vec3 p) {
-    vec3 i = floor(p);
-    vec3 f = vec3(smooth_w(p.x - i.x), smooth_w(p.y - i.y), smooth_w(p.z - i.z));
-    ivec3 b = ivec3(i);
-    float acc = 0.0;
-    for (int dz = 0; dz < 2; dz++) {
-        float wz = dz == 1 ? f.z : 1.0 - f.z;
-        for (int dy = 0; dy < 2; dy++) {
-            float wy = dy == 1 ? f.y : 1.0 - f.y;
-            for (int dx = 0; dx < 2; dx++) {
-                float wx = dx == 1 ? f.x : 1.0 - f.x;
-                acc += wx * wy * wz * hash3(b.x + dx, b.y + dy, b.z + dz);
-            }
-        }
-    }
-    return acc;
-}
-// The lattice coordinates of checker and brick are computed in double precision like the CPU's (float64), so
-// that points exactly on a lattice line (e.g. a horizontal ray at a mortar height) fall on the same side.
-float texture_weight(int kind, float scale, vec3 p, vec3 n) {
-    if (kind == TEX_NONE) return 1.0;
-    vec3 an = abs(n);
-    dvec2 st;
-    double sc = double(scale);
-    if (an.x >= an.y && an.x >= an.z) st = dvec2(double(p.z), double(p.y)) / sc;
-    else if (an.y >= an.z) st = dvec2(double(p.x), double(p.z)) / sc;
-    else st = dvec2(double(p.x), double(p.y)) / sc;
-    if (kind == TEX_CHECKER) return ((int(floor(st.x)) + int(floor(st.y))) & 1) == 0 ? 1.0 : 0.0;
-    if (kind == TEX_BRICK) {
-        double tt = 2.0LF * st.y;
-        double row = floor(tt);
-        double ss = st.x + 0.5LF * double(int(row) & 1);
-        double fs = ss - floor(ss);
-        double ft = tt - row;
-        return (fs < 0.05LF || ft < 0.1LF) ? 0.0 : 1.0;
-    }
-    float q = 1.0 / scale;
-    float nz = 0.65 * value_noise(p * q) + 0.35 * value_noise(2.03 * p * q);
-    return clamp(1.6 * (nz - 0.5) + 0.5, 0.0, 1.0);
-}
 
 struct Surf {
     vec3 p, n, v, a, ks, base;
@@ -181,19 +122,18 @@ Surf surface(int k, vec3 o, vec3 d, float t) {
     s.p = o + d * t;
     s.n = facing_normal(k, d);
     s.v = -d;
-    vec3 n = s.n;
     int m = int(fetch(t_tris, 3 * k + 1).w);
     vec4 m0 = fetchf(t_mats, 4 * m), m1 = fetchf(t_mats, 4 * m + 1), m2 = fetchf(t_mats, 4 * m + 2);
     vec4 m3 = fetchf(t_mats, 4 * m + 3);
-    float w = texture_weight(int(m3.z), m0.w, s.p, n);
+    float w = float(shade_texture_weight(int(m3.z), m0.w, s.p.x, s.p.y, s.p.z, s.n.x, s.n.y, s.n.z));
     s.a = w * m0.xyz + (1.0 - w) * m1.xyz;
     s.s_exp = m1.w;
-    bool metallic = m3.x > 0.5;
-    s.glossy = m3.y > 0.5 || metallic;
-    s.kd = metallic ? 0.0 : INV_PI;
-    s.ks = metallic ? s.a : vec3(m2.w);
-    s.norm = (s.s_exp + 8.0) / (8.0 * 3.141592653589793);
-    s.base = m2.xyz + u_ambient * s.a * (metallic ? 0.0 : 1.0);
+    vec4 lobes = shade_material_lobes(m3.x, m3.y, s.s_exp);   // kd, glossy, metallic, norm
+    s.kd = lobes.x;
+    s.glossy = lobes.y > 0.5;
+    s.ks = lobes.z > 0.5 ? s.a : vec3(m2.w);
+    s.norm = lobes.w;
+    s.base = m2.xyz + u_ambient * s.a * (1.0 - lobes.z);
     return s;
 }
 
@@ -202,36 +142,19 @@ Surf surface(int k, vec3 o, vec3 d, float t) {
 vec3 light_contribution(Surf s, int j, out bool glossy) {
     vec4 l0 = fetchf(t_lights, 3 * j), l1 = fetchf(t_lights, 3 * j + 1), l2 = fetchf(t_lights, 3 * j + 2);
     int kind = int(l0.w);
-    vec3 w;
-    float inv_d2;
+    vec4 w = shade_light_direction(kind, l0.x, l0.y, l0.z, l2.x, l2.y, l2.z, s.p.x, s.p.y, s.p.z);
+    float e = shade_irradiance_factor(kind, l2.x, l2.y, l2.z, s.n.x, s.n.y, s.n.z, w.x, w.y, w.z, w.w);
     glossy = false;
-    if (kind == LIGHT_DIRECTIONAL) {
-        w = -l2.xyz;
-        inv_d2 = 1.0;
-    } else {
-        w = l0.xyz - s.p;
-        float inv_d = 1.0 / sqrt(dot(w, w));
-        w *= inv_d;
-        inv_d2 = inv_d * inv_d;
-    }
-    float cos_t = dot(s.n, w);
-    float e = cos_t * inv_d2;
-    if (kind == LIGHT_EMITTER) e *= max(0.0, -dot(l2.xyz, w));
-    if (cos_t <= 0.0 || e <= 0.0) return vec3(0.0);
+    if (e == 0.0) return vec3(0.0);
     vec3 f = s.kd * s.a;
     if (s.glossy) {
-        vec3 h = w + s.v;
-        float hl = length(h);
-        if (hl > 0.0) {
-            float nh = dot(s.n, h) / hl;
-            if (nh > 0.0) f += s.ks * (s.norm * pow(nh, s.s_exp));
-        }
+        f += s.ks * shade_specular_lobe(s.norm, s.s_exp, s.n.x, s.n.y, s.n.z, w.x, w.y, w.z, s.v.x, s.v.y, s.v.z);
         glossy = true;
     }
     return f * e * l1.xyz;
 }
 
-float luminance(vec3 c) { return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z; }
+float luminance(vec3 c) { return shade_luminance(c.x, c.y, c.z); }
 bool light_casts(int j) { return fetchf(t_lights, 3 * j + 1).w > 0.5; }
 
 // Shadow ray towards light j from p (normal n): origin offset along n, stops `offset` short of the light

@@ -1,0 +1,225 @@
+"""One source for the per-pixel physics on both backends (issue 29 items 1-2).
+
+The shading kernels of renderers/_shade.py (textures, the value-noise hash, the BRDF lobes and light terms) are
+translated into GLSL by renderers/gpu/codegen.py; the constants both backends share live in renderers/constants.py.
+These tests check the generated kernels against the numba ones value for value, that a kernel changed in a
+temporary copy moves both backends' images together, and that the generator names what it cannot translate.
+Needs OpenGL 4.3 through EGL (llvmpipe in CI): without it they fail, they do not skip.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import inspect
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from renderers import _shade, constants
+from renderers.gpu import codegen
+
+SHADERS = Path(codegen.__file__).parent / "shaders"
+
+
+def _table():
+    return {k: v for k, v in vars(constants).items()
+            if k.isupper() and isinstance(v, (int, float)) and not isinstance(v, bool)}
+
+
+def test_every_shared_constant_is_written_once():
+    """constants_gen.glsl declares every constant of the table with its value; the CPU kernels use the table's
+    objects; no hand-written shader repeats the acuity, luminance or shading literals."""
+    glsl = codegen.constants_glsl()
+    for k, v in _table().items():
+        m = re.search(rf"const (int|float) {k} = ([^;]+);", glsl)
+        assert m, k
+        assert float(m.group(2)) == pytest.approx(v, rel=1e-15)
+    for k in ("TEX_NOISE", "LIGHT_EMITTER", "INV_PI", "LUMA_G"):
+        assert getattr(_shade, k) is getattr(constants, k)
+    from renderers.lightcuts import fpsm, sampling
+
+    assert fpsm.ACUITY_FLOOR is constants.ACUITY_FLOOR and sampling.LC_OFFSET_FRACTION is constants.LC_OFFSET_FRACTION
+    hand = "\n".join(p.read_text() for p in sorted(SHADERS.glob("*")) if p.suffix in (".glsl", ".comp"))
+    for literal in ("1.1715", "2.45", "0.2126", "0.7152", "0.0722", "73856093", "0.3183098861837907", "65535.0",
+                    "9E3779B9", "umulExtended"):
+        assert literal not in hand, literal
+
+
+def _run(dev, src, inputs: np.ndarray, n_out: int, defines=None):
+    prog = dev.program("codegen_test.comp", defines or {}, source=src)
+    b_in = dev.buffer(np.ascontiguousarray(inputs, dtype=np.float64))
+    b_out = dev.buffer(reserve=8 * n_out * len(inputs))
+    b_in.bind_to_storage_buffer(1)
+    b_out.bind_to_storage_buffer(2)
+    prog["u_n"] = len(inputs)
+    prog.run(-(-len(inputs) // 64))
+    dev.finish()
+    out = np.frombuffer(b_out.read(), np.float64).reshape(len(inputs), n_out).copy()
+    dev.release(b_in), dev.release(b_out)
+    return out
+
+
+_HEAD = """#version 430
+layout(local_size_x = 64) in;
+#include "shade_gen.glsl"
+layout(std430, binding = 1) readonly buffer In { double v[]; };
+layout(std430, binding = 2) writeonly buffer Out { double r[]; };
+uniform int u_n;
+"""
+
+
+def test_generated_shading_kernels_are_the_cpus():
+    """shade_gen.glsl evaluates the numba kernels' formulas: the textures (checker, brick, two octaves of value
+    noise with numba's int64 hash) in double precision equal the CPU's to 1e-12; the lobes and light terms in
+    float32 to float32 rounding."""
+    from renderers.gpu.context import get_device
+
+    dev = get_device()
+    rng = np.random.default_rng(29)
+    n = 2048
+    # textures: kind, scale, p (also negative, large: the hash's sign extension and carries), n
+    tex = np.column_stack([rng.integers(0, 4, n), rng.uniform(0.05, 3.0, n), rng.uniform(-2e3, 2e3, (n, 3)),
+                           rng.normal(size=(n, 3))])
+    src = _HEAD + """void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i < uint(u_n)) {
+        uint b = 8u * i;
+        r[i] = shade_texture_weight(int(v[b]), v[b + 1u], v[b + 2u], v[b + 3u], v[b + 4u], v[b + 5u], v[b + 6u],
+                                    v[b + 7u]);
+    }
+}"""
+    got = _run(dev, src, tex, 1)[:, 0]
+    want = np.array([_shade.texture_weight(int(t[0]), *t[1:]) for t in tex])
+    assert 0.2 < np.mean(want[tex[:, 0] == 3]) < 0.8  # the noise has structure
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+
+    # lights: kind, light position, light direction/normal, p, n (unit), v (unit), metallic, glossy, exponent
+    nrm = rng.normal(size=(n, 3))
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    vv = rng.normal(size=(n, 3))
+    vv /= np.linalg.norm(vv, axis=1, keepdims=True)
+    ld = rng.normal(size=(n, 3))
+    ld /= np.linalg.norm(ld, axis=1, keepdims=True)
+    lt = np.column_stack([rng.integers(0, 3, n), rng.uniform(-5, 5, (n, 3)), ld, rng.uniform(-5, 5, (n, 3)), nrm, vv,
+                          rng.integers(0, 2, (n, 2)), rng.uniform(0.0, 200.0, n)])
+    src = _HEAD + """void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i < uint(u_n)) {
+        float x[22];
+        for (int k = 0; k < 22; k++) x[k] = float(v[22u * i + uint(k)]);
+        int kind = int(x[0]);
+        vec4 w = shade_light_direction(kind, x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8], x[9]);
+        float e = shade_irradiance_factor(kind, x[4], x[5], x[6], x[10], x[11], x[12], w.x, w.y, w.z, w.w);
+        vec4 lobes = shade_material_lobes(x[16], x[17], x[18]);
+        float sp = shade_specular_lobe(lobes.w, x[18], x[10], x[11], x[12], w.x, w.y, w.z, x[13], x[14], x[15]);
+        float lum = shade_luminance(x[1], x[2], x[3]);
+        double res[11] = double[11](w.x, w.y, w.z, w.w, e, lobes.x, lobes.y, lobes.z, lobes.w, sp, lum);
+        for (int k = 0; k < 11; k++) r[11u * i + uint(k)] = res[k];
+    }
+}"""
+    got = _run(dev, src, np.column_stack([lt, np.zeros((n, 3))]), 11)
+    want = []
+    for t in lt:
+        kind = int(t[0])
+        w = _shade.light_direction(kind, *t[1:4], *t[4:7], *t[7:10])
+        e = _shade.irradiance_factor(kind, *t[4:7], *t[10:13], *w)
+        lobes = _shade.material_lobes(t[16], t[17], t[18])
+        sp = _shade.specular_lobe(lobes[3], t[18], *t[10:13], *w[:3], *t[13:16])
+        want.append([*w, e, *lobes, sp, _shade.luminance(*t[1:4])])
+    want = np.array(want)
+    assert (want[:, 4] == 0).mean() > 0.2 and (want[:, 4] > 0).mean() > 0.2   # lit and unlit both drawn
+    assert (want[:, 9] > 0).mean() > 0.2
+    np.testing.assert_allclose(got, want, rtol=2e-4, atol=1e-6)
+
+
+def _copy_of_shade(tmp_path, name: str, edits: list[tuple[str, str]]):
+    """renderers/_shade.py with ``edits`` applied, imported as a package module of its own (relative imports
+    resolved against ``renderers``)."""
+    text = inspect.getsource(_shade)
+    for old, new in edits:
+        assert text.count(old) == 1, old
+        text = text.replace(old, new)
+    path = tmp_path / f"{name}.py"
+    path.write_text(text)
+    spec = importlib.util.spec_from_file_location(f"renderers.{name}", path)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.mark.parametrize("old,new,message", [
+    ("        return 1.0\n    ax, ay, az", "        return 1.0\n    for f in (1.0, 2.0):\n        scale = scale / f\n"
+     "    ax, ay, az", "texture_weight: for loop over Tuple"),
+    ("    h = h ^ (h >> 16)", "    h = h ^ (h >> 16)\n    h = h * x", "_hash3: int64 operation i64 Mult i64"),
+    ("    return LUMA_R * r + LUMA_G * g + LUMA_B * b", "    return [r, g, b][0]", "luminance: subscript of List"),
+    ("    return LUMA_R * r + LUMA_G * g + LUMA_B * b", "    return r, g, b, r, g", "luminance: tuple of 5 values"),
+    ("    cos_t = nx * wx", "    cos_t = np.dot(nx, wx)\n    cos_t = nx * wx", "irradiance_factor: call of "),
+], ids=["for-over-tuple", "int64-product", "list", "5-tuple", "numpy-call"])
+def test_generator_names_what_it_cannot_translate(tmp_path, old, new, message):
+    mod = _copy_of_shade(tmp_path, "_shade_bad", [(old, new)])
+    try:
+        with pytest.raises(NotImplementedError, match=re.escape(message)):
+            codegen.shade_glsl(mod)
+    finally:
+        sys.modules.pop("renderers._shade_bad", None)
+
+
+def test_a_kernel_change_moves_both_backends_together(tmp_path, monkeypatch):
+    """Change BRDF terms (the Blinn-Phong normalisation (s + 8) / 8 pi -> (s + 2) / 2 pi, the Lambert weight 1 / pi
+    -> 0.6 / pi) and a texture constant (brick mortar 0.05 -> 0.2 of a brick) in a temporary copy of renderers/_shade.py: the CPU (numba) and the GPU
+    (GLSL generated from the copy) images both change, by the same amount, and still agree."""
+    from renderers import render as cpu_render
+    from renderers import tracer
+    from renderers.gpu import render as gpu_render
+    from renderers.gpu.agreement import agreement
+    from renderers.gpu.context import get_device
+
+    w, h = 96, 72
+    before = cpu_render("cornell", "gt", {}, w, h)[0], gpu_render("cornell", "gt", {}, w, h)[0]
+    mod = _copy_of_shade(tmp_path, "_shade_changed", [
+        ("(s_exp + 8.0) / (8.0 * math.pi)", "(s_exp + 2.0) / (2.0 * math.pi)"),
+        ("kd = 0.0 if metallic_flag > 0.5 else INV_PI", "kd = 0.0 if metallic_flag > 0.5 else 0.6 * INV_PI"),
+        ("fs < 0.05 or", "fs < 0.2 or")])
+    try:
+        monkeypatch.setattr(tracer, "S", mod)
+        monkeypatch.setattr(codegen, "_shade_glsl_cached", lambda: codegen._shade_glsl(mod))
+        monkeypatch.setattr(get_device(), "_programs", {})   # compile the changed shaders (restored afterwards)
+        after = cpu_render("cornell", "gt", {}, w, h)[0], gpu_render("cornell", "gt", {}, w, h)[0]
+    finally:
+        sys.modules.pop("renderers._shade_changed", None)
+    assert agreement(before[0], before[1])[0] >= 35.0
+    for b, a in zip(before, after):
+        assert agreement(b, a)[0] < 30.0   # a visible change on each backend
+    psnr, within = agreement(after[0], after[1])
+    assert psnr >= 35.0 and within >= 0.99, (psnr, within)
+    d_cpu, d_gpu = after[0] - before[0], after[1] - before[1]
+    assert np.abs(d_gpu - d_cpu).max() <= 0.02 * np.abs(d_cpu).max()   # the same change
+
+
+def test_an_acuity_constant_changed_in_the_table_moves_both_fpsms(monkeypatch):
+    """Change seed 003 Eq 2's slope in renderers/constants.py (2.45 -> 1.2 per radian: a wider fovea): the CPU's
+    FPSM (numpy) and the GPU's (GLSL generated from fpsm.acuity and the table) both change and still agree."""
+    from renderers import registry
+    from renderers.gpu.context import get_device
+    from renderers.lightcuts import fpsm
+
+    def maps():
+        args = ("cornell_many", "fsl", {"max_rspp": 2}, 57, 33)
+        return (registry.render(*args, gaze=(20, 12))[1]["fpsm"],
+                registry.render(*args, gaze=(20, 12), backend="gpu")[1]["fpsm"])
+
+    before = maps()
+    monkeypatch.setattr(constants, "ACUITY_SLOPE", 1.2)
+    monkeypatch.setattr(fpsm, "ACUITY_SLOPE", 1.2)
+    monkeypatch.setattr(codegen, "constants_glsl", codegen.constants_glsl.__wrapped__)   # re-read the table
+    monkeypatch.setattr(codegen, "fpsm_glsl", codegen.fpsm_glsl.__wrapped__)
+    monkeypatch.setattr(get_device(), "_programs", {})
+    after = maps()
+    np.testing.assert_allclose(before[1], before[0], rtol=0, atol=1e-4)
+    np.testing.assert_allclose(after[1], after[0], rtol=0, atol=1e-4)
+    for b, a in zip(before, after):
+        assert float(np.mean(a - b)) > 0.02   # a wider fovea: the map rises on both backends
