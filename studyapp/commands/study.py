@@ -69,6 +69,10 @@ def cmd_validate(args) -> int:
     from studyapp.runner.stimuli import missing_line, missing_stimuli, prepare_command, stimulus_root
 
     p, sched = checked_protocol(args, args.stimuli)
+    if p.live:  # what `run --scale` refuses before its session starts
+        from studyapp.runner.live import check_live_sizes
+
+        check_live_sizes(p, args.scale)
     print(f"{p.path}: valid")
     print(p.describe())
     kinds = {k: sum(t.kind == k for t in sched) for k in ("practice", "reference", "trial", "catch")}
