@@ -65,6 +65,31 @@ class RegionMasks(NamedTuple):
     """Every other pixel (``e > fovea_deg``)."""
 
 
+#: Fewest pixels on a side of a render at ``--scale`` (:func:`scaled_size`).
+MIN_SCALED_SIDE = 16
+
+
+def scaled_size(width: int, height: int, scale: float) -> tuple[int, int]:
+    """``scale`` times ``width`` x ``height`` (rounded), the smaller side at least :data:`MIN_SCALED_SIDE`, never
+    more than the full size.
+
+    Where the floor applies, both sides are scaled by the same factor, so that the image keeps its aspect ratio
+    and is shown over the same window rectangle however it is placed (fitted into the window or covering it):
+    the smallest whole multiple of the reduced aspect ratio (1920x1080 = 16:9 -> 32x18) whose smaller side is
+    below twice the floor; else the floor's factor, rounded (the aspect ratio within a pixel)."""
+    small = min(width, height)
+    if min(round(width * scale), round(height * scale)) >= MIN_SCALED_SIDE:
+        return round(width * scale), round(height * scale)
+    if small <= MIN_SCALED_SIDE:
+        return width, height
+    g = math.gcd(width, height)
+    n = math.ceil(MIN_SCALED_SIDE * g / small)  # n (width / g, height / g): exactly the full aspect ratio
+    if n * small // g < 2 * MIN_SCALED_SIDE:
+        return n * width // g, n * height // g
+    f = MIN_SCALED_SIDE / small
+    return min(width, round(width * f)), min(height, round(height * f))
+
+
 @dataclass(frozen=True)
 class ViewingGeometry:
     """An image of ``width`` x ``height`` pixels subtending ``fov_y_deg`` vertically, looked at ``gaze``.
@@ -107,8 +132,8 @@ class ViewingGeometry:
                        gaze_y=self.gaze_y * h / self.height)
 
     def scaled(self, scale: float) -> ViewingGeometry:
-        """``scale`` times the pixels (at least 16 a side), same visual angle (dry runs, ``--scale``)."""
-        return self.resized(max(16, round(self.width * scale)), max(16, round(self.height * scale)))
+        """``scale`` times the pixels, same visual angle (dry runs, ``--scale``); see :func:`scaled_size`."""
+        return self.resized(*scaled_size(self.width, self.height, scale))
 
     # -- pixels <-> degrees (seed 001 Eq 3) ------------------------------------------------------------------
     @property

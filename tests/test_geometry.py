@@ -8,7 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from data_schema.errors import UserError
-from data_schema.geometry import Display, ViewingGeometry, fov_from_size
+from data_schema.geometry import Display, ViewingGeometry, fov_from_size, scaled_size
 
 
 @given(st.integers(16, 4000), st.integers(16, 4000), st.floats(1.0, 200.0), st.floats(5.0, 300.0))
@@ -54,3 +54,28 @@ def test_region_masks_are_the_fovea_circle_counted_by_hand():
     np.testing.assert_array_equal(m.periphery, ~m.fovea)
     with pytest.raises(UserError, match=r"fovea_deg=90 is out of range: allowed \(0, 90\)"):
         ViewingGeometry.create(8, 8, 90.0).region_masks(90.0)
+
+
+def test_a_render_clamped_at_a_small_scale_keeps_its_aspect_ratio():
+    """seed003's 256x144 stimuli at --scale 0.05 / 0.1 rendered 16x16 / 26x16 (each side clamped to 16 px on its
+    own), so a window fitting the image pillarboxed it while the live views covered the window. Now both sides
+    are scaled together: 32x18, exactly 16:9, which fills a 1920x1080 window either way."""
+    g = ViewingGeometry.create(256, 144, 36.7, (128.0, 72.0))
+    for scale in (0.05, 0.1):
+        s = g.scaled(scale)
+        assert (s.width, s.height) == (32, 18)
+        assert s.width * 1080 == s.height * 1920  # the fitted rectangle is the whole window
+        assert (s.gaze_x, s.gaze_y) == (16.0, 9.0)
+    assert (g.scaled(0.25).width, g.scaled(0.25).height) == (64, 36)  # above the floor: unchanged
+    assert scaled_size(1366, 768, 0.01) == (28, 16)  # no small exact 683:384 size: the floor's factor, rounded
+    assert scaled_size(16, 3000, 0.05) == (16, 3000)  # the floor would need more than the full size
+    assert scaled_size(10, 8, 0.5) == (10, 8)
+
+
+@given(st.integers(1, 4000), st.integers(1, 4000), st.floats(0.001, 1.0))
+def test_a_scaled_size_keeps_the_floor_and_the_aspect_ratio(w, h, scale):
+    sw, sh = scaled_size(w, h, scale)
+    assert sw <= w and sh <= h
+    assert min(sw, sh) >= min(16, w, h)
+    if min(round(w * scale), round(h * scale)) < 16 and min(w, h) > 16:  # clamped: one factor for both sides
+        assert abs(sw * h - sh * w) <= 0.5 * (w + h)  # each side within half a pixel of f * side

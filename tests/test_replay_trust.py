@@ -254,6 +254,20 @@ def test_sessions_flags_a_trial_with_one_rendered_frame_and_pools_every_trial(tm
     assert " 33.3% " in row and " 52ms " in row and " 500ms" in row
 
 
+def test_sessions_lists_a_reference_trial_with_one_rendered_frame(tmp_path, capsys):
+    """A reference (not in the tidy log) that rendered one frame is listed and flagged, never hidden."""
+    db = live_db(live_protocol(tmp_path / "proto", repetitions=1), tmp_path / "s.db")
+    assert craft(db, "planned_trials", {"idx": 0}, {"kind": "reference"}) == 1
+    craft(db, "frames", {"idx": 0}, {"render_s": None})
+    craft(db, "frames", {"idx": 0, "frame": 0}, {"render_s": 0.01})
+    code, out, _ = _run(capsys, "sessions", "--db", db)
+    lines = out.splitlines()
+    row = [line for line in lines if line.startswith("P1-s1 ") and "ms" in line][0]
+    assert code == 0 and row.split()[1] == "1" and "FLAGGED trials 0 (< 2 rendered frames)" in row
+    assert " 52ms " in row
+    assert [line for line in lines if line.startswith("  trial 0 ")][0].endswith("fewer than two rendered frames")
+
+
 def test_frame_rates_are_taken_within_a_stimulus_never_across_the_pause_between_a_and_b(tmp_path, capsys):
     """live_db logs each stimulus of a 2AFC trial as 3 flips 1/30 s apart, B 2 s after A: every frame interval
     is 1/30 s (the pause between A and B is none; it read as 0.5 fps in fps_p5), and a trial that rendered

@@ -253,3 +253,27 @@ def test_run_help_documents_pause_keys_prepare_policy_and_live_scale(capsys):
     assert "a missing set is refused in one line naming it and the `studyapp prepare` command, unless --prepare" in text
     assert "--prepare render the missing stimulus sets first" in text
     assert "a live protocol renders its trials at its render size times F" in text
+
+
+def test_a_live_render_too_small_at_the_scale_is_refused_before_the_session(tmp_path, capsys, monkeypatch):
+    """seed001_2afc_live at --scale 0.02 renders 38x22: its catch condition COARSE (LaFR delta 8) has a 3-row LP
+    buffer. Refused by validate, run and run --preview alike in one line before any database or window (it
+    stopped the session at the second practice trial)."""
+    from pathlib import Path
+
+    from studyapp.commands import study
+
+    def no_window(*a, **k):
+        raise AssertionError("a window was asked for")
+
+    monkeypatch.setattr(study, "_presenter_factory", lambda *a: no_window)
+    proto = str(Path(__file__).resolve().parents[1] / "protocols" / "seed001_2afc_live.yaml")
+    want = ("cannot render COARSE live at --scale 0.02 (38x22 px): lafr.delta=8 is out of range on this display: "
+            "the LP buffer has 3 rows")
+    db = tmp_path / "s.db"
+    for argv in (["validate", proto, "--scale", "0.02"],
+                 ["run", proto, "--scale", "0.02", "--participant", "P1", "--db", str(db)],
+                 ["run", proto, "--scale", "0.02", "--preview"]):
+        assert _refused(capsys, argv).startswith(want), argv
+    assert not db.exists()
+    assert main(["validate", proto, "--scale", "0.25"]) == 0

@@ -69,6 +69,10 @@ def cmd_validate(args) -> int:
     from studyapp.runner.stimuli import missing_line, missing_stimuli, prepare_command, stimulus_root
 
     p, sched = checked_protocol(args, args.stimuli)
+    if p.live:  # what `run --scale` refuses before its session starts
+        from studyapp.runner.live import check_live_sizes
+
+        check_live_sizes(p, args.scale)
     print(f"{p.path}: valid")
     print(p.describe())
     kinds = {k: sum(t.kind == k for t in sched) for k in ("practice", "reference", "trial", "catch")}
@@ -274,7 +278,8 @@ def cmd_sessions(args) -> int:
         flips = st.trial_flips()
         checks = {s["id"]: c for s in sessions if (c := st.fps_check(s["id"])) is not None}
         tidy = st.tidy_rows() if flips or checks else []
-        trial_session = {(r["participant"], r["trial"]): r["session"] for r in tidy} if flips else {}
+        # every trial that logged frames, references included (the tidy log has no references)
+        trial_session = {k: st.response_session(*k) for k in flips}
         # trials of a condition below min_fps in the frame-rate check, run with --accept-slow
         check_slow = {(r["participant"], r["trial"]) for r in tidy if r["fps_check_slow"]}
     print(f"{db}: protocol {meta.get('protocol_name')} {meta.get('protocol_version')} "

@@ -304,6 +304,32 @@ def window_image(window: tuple[int, int], views, images) -> np.ndarray:
     return out
 
 
+def check_live_sizes(protocol, scale: float = 1.0) -> None:
+    """Refuse (one line) a live protocol whose renderer conditions cannot render at ``scale``, before anything is
+    created: each condition's eye views (:meth:`LiveStimulus.views`) at the render size times ``scale``, checked
+    as the renderer checks every live frame (:func:`renderers.registry.check_geometry`; e.g. a LaFR buffer of
+    too few rows). The render size does not depend on the scene, so one check per condition covers every scene.
+    Every rendered condition counts (catch and practice ones, each level of an adaptive ladder), not a varied
+    condition's template."""
+    from data_schema.errors import UserError
+    from data_schema.geometry import ViewingGeometry, eye_views
+    from renderers.registry import check_geometry
+
+    varied = protocol.adaptive.varied if protocol.adaptive is not None else {}
+    g = protocol.render_geometry(scale)
+    for name, cond in protocol.conditions.items():
+        if not cond.renderer or name in varied:
+            continue
+        views = eye_views((g.width, g.height), (g.width, g.height), eyes_of(cond.params), protocol.display.stereo,
+                          eye_of(cond.params))
+        for w, h in sorted({(v.render_width, v.render_height) for v in views}):
+            try:
+                check_geometry(cond.renderer, cond.params, ViewingGeometry.create(w, h, g.fov_y_deg, (w / 2, h / 2)))
+            except ValueError as exc:
+                raise UserError(f"cannot render {name} live at --scale {scale:g} ({w}x{h} px): "
+                                f"{str(exc).splitlines()[0]} (use a larger --scale)") from None
+
+
 def live_stimulus(protocol, condition: str, scene: str, scale: float = 1.0) -> LiveStimulus:
     """The :class:`LiveStimulus` of ``condition`` in ``scene`` for a live protocol (geometry at ``scale``).
 

@@ -61,6 +61,10 @@ def run_preview(protocol: Protocol, stimuli, presenter_factory: Callable, scale:
 
     Returns ``{"shown": pairs shown, "planned": pairs, "ended": ended with Escape then E, "rows": the check's
     rows (empty: pre-rendered, or ended)}``."""
+    if protocol.live:  # a live render too small for a renderer: refused before the window opens
+        from .live import check_live_sizes
+
+        check_live_sizes(protocol, scale)
     presenter = presenter_factory(stimuli, protocol.display)
     presenter.open(protocol.display)
     trials = preview_trials(protocol, stimuli)

@@ -253,6 +253,10 @@ def run_session(protocol: Protocol, participant: str, db_path, presenter_factory
     db_path = Path(db_path)
     created = not db_path.exists()
     _check_database(db_path, resume)
+    if protocol.live:  # a live render too small for a renderer: refused now, not at its first trial
+        from .live import check_live_sizes
+
+        check_live_sizes(protocol, scale)
     store = open_store(db_path, "create" if created else "write")
     try:
         return _run(store, protocol, participant, presenter_factory, seed, resume, scale, stimuli_root,
