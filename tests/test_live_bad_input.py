@@ -8,6 +8,7 @@ import dataclasses
 import sqlite3
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import pytest
@@ -53,6 +54,14 @@ def _write(tmp_path: Path, gaze: str = "mouse", eyetracker: str = "", extra: str
 def _run(args: list[str], env=None, timeout: float = 120) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "studyapp", *args], env=env, cwd=str(ROOT), capture_output=True,
                           text=True, timeout=timeout)
+
+
+def _keep_pressing(x: Xvfb, keys: tuple[str, ...], stop: threading.Event) -> None:
+    """Press ``keys`` in turn every 0.3 s until ``stop`` is set (a screen ignores the keys it does not ask)."""
+    while not stop.is_set():
+        for k in keys:
+            subprocess.run(["xdotool", "key", k], env=x.env, timeout=10, check=False)
+            stop.wait(0.3)
 
 
 def _one_error_line(proc: subprocess.CompletedProcess, expected: str) -> None:
@@ -102,7 +111,9 @@ def test_window_checks_refuse_before_anything_is_recorded(tmp_path, case):
         "tracker_does_not_start": ({}, "tracker", "eyetracker: {device: eyetracker.hw.nosuch.EyeTracker}",
                                    "the eye tracker did not start (no iohub device 'eyetracker.hw.nosuch"),
         "validation_fails": ({}, "tracker", "eyetracker: {device: eyetracker.hw.mouse.EyeTracker, "
-                             "max_validation_error_deg: 0.01, max_attempts: 1}", "eye-tracker validation failed"),
+                             "max_validation_error_deg: 0.01, max_attempts: 1, target_delay_s: 0.1, "
+                             "target_duration_s: 0.1}",
+                             "eye-tracker validation failed"),
     }[case]
     proto = _write(tmp_path, gaze=gaze, eyetracker=tracker)
     db = tmp_path / "s.db"  # a participant's answers, from the simulated observer (which needs no window)
@@ -110,7 +121,13 @@ def test_window_checks_refuse_before_anything_is_recorded(tmp_path, case):
     assert done.returncode == 0, done.stderr
     before = _dump(db)
     with Xvfb() as x:
-        old = _run(["run", str(proto), "--participant", "P2", "--db", str(db)], env={**x.env, **env_extra})
+        stop = threading.Event()
+        if case == "validation_fails":  # SPACE starts the check; after it fails, the experimenter's E ends
+            threading.Thread(target=_keep_pressing, args=(x, ("space", "e"), stop), daemon=True).start()
+        try:
+            old = _run(["run", str(proto), "--participant", "P2", "--db", str(db)], env={**x.env, **env_extra})
+        finally:
+            stop.set()
         if case == "no_gl43":  # (the other cases refuse at the same point of a run)
             new = _run(["run", str(proto), "--participant", "P9", "--db", str(tmp_path / "new.db")],
                        env={**x.env, **env_extra})

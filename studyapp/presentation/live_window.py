@@ -187,7 +187,7 @@ class LiveTrial:
 
     def _gaze_sample(self, now: float):
         """The newest gaze sample in window pixels with its time, or the fixation point."""
-        g = self.p._gaze_window_px()
+        g = self.p.gaze_window_px()
         if g is not None:
             return now, g[0], g[1]
         fix = self.trial.fixation_px

@@ -41,7 +41,6 @@ whether the gaze left the foveal disc of radius ``fovea_deg`` around the fixatio
 from __future__ import annotations
 
 import collections
-import contextlib
 import math
 import time
 from dataclasses import dataclass, field
@@ -235,24 +234,6 @@ def _stim_labels(trial: TrialDisplay) -> list[str]:
     return families.get(trial.family).labels(len(trial.stimuli))
 
 
-IOHUB_STOP_S = 5.0  # how long the iohub server may take to stop before it is killed
-
-
-def _check_iohub_device(device: str) -> None:
-    """Raise a one-line error unless ``device`` (``eyetracker.hw.<maker>.EyeTracker``) names an iohub device
-    class that is installed, resolved the way iohub resolves it (its module or a plug-in's entry point)."""
-    from psychopy.iohub.devices import importDeviceModule
-
-    module, _, cls = device.rpartition(".")
-    try:
-        found = hasattr(importDeviceModule(f"psychopy.iohub.devices.{module}"), cls)
-    except Exception:  # noqa: BLE001 - iohub raises ModuleNotFoundError or the plug-in's own import error
-        found = False
-    if not found:
-        raise RuntimeError(f"no iohub device {device!r} is installed (e.g. eyetracker.hw.mouse.EyeTracker, "
-                           "eyetracker.hw.sr_research.eyelink.EyeTracker with its psychopy plug-in)")
-
-
 def decode_image(path: Path):
     """Open and fully decode an image file into a PIL image in ``RGB`` (or ``RGBA``) mode (its size checked from
     the header first: :func:`data_schema.images.open_image`)."""
@@ -318,7 +299,10 @@ class PsychoPyPresenter:
     fixation_rgb : colour of the fixation cross (0-255 RGB); ``None`` draws no fixation mark.
     fixation_size_px, fixation_line_px : arm length and line width of the cross, window pixels.
     show_labels : draw "A"/"B" (2AFC) or "1".."N" (preference) in the top-left corner while switching.
-    eyetracker : ``None`` or ``"mousegaze"`` (psychopy.iohub's mouse-driven simulated eye tracker).
+    eyetracker : ``None``, ``"mousegaze"`` (psychopy.iohub's mouse-driven simulated eye tracker), ``"device"``
+        (the iohub device of ``tracker``) or ``"pointer"`` (the window's mouse pointer); see :mod:`.eyetracker`.
+    tracker : the protocol's ``eyetracker`` block: with ``calibrate`` or ``max_validation_error_deg`` the tracker
+        is calibrated and validated at :meth:`open` (``facts["validation"]``).
     fovea_deg : radius of the foveal disc around the fixation point; a gaze sample farther away sets
         ``TrialResult.gaze_left_fovea``.
     gaze_log : with an eye tracker, append every gaze sample to this CSV file (``trial,t_s,x_px,y_px``: time
@@ -378,9 +362,7 @@ class PsychoPyPresenter:
         self._prefetched: dict[int, list] = {}  # trial index -> futures of decoded frames, in order
         self._pool = None
         self._black_since: float | None = None
-        self._io = None
-        self._tracker = None
-        self._pointer = None
+        self.tracker = None  # the EyeTracker (.eyetracker) once started: gaze, calibration, validation
         self._n_shots = 0
 
     # ------------------------------------------------------------------ window
@@ -475,14 +457,7 @@ class PsychoPyPresenter:
         if self.gpu:
             self.facts["gpu"] = self._open_gpu()
         if self.eyetracker:
-            self.facts["eyetracker"] = self._start_eyetracker()
-            if self.required_tracker and not self.facts["eyetracker"]["ok"]:
-                reason = self.facts["eyetracker"]["reason"]
-                self.close()
-                raise PresentationError(f"the eye tracker did not start ({reason}): check its connection and "
-                                        "the protocol's eyetracker block, or use gaze: fixation")
-            if self.tracker_spec.get("calibrate") or self.tracker_spec.get("max_validation_error_deg"):
-                self.facts["validation"] = self._calibrate_and_validate()
+            self._start_eyetracker()
         return dict(self.facts)
 
     def _make_stims(self) -> None:
@@ -556,7 +531,9 @@ class PsychoPyPresenter:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
-        self._stop_iohub()
+        if self.tracker is not None:
+            self.tracker.stop()
+            self.tracker = None
         if self.win is not None:
             self.win.close()
             self.win = None
@@ -572,34 +549,6 @@ class PsychoPyPresenter:
             raise UserError(f"{exc} (live trials: backend: cpu on the protocol's conditions)") from None
         return {"context": device.source, "gl_version": device.version, "gl_renderer": device.renderer}
 
-    def _stop_iohub(self) -> None:
-        """Stop recording and the iohub server process (a hub left running keeps this process alive)."""
-        io, tracker, self._io, self._tracker = self._io, self._tracker, None, None
-        if tracker is not None:
-            with contextlib.suppress(Exception):
-                tracker.setRecordingState(False)
-        if io is None:
-            return
-        import io as io_module
-        import threading
-
-        from psychopy.iohub.devices import Computer
-
-        # iohub's quit() waits for its server process without a timeout, and a server stuck in a device's
-        # shutdown would hang the study here: give it IOHUB_STOP_S, then kill it.
-        server = Computer.iohub_process
-        def quit_hub():
-            with contextlib.suppress(Exception), contextlib.redirect_stdout(io_module.StringIO()):
-                io.quit()  # (iohub prints the server's exit code)
-
-        quitting = threading.Thread(target=quit_hub, daemon=True, name="studyapp-iohub-quit")
-        quitting.start()
-        quitting.join(IOHUB_STOP_S)
-        if quitting.is_alive() and server is not None:
-            with contextlib.suppress(Exception):
-                server.kill()
-            quitting.join(2.0)
-
     def _require_open(self):
         if self.win is None:
             raise PresentationError("the window is not open: call open(display) first")
@@ -608,105 +557,32 @@ class PsychoPyPresenter:
         if self.on_event is not None:
             self.on_event(name, info)
 
-    # ------------------------------------------------------------------ eye tracking
-    def _start_eyetracker(self) -> dict:
-        """Start iohub with MouseGaze or the protocol's device; a fact dict (``{"ok": False, "reason": ...}``
-        if unusable). ``pointer``: the window's own mouse position stands in for the gaze (no iohub)."""
-        if self.eyetracker == "pointer":
-            from psychopy import event
+    # ------------------------------------------------------------------ eye tracking (.eyetracker)
+    def _start_eyetracker(self) -> None:
+        """Start the gaze source (:class:`.eyetracker.EyeTracker`) into ``facts["eyetracker"]`` and, where the
+        protocol's block asks, calibrate and validate it into ``facts["validation"]``."""
+        from .eyetracker import EyeTracker, Screen
 
-            self._pointer = event.Mouse(win=self.win, visible=False)
-            return {"kind": "pointer", "ok": True}
-        try:
-            from psychopy.iohub import launchHubServer
-
-            if self.eyetracker == "device":
-                device = self.tracker_spec["device"]
-                _check_iohub_device(device)
-                settings = {"name": "tracker", **(self.tracker_spec.get("settings") or {})}
-                cfg = {device: settings}
-            else:
-                cfg = {
-                    "eyetracker.hw.mouse.EyeTracker": {
-                        "name": "tracker",
-                        "controls": {"move": [], "blink": ["LEFT_BUTTON"], "saccade_threshold": 0.5},
-                    }
-                }
-            level = self._logging.console.level
-            self._logging.console.setLevel(self._logging.ERROR)  # "fullScr should be True": not for a tracker
+        self.tracker = EyeTracker(self.eyetracker, self.tracker_spec)
+        self.facts["eyetracker"] = self.tracker.start(self.win, self._logging, self._window_location)
+        if not self.facts["eyetracker"]["ok"]:
+            self.tracker = None
+            if self.required_tracker:
+                reason = self.facts["eyetracker"]["reason"]
+                self.close()
+                raise PresentationError(f"the eye tracker did not start ({reason}): check its connection and "
+                                        "the protocol's eyetracker block, or use gaze: fixation")
+            return
+        if self.tracker.wants_validation:
+            screen = Screen(win=self.win, visual=self._visual, show_text=self._draw_text,
+                            wait_key=self._wait_keys, poll_keys=lambda keys: [k.name for k in self._poll_keys(keys)],
+                            now=self._now, emit=self._emit)
             try:
-                self._io = launchHubServer(window=self.win, **cfg)
-            finally:
-                self._logging.console.setLevel(level)
-            self._tracker = self._io.getDevice("tracker")
-            if self._tracker is None:
-                raise RuntimeError(f"iohub could not create the device {next(iter(cfg))}")
-            self._tracker.setRecordingState(True)
-        except Exception as exc:  # noqa: BLE001 - the tracker's own failure, reported in one line
-            self._stop_iohub()
-            reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            return {"kind": self.eyetracker, "ok": False, "reason": reason}
-        return {"kind": self.eyetracker, "ok": True}
-
-    #: Validation targets as fractions of the window (centre, then the four quadrants at 70 % out).
-    VALIDATION_TARGETS = ((0.5, 0.5), (0.15, 0.15), (0.85, 0.15), (0.85, 0.85), (0.15, 0.85))
-
-    def _calibrate_and_validate(self) -> dict:
-        """Calibrate through iohub where the tracker supports it, then validate: targets shown one by one, the
-        gaze recorded over the last half of each 1.2 s, the mean angular error (degrees, from the display
-        geometry) against the protocol's ``max_validation_error_deg``; repeated up to ``max_attempts`` times.
-        Raises :class:`PresentationError` if no attempt passes."""
-        spec = self.tracker_spec
-        limit = spec.get("max_validation_error_deg")
-        attempts = []
-        for attempt in range(int(spec.get("max_attempts", 3))):
-            if spec.get("calibrate"):
-                try:
-                    self._tracker.runSetupProcedure()
-                except Exception as exc:  # noqa: BLE001 - the tracker's own failure, reported in one line
-                    self.close()
-                    raise PresentationError(f"eye-tracker calibration failed: {type(exc).__name__}: "
-                                            f"{str(exc).splitlines()[0] if str(exc) else ''}".rstrip(": ")) from None
-            error = self._validate_once(attempt)
-            attempts.append(error)
-            self._emit("validation", attempt=attempt, error_deg=error)
-            if limit is None or error <= limit:
-                return {"error_deg": error, "attempts": attempts}
-        self.close()
-        best = min(attempts)
-        what = (f"mean error {best:.2f}° > {limit:g}°" if math.isfinite(best)
-                else "the tracker reported no gaze while the targets were shown")
-        raise PresentationError(f"eye-tracker validation failed: {what} after {len(attempts)} attempt(s): check "
-                                "the set-up and run again")
-
-    def _validate_once(self, attempt: int) -> float:
-        geometry = self.display.geometry()
-        ww, wh = (int(v) for v in self.win.size)
-        dot = self._visual.Circle(self.win, radius=8, units="pix", fillColor=(1, 1, 1), lineColor=None)
-        errors = []
-        for k, (fx, fy) in enumerate(self.VALIDATION_TARGETS):
-            tx, ty = fx * ww, fy * wh
-            dot.pos = (tx - ww / 2, wh / 2 - ty)
-            samples = []
-            t0 = self._now()
-            shown = False
-            while self._now() - t0 < 1.2:
-                dot.draw()
-                self.win.flip()
-                if not shown:
-                    self._emit("validation_target", attempt=attempt, target=k, x=tx, y=ty)
-                    shown = True
-                g = self._gaze_window_px()
-                if g is not None and self._now() - t0 > 0.6:
-                    samples.append(g)
-            if not samples:
-                errors.append(float("inf"))
-                continue
-            gx, gy = np.mean(samples, axis=0)
-            # the angle between the rays to the target and to the gaze (viewing geometry, seed 001 Eq 3 from
-            # the target as the centre of projection)
-            errors.append(float(geometry.with_gaze((tx, ty)).eccentricity(math.hypot(gx - tx, gy - ty))))
-        return float(np.mean(errors))
+                self.facts["validation"] = self.tracker.calibrate_and_validate(screen, self.display)
+            except BaseException:
+                self.close()
+                raise
+            self._black_since = None
 
     def _window_location(self) -> tuple[int, int]:
         """Top-left corner of the window on its screen, pixels (0, 0 in fullscreen)."""
@@ -714,22 +590,10 @@ class PsychoPyPresenter:
             return (0, 0)
         return tuple(self.win.winHandle.get_location())
 
-    def _gaze_window_px(self) -> tuple[float, float] | None:
-        """Last gaze sample in window pixels (x right, y down, top-left origin), or None."""
-        if self._pointer is not None:
-            x, y = self._pointer.getPos()  # pix units: origin at the window centre, y up
-            ww, wh = (int(v) for v in self.win.size)
-            return (float(x) + ww / 2.0, wh / 2.0 - float(y))
-        if self._tracker is None:
-            return None
-        g = self._tracker.getLastGazePosition()
-        if g is None or len(g) < 2:
-            return None
-        # iohub reports display coordinates (origin at the screen centre, y up): use the window position
-        screen = self.win.winHandle.screen
-        wx, wy = self._window_location()
-        sw, sh = screen.width, screen.height
-        return (float(g[0]) + sw / 2.0 - wx, sh / 2.0 - float(g[1]) - wy)
+    def gaze_window_px(self) -> tuple[float, float] | None:
+        """The newest gaze sample in window pixels (x right, y down, top-left origin), or None without a gaze
+        source."""
+        return None if self.tracker is None else self.tracker.gaze_window_px()
 
     # ------------------------------------------------------------------ drawing helpers
     def _fit_text(self, stim, text: str, max_h: float) -> None:
@@ -1006,7 +870,7 @@ class PsychoPyPresenter:
 
     def _sample_gaze(self, trial: TrialDisplay, placement: Placement, t_s: float, info: dict) -> bool:
         """Record the last gaze sample at ``t_s`` after onset; True if it lies outside the foveal disc."""
-        g = self._gaze_window_px()
+        g = self.gaze_window_px()
         if g is None:
             return False
         info["gaze"].append([t_s, g[0], g[1]])
@@ -1043,7 +907,7 @@ class PsychoPyPresenter:
         state = AnswerState(trial)
         onset = stim_onset = None  # first stimulus onset (the RT origin); current stimulus onset (its t = 0)
         onset_pending, shot_pending, playback_over = True, self.screenshot_dir is not None, False
-        gaze_left = False if self._tracker is not None and trial.fixation_px is not None else None
+        gaze_left = False if self.tracker is not None and trial.fixation_px is not None else None
         dropped0 = win.nDroppedFrames
         win.recordFrameIntervals = True
         next_flip = self._now() + self._frame_period
@@ -1074,7 +938,7 @@ class PsychoPyPresenter:
                 if playback_over and not state.answered and "question_shown" not in info:
                     info["question_shown"] = t_flip
                     self._emit("question", trial=trial.index)
-                if self._tracker is not None and not playback_over:
+                if self.tracker is not None and not playback_over:
                     outside = self._sample_gaze(trial, loaded.placements[state.current], t_flip - onset, info)
                     if gaze_left is not None:
                         gaze_left = gaze_left or outside

@@ -291,9 +291,11 @@ def _run(store, protocol, pid, presenter_factory, seed, resume, scale, stimuli_r
             window = measured.get("window_size_px") or (display.width_px, display.height_px)
             store.event(sid, "live_layout", json.dumps(layout_record(protocol, scale, window), sort_keys=True))
         validation = measured.get("validation")
-        if validation:  # the eye tracker's accuracy, measured before the first trial
-            store.record_validation(sid, validation["error_deg"],
-                                    json.dumps({"attempts_deg": validation["attempts"]}))
+        if validation:  # the eye tracker's accuracy, measured before the first trial (presentation.eyetracker)
+            if validation["error_deg"] is None:  # skipped with no gaze measured: the event only
+                store.event(sid, "validation", json.dumps(validation))
+            else:
+                store.record_validation(sid, validation["error_deg"], json.dumps(validation))
         if on_started:
             on_started(sid)
         try:
