@@ -1,7 +1,9 @@
 """A real PsychoPy window implementing :class:`studyapp.presentation.base.Presenter`.
 
-This is the only module of studyapp that imports PsychoPy, and it does so lazily (inside :meth:`open`), so
-that importing it on a machine without a display or without PsychoPy costs nothing and fails only when a
+The presenter is the trial loop; its parts are the window and keyboard (:mod:`.window`), text layout
+(:mod:`.text`), stimulus loading (:mod:`.loading`), the trial logic (:mod:`.trial_logic`), the eye tracker
+(:mod:`.eyetracker`) and live trials (:mod:`.live_window`). PsychoPy is imported lazily (inside :meth:`open`), so
+importing this module on a machine without a display or without PsychoPy costs nothing and fails only when a
 window is really asked for.
 
 What a trial looks like (:meth:`PsychoPyPresenter.present`)
