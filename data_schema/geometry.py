@@ -209,9 +209,9 @@ class Display:
         return self.geometry().ppd
 
     def outside_disc(self, point, centre, radius_deg: float) -> bool:
-        """Whether display pixel ``point`` lies more than ``radius_deg`` of visual angle from ``centre`` (e.g. a
-        gaze sample outside the foveal disc around the fixation point): its eccentricity seen from ``centre`` as
-        the centre of projection, seed 001 Eq 3 ``e = atan(c_r r)``, against ``radius_deg``."""
+        """Whether display pixel ``point`` lies more than ``radius_deg`` of visual angle from ``centre``
+        (e.g. a gaze sample outside the foveal disc around the fixation point): its eccentricity seen from
+        ``centre`` as the centre of projection, seed 001 Eq 3 ``e = atan(c_r r)``, against ``radius_deg``."""
         r = math.hypot(point[0] - centre[0], point[1] - centre[1])
         return bool(self.geometry(centre).eccentricity(r) > radius_deg)
 

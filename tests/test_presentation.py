@@ -301,7 +301,7 @@ def test_answer_state_preference_invariants(presses, n_picks):
         assert s.picks and s.rt_s in [r for _, r in presses]
 
 
-# ---------------------------------------------------------------- one home for the geometry, a public drawing interface
+# ------------------------------------------------- one home for the geometry, a public drawing interface
 @settings(max_examples=200, deadline=None)
 @given(st.integers(64, 4096), st.integers(64, 4096), st.integers(16, 4096), st.integers(16, 4096),
        st.floats(0, 1), st.floats(0, 1))

@@ -56,9 +56,9 @@ class _Surface:
     def __init__(self, presenter, view):
         self.view = view
         ww, wh = (int(v) for v in presenter.win.size)
-        self.stim = presenter.texture_stim((view.width, view.height),
-                                           (view.x0 + view.width / 2 - ww / 2, wh / 2 - (view.y0 + view.height / 2)),
-                                           view.render_width, view.render_height)
+        centre = (view.x0 + view.width / 2 - ww / 2, wh / 2 - (view.y0 + view.height / 2))
+        self.stim = presenter.texture_stim((view.width, view.height), centre, view.render_width,
+                                           view.render_height)
 
     def update(self, rgb8: np.ndarray) -> None:
         update_texture(self.stim, rgb8)
@@ -201,8 +201,8 @@ class LiveTrial:
         return float(seconds), pose
 
     def run(self, state, keys_wanted, timed_once: bool, poll_keys, on_switch, info: dict):
-        """Show the trial until answered (or its duration, or Escape); ``info`` (the presenter's ``trial_info``
-        row) receives ``question_shown``, ``escaped_before_onset`` and ``escape_latency_s``."""
+        """Show the trial until answered (or its duration, or Escape); ``info`` (the presenter's
+        ``trial_info`` row) receives ``question_shown``, ``escaped_before_onset`` and ``escape_latency_s``."""
         p, trial = self.p, self.trial
         win = p.win
         frames: list[FrameRecord] = []

@@ -45,8 +45,8 @@ def texture_stim(win, visual, size: tuple[float, float], pos: tuple[float, float
     fmt = gl.GL_RGBA if rgba else gl.GL_RGB
     gl.glBindTexture(gl.GL_TEXTURE_2D, stim._texID)
     for param, value in ((gl.GL_TEXTURE_MIN_FILTER, filt), (gl.GL_TEXTURE_MAG_FILTER, filt),
-                         (gl.GL_TEXTURE_WRAP_S, gl.GL_CLAMP_TO_EDGE), (gl.GL_TEXTURE_WRAP_T, gl.GL_CLAMP_TO_EDGE),
-                         (gl.GL_TEXTURE_MAX_LEVEL, 0)):
+                         (gl.GL_TEXTURE_WRAP_S, gl.GL_CLAMP_TO_EDGE),
+                         (gl.GL_TEXTURE_WRAP_T, gl.GL_CLAMP_TO_EDGE), (gl.GL_TEXTURE_MAX_LEVEL, 0)):
         gl.glTexParameteri(gl.GL_TEXTURE_2D, param, value)
     gl.glPixelStorei(gl.GL_UNPACK_ALIGNMENT, 1)
     pixels = None if data is None else data.ctypes.data_as(ctypes.POINTER(ctypes.c_ubyte))
@@ -63,14 +63,14 @@ def update_texture(stim, rgb8: np.ndarray) -> None:
     data = np.ascontiguousarray(rgb8)
     gl.glBindTexture(gl.GL_TEXTURE_2D, stim._texID)
     gl.glPixelStorei(gl.GL_UNPACK_ALIGNMENT, 1)
-    gl.glTexSubImage2D(gl.GL_TEXTURE_2D, 0, 0, 0, data.shape[1], data.shape[0], gl.GL_RGB, gl.GL_UNSIGNED_BYTE,
-                       data.ctypes.data_as(ctypes.POINTER(ctypes.c_ubyte)))
+    gl.glTexSubImage2D(gl.GL_TEXTURE_2D, 0, 0, 0, data.shape[1], data.shape[0], gl.GL_RGB,
+                       gl.GL_UNSIGNED_BYTE, data.ctypes.data_as(ctypes.POINTER(ctypes.c_ubyte)))
     gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
 
 
 def release_stim(stim) -> None:
-    """Free ``stim``'s GPU texture now. ImageStims sit in reference cycles, so waiting for the garbage collector
-    would hold tens of MB per large stimulus; the ids are then removed so that ``__del__`` cannot delete a
+    """Free ``stim``'s GPU texture now. ImageStims sit in reference cycles, so waiting for the garbage
+    collector would hold tens of MB per large stimulus; the ids are then removed so that ``__del__`` cannot delete a
     texture name that OpenGL has meanwhile handed to a new stimulus."""
     from pyglet import gl
 
@@ -120,8 +120,8 @@ class StimulusLoader:
         return self.image_stim(decode_image(path), placement, name=str(path))
 
     def image_stim(self, im, placement: Placement | None = None, name: str = "image"):
-        """Upload a decoded PIL image (``RGB`` or ``RGBA``) into a new ImageStim placed by ``placement`` (fit to
-        the window if None); return ``(stim, placement)``.
+        """Upload a decoded PIL image (``RGB`` or ``RGBA``) into a new ImageStim placed by ``placement`` (fit
+        to the window if None); return ``(stim, placement)``.
 
         The rows are uploaded as they are (:func:`texture_stim`) with nearest-texel sampling at ``scale = 1``,
         so the window shows the file's pixel values unchanged.

@@ -2,8 +2,8 @@
 
 The presenter is the trial loop; its parts are the window and keyboard (:mod:`.window`), text layout
 (:mod:`.text`), stimulus loading (:mod:`.loading`), the trial logic (:mod:`.trial_logic`), the eye tracker
-(:mod:`.eyetracker`) and live trials (:mod:`.live_window`). PsychoPy is imported lazily (inside :meth:`open`), so
-importing this module on a machine without a display or without PsychoPy costs nothing and fails only when a
+(:mod:`.eyetracker`) and live trials (:mod:`.live_window`). PsychoPy is imported lazily (inside
+:meth:`open`), so importing this module on a machine without a display or without PsychoPy costs nothing and fails only when a
 window is really asked for.
 
 What a trial looks like (:meth:`PsychoPyPresenter.present`)
@@ -391,7 +391,7 @@ class PsychoPyPresenter:
             "gaze": [],
         }
         self.trial_info.append(info)
-        if self.window.poll_keys([ESCAPE]):  # Escape during the black interval: pause before the stimulus shows
+        if self.window.poll_keys([ESCAPE]):  # Escape in the black interval: pause before the stimulus shows
             loaded.release()
             info["escaped_in_black"] = True
             return TrialResult(answers=[], rt_s=float("nan"), onset_s=float("nan"), escaped=True)

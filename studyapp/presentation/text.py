@@ -1,5 +1,5 @@
-"""Text layout in the window: instructions and messages, the black interval's text, and the overlays drawn over
-a stimulus (fixation mark, stimulus label and picks, "practice" tag, the reference's label, the key reminder,
+"""Text layout in the window: instructions and messages, the black interval's text, and the overlays drawn
+over a stimulus (fixation mark, stimulus label and picks, "practice" tag, the reference's label, the key reminder,
 the question in the margin below the stimulus).
 
 Text is laid out for the window: a height that reads at the viewing distance of the display (about 1/36 of its
@@ -58,8 +58,8 @@ class TextLayout:
                                     wrapWidth=ww * 0.9, pos=(0, -wh / 2 + h))
         self._question = visual.TextStim(win, text="", height=h, color=(0.8, 0.8, 0.8), units="pix",
                                          wrapWidth=ww * 0.9)
-        self._corner = visual.TextStim(win, text="", height=h, color=(1, 1, 1), units="pix", anchorHoriz="left",
-                                       alignText="left", anchorVert="top", pos=(-ww / 2 + 8, wh / 2 - 8))
+        self._corner = visual.TextStim(win, text="", height=h, color=(1, 1, 1), units="pix",
+                                       anchorHoriz="left", alignText="left", anchorVert="top", pos=(-ww / 2 + 8, wh / 2 - 8))
         # Overlays over the stimulus: the reference's label (top centre), "practice" (top right) and the key
         # reminder on a dark band (bottom or top), readable over any stimulus.
         self._label = visual.TextStim(win, text="", height=h, color=(1, 1, 1), units="pix", anchorVert="top",

@@ -1,4 +1,5 @@
-"""What a trial is apart from the window: its checks, the frame of a sequence to show, the answer keys' bookkeeping.
+"""What a trial is apart from the window: its checks, the frame of a sequence to show, the answer keys'
+bookkeeping.
 
 Pure Python (no PsychoPy): the window's trial loop (:mod:`.psychopy_window`, :mod:`.live_window`) asks these.
 """

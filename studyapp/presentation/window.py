@@ -1,5 +1,5 @@
-"""The PsychoPy window and the psychtoolbox keyboard: opened for a :class:`~data_schema.geometry.Display`, with
-the measured facts of the window (refresh rate, size, software versions), key polling that loses no key, and
+"""The PsychoPy window and the psychtoolbox keyboard: opened for a :class:`~data_schema.geometry.Display`,
+with the measured facts of the window (refresh rate, size, software versions), key polling that loses no key, and
 the back buffer as an array.
 
 PsychoPy is imported inside :func:`open_window` only, so importing this module costs nothing and fails only
@@ -68,7 +68,7 @@ class Window:
         return sorted(fresh, key=lambda k: k.tDown)
 
     def wait_keys(self, key_list: list[str] | None) -> str:
-        """Forget the keys pressed so far, then wait for one of ``key_list`` (None: any) and return its name."""
+        """Forget the keys pressed so far, then wait for one of ``key_list`` (None: any); return its name."""
         self.kb.clearEvents()
         while True:
             keys = self.poll_keys(key_list)
@@ -113,8 +113,8 @@ def open_window(display: Display) -> Window:
     mon.setSizePix([display.width_px, display.height_px])
     try:
         win = visual.Window(size=(display.width_px, display.height_px), fullscr=display.fullscreen,
-                            screen=display.screen, monitor=mon, units="pix", color=(-1, -1, -1), colorSpace="rgb",
-                            allowGUI=not display.fullscreen, checkTiming=False, waitBlanking=True)
+                            screen=display.screen, monitor=mon, units="pix", color=(-1, -1, -1),
+                            colorSpace="rgb", allowGUI=not display.fullscreen, checkTiming=False, waitBlanking=True)
     except Exception as exc:
         raise PresentationError(f"cannot open a PsychoPy window: {type(exc).__name__}: {exc}") from None
     kb = keyboard.Keyboard()
