@@ -5,7 +5,6 @@ repeat (R) and skip (S) work. Window-free parts: tests/test_eyetracker.py."""
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
@@ -13,7 +12,8 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "gui"))
-from xvfb import Driver, Xvfb, missing_tools, query  # noqa: E402
+from test_eyetracker import stored_validation  # noqa: E402
+from xvfb import Driver, Xvfb, missing_tools  # noqa: E402
 
 from data_schema.geometry import Display  # noqa: E402
 from studyapp.presentation.eyetracker import TARGET_LAYOUTS, target_error_deg  # noqa: E402
@@ -21,7 +21,7 @@ from studyapp.runner.protocol import MOUSE_GAZE_DEVICE  # noqa: E402
 
 DISPLAY = {"width_px": 480, "height_px": 270, "width_cm": 30.0, "distance_cm": 60.0}
 TRACKER = {"device": MOUSE_GAZE_DEVICE, "calibrate": True, "max_validation_error_deg": 1.0,
-           "target_delay_s": 0.2, "target_duration_s": 0.2}
+           "target_delay_s": 0.3, "target_duration_s": 0.5}
 
 
 @pytest.fixture(autouse=True)
@@ -58,6 +58,8 @@ def test_following_the_dots_passes_with_a_small_error_and_is_stored(tmp_path):
                     p = to if f == 1.0 else ((prev[0] + to[0]) / 2, (prev[1] + to[1]) / 2)
                     x.xdotool("mousemove", str(round(wx + p[0])), str(round(wy + p[1])))
                 prev = to
+            measured = d.wait_for("validation", attempt=0)
+            assert measured["passed"], measured["targets_deg"]  # (fails at once with the errors, no time-out)
             passed = d.wait_for("validation_passed")
             facts = d.wait_for("opened")
             d.finish()
@@ -74,24 +76,7 @@ def test_following_the_dots_passes_with_a_small_error_and_is_stored(tmp_path):
     assert all(t["n_samples"] > 0 and t["error_deg"] <= 0.05 for t in targets)
 
     # the result is stored with the session: the sessions' validation_deg and a "validation" event with it all
-    from studyapp.runner.observer import SimulatedObserver
-    from studyapp.runner.protocol import load_protocol
-    from studyapp.runner.session import ground_truth_stimuli, run_session
-
-    p = load_protocol(Path(__file__).resolve().parents[1] / "protocols" / "seed001_pilot.yaml",
-                      stimuli_dir=tmp_path / "none", check_renderers=False)
-
-    def with_facts(stimuli, display):
-        obs = SimulatedObserver(p, "P1", 0, ground_truth_stimuli(p, stimuli))
-        opened = obs.open
-        obs.open = lambda disp: {**opened(disp), "validation": v}
-        return obs
-
-    db = tmp_path / "s.db"
-    run_session(p, "P1", db, with_facts, allow_declared=True)
-    assert query(db, "SELECT validation_deg FROM sessions") == [(v["error_deg"],)]
-    (detail,), = query(db, "SELECT detail FROM events WHERE kind = 'validation'")
-    assert json.loads(detail) == v
+    assert stored_validation(tmp_path, v) == (v["error_deg"], v)
 
 
 def test_a_mouse_held_still_fails_shows_its_error_and_repeat_and_skip_work(tmp_path):

@@ -181,28 +181,40 @@ def test_a_failed_calibration_is_shown_with_the_validation_result(monkeypatch):
                                                                    "'CALIBRATION_ABORTED'"}) in fs.events
 
 
-def test_a_device_that_stopped_recording_is_started_again():
-    """iohub's MouseGaze was seen to stop recording by itself (a 1920x1080 window under Xvfb): the gaze source
-    starts it again instead of losing the gaze for the rest of the session."""
-    class Stopped:
-        recording, calls = False, []
+def stored_validation(tmp_path, record: dict) -> tuple[float | None, dict]:
+    """Run a simulated session (seed001_pilot) whose window reported ``record`` as ``facts["validation"]``;
+    return what the study database holds: ``sessions.validation_deg`` and the ``validation`` event's JSON."""
+    import sqlite3
+    from pathlib import Path
 
-        def isRecordingEnabled(self):  # noqa: N802 - iohub's names
-            return self.recording
+    from studyapp.runner.observer import SimulatedObserver
+    from studyapp.runner.protocol import load_protocol
+    from studyapp.runner.session import ground_truth_stimuli, run_session
 
-        def setRecordingState(self, on):  # noqa: N802
-            self.calls.append(on)
-            self.recording = on
+    p = load_protocol(Path(__file__).resolve().parents[1] / "protocols" / "seed001_pilot.yaml",
+                      stimuli_dir=tmp_path / "none", check_renderers=False)
 
-        def getLastGazePosition(self):  # noqa: N802
-            return (0.0, 0.0) if self.recording else None
+    def window_like(stimuli, display):
+        obs = SimulatedObserver(p, "P1", 0, ground_truth_stimuli(p, stimuli))
+        opened = obs.open
+        obs.open = lambda disp: {**opened(disp), "validation": record}
+        return obs
 
-    class Screen_:
-        width, height = 480, 270
+    run_session(p, "P1", tmp_path / "s.db", window_like, allow_declared=True)
+    con = sqlite3.connect(tmp_path / "s.db")
+    try:
+        (deg,), = con.execute("SELECT validation_deg FROM sessions").fetchall()
+        (detail,), = con.execute("SELECT detail FROM events WHERE kind = 'validation'").fetchall()
+    finally:
+        con.close()
+    return deg, json.loads(detail)
 
-    tr = E.EyeTracker("mousegaze")
-    tr._device = dev = Stopped()
-    tr._win = type("Win", (), {"size": (480, 270), "winHandle": type("H", (), {"screen": Screen_()})()})()
-    assert tr.gaze_window_px() == (240.0, 135.0)  # display centre = window centre (window at 0, 0)
-    assert dev.calls == [True] and tr.recording_restarts == 1
-    assert tr.gaze_window_px() == (240.0, 135.0) and dev.calls == [True]  # recording: nothing to do
+
+@pytest.mark.parametrize("errors, status", [([0.2, 0.4], "passed"), ([math.inf], "skipped")])
+def test_the_result_is_stored_with_the_session(tmp_path, errors, status):
+    """``facts["validation"]`` of the window reaches the study database: ``sessions.validation_deg`` (the
+    last attempt's mean error; left empty when no gaze came) and a ``validation`` event with the whole record."""
+    record = E.summary([E.attempt_result(_targets(*errors), 1.0)], status, 1.0, {"done": True})
+    deg, detail = stored_validation(tmp_path, record)
+    assert deg == (pytest.approx(0.3) if status == "passed" else None)
+    assert detail == record and detail["status"] == status

@@ -153,11 +153,10 @@ def _finite(v: float) -> float | None:
     return float(v) if math.isfinite(v) else None
 
 
-def summary(attempts: list[dict], status: str, limit: float | None, calibration: dict,
-            recording_restarts: int = 0) -> dict:
+def summary(attempts: list[dict], status: str, limit: float | None, calibration: dict) -> dict:
     """What is stored with the session: ``status`` (``passed`` or ``skipped``), the last attempt's mean and
-    worst target error (degrees; None where no gaze came), the limit, the calibration, how often the device
-    had to be restarted, and every attempt with its per-target errors (JSON: no infinities)."""
+    worst target error (degrees; None where no gaze came), the limit, the calibration, and every attempt with
+    its per-target errors (JSON: no infinities)."""
     def clean(a: dict) -> dict:
         return {"mean_error_deg": _finite(a["mean_error_deg"]), "max_error_deg": _finite(a["max_error_deg"]),
                 "targets_without_gaze": a["targets_without_gaze"], "passed": a["passed"],
@@ -166,8 +165,7 @@ def summary(attempts: list[dict], status: str, limit: float | None, calibration:
     last = attempts[-1]
     return {"status": status, "error_deg": _finite(last["mean_error_deg"]),
             "max_error_deg": _finite(last["max_error_deg"]), "limit_deg": limit, "n_attempts": len(attempts),
-            "calibration": calibration, "recording_restarts": recording_restarts,
-            "attempts": [clean(a) for a in attempts]}
+            "calibration": calibration, "attempts": [clean(a) for a in attempts]}
 
 
 def instructions_text(n_targets: int, mouse_is_gaze: bool, calibrates: bool) -> str:
@@ -216,6 +214,17 @@ def check_iohub_device(device: str) -> None:
                            "eyetracker.hw.sr_research.eyelink.EyeTracker with its psychopy plug-in)")
 
 
+def free_udp_port() -> int:
+    """A UDP port free on this machine now. iohub's client and server talk over one fixed port (9036) by
+    default, so two sessions on one machine (or tests in parallel) would each read the other's tracker: every
+    session gets a port of its own."""
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
 def calibration_args(win, tracker, timing: Timing, n_targets: int, outer_px: float, inner_px: float) -> dict:
     """iohub's calibration configuration for ``tracker``, complete (``target_attributes`` with its ``animate``
     keys, layout, pacing, colours), built by PsychoPy's own ``EyetrackerCalibration`` and the tracker class's
@@ -254,7 +263,6 @@ class EyeTracker:
         self._pointer = None
         self._win = None
         self._locate: Callable[[], tuple[int, int]] = lambda: (0, 0)
-        self.recording_restarts = 0  # times the device had stopped recording and was started again
 
     # ------------------------------------------------------------------ start / stop
     @property
@@ -292,7 +300,7 @@ class EyeTracker:
             level = logging.console.level
             logging.console.setLevel(logging.ERROR)  # "fullScr should be True": not for a tracker
             try:
-                self._io = launchHubServer(window=win, **cfg)
+                self._io = launchHubServer(window=win, udp_port=free_udp_port(), **cfg)
             finally:
                 logging.console.setLevel(level)
             self._device = self._io.getDevice("tracker")
@@ -343,12 +351,6 @@ class EyeTracker:
         if self._device is None:
             return None
         g = self._device.getLastGazePosition()
-        if g is None and self._device.isRecordingEnabled() is False:
-            # iohub's MouseGaze was seen to stop recording by itself within seconds (a 1920x1080 window under
-            # Xvfb), the gaze then missing for the rest of the session: start it again
-            self._device.setRecordingState(True)
-            self.recording_restarts += 1
-            g = self._device.getLastGazePosition()
         if g is None or len(g) < 2:
             return None
         # iohub reports display coordinates (origin at the screen centre, y up): use the window position
@@ -456,13 +458,14 @@ class EyeTracker:
                 result = dict(attempt_result([], None), passed=False, aborted=True)
             attempts.append(result)
             screen.emit("validation", attempt=len(attempts) - 1, error_deg=_finite(result["mean_error_deg"]),
-                        max_error_deg=_finite(result["max_error_deg"]), passed=result["passed"])
+                        max_error_deg=_finite(result["max_error_deg"]), passed=result["passed"],
+                        targets_deg=[_finite(t["error_deg"]) for t in result["targets"]])
             if result["passed"]:
                 screen.show_text(f"Eye-tracker check passed: mean error {result['mean_error_deg']:.2f}°", "")
                 win_flip()
                 screen.emit("validation_passed", error_deg=result["mean_error_deg"])
                 time.sleep(PASS_SHOWN_S)
-                return summary(attempts, "passed", limit, calibration, self.recording_restarts)
+                return summary(attempts, "passed", limit, calibration)
             can_repeat = len(attempts) < max_attempts
             note = "" if calibration["done"] or not calibrates else f"Calibration: {calibration['reason']}."
             text = result_text(result, limit, can_repeat, note)
@@ -471,7 +474,7 @@ class EyeTracker:
             screen.emit("validation_failed", attempt=len(attempts) - 1, can_repeat=can_repeat, text=text)
             key = screen.wait_key(([REPEAT_KEY] if can_repeat else []) + [SKIP_KEY, END_KEY])
             if key == SKIP_KEY:
-                return summary(attempts, "skipped", limit, calibration, self.recording_restarts)
+                return summary(attempts, "skipped", limit, calibration)
             if key == END_KEY:
                 err = result["mean_error_deg"]
                 what = f"mean error {err:.2f}°" if math.isfinite(err) else "no gaze measured"
