@@ -255,6 +255,13 @@ class Display:
         """Pixels per degree at the screen centre, ``width_px / width_cm * distance_cm * tan(1°)``."""
         return self.geometry().ppd
 
+    def outside_disc(self, point, centre, radius_deg: float) -> bool:
+        """Whether display pixel ``point`` lies more than ``radius_deg`` of visual angle from ``centre``
+        (e.g. a gaze sample outside the foveal disc around the fixation point): its eccentricity seen from
+        ``centre`` as the centre of projection, seed 001 Eq 3 ``e = atan(c_r r)``, against ``radius_deg``."""
+        r = math.hypot(point[0] - centre[0], point[1] - centre[1])
+        return bool(self.geometry(centre).eccentricity(r) > radius_deg)
+
 
 @dataclass(frozen=True)
 class EyeView:
@@ -276,6 +283,10 @@ class EyeView:
         u = (x - self.x0) * self.render_width / self.width
         v = (y - self.y0) * self.render_height / self.height
         return (min(max(u, 0.0), float(self.render_width)), min(max(v, 0.0), float(self.render_height)))
+
+    def to_window(self, u: float, v: float) -> tuple[float, float]:
+        """This eye's render pixels -> window pixels (the inverse of :meth:`to_render`, not clamped)."""
+        return (self.x0 + u * self.width / self.render_width, self.y0 + v * self.height / self.render_height)
 
     def record(self) -> dict:
         """The view as plain data, as a session records it (:meth:`from_record` reads it back)."""
@@ -328,3 +339,59 @@ def eye_at(views: list[EyeView], x: float, y: float) -> EyeView:
 
     inside = [v for v in views if v.x0 <= x < v.x0 + v.width and v.y0 <= y < v.y0 + v.height]
     return inside[0] if inside else min(views, key=distance)
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a ``img_w`` x ``img_h`` stimulus lands in a ``win_w`` x ``win_h`` window.
+
+    The window is the participant's display and a stimulus subtends the display's visual angle, so the image
+    is scaled to cover the window (up from a smaller render, e.g. seed 003's 256x144 stimuli on a 1920x1080
+    display), keeping its aspect ratio, and centred. ``left``/``top`` are whole window pixels from the window's
+    top-left corner, so that at ``scale = 1`` every image pixel maps onto exactly one window pixel.
+    """
+
+    win_w: int
+    win_h: int
+    img_w: int
+    img_h: int
+    scale: float
+    left: int
+    top: int
+
+    @classmethod
+    def fit(cls, win_w: int, win_h: int, img_w: int, img_h: int) -> Placement:
+        scale = min(win_w / img_w, win_h / img_h)
+        if abs(scale - 1.0) < 1e-12:
+            scale = 1.0
+        w, h = img_w * scale, img_h * scale
+        # 1e-9 absorbs the round-off of w = img_w * (win_w / img_w)
+        return cls(
+            win_w,
+            win_h,
+            img_w,
+            img_h,
+            scale,
+            int(math.floor((win_w - w) / 2 + 1e-9)),
+            int(math.floor((win_h - h) / 2 + 1e-9)),
+        )
+
+    @property
+    def size(self) -> tuple[float, float]:
+        """Drawn size in window pixels."""
+        return (self.img_w * self.scale, self.img_h * self.scale)
+
+    @property
+    def centre_pix(self) -> tuple[float, float]:
+        """Image centre in PsychoPy ``pix`` units (origin at the window centre, y up)."""
+        w, h = self.size
+        return (self.left + w / 2.0 - self.win_w / 2.0, self.win_h / 2.0 - (self.top + h / 2.0))
+
+    def image_to_window(self, x: float, y: float) -> tuple[float, float]:
+        """Image pixel coordinates (x right, y down, top-left origin) -> window pixels (same convention)."""
+        return (self.left + x * self.scale, self.top + y * self.scale)
+
+    def image_to_pix(self, x: float, y: float) -> tuple[float, float]:
+        """Image pixel coordinates -> PsychoPy ``pix`` units (origin at the window centre, y up)."""
+        wx, wy = self.image_to_window(x, y)
+        return (wx - self.win_w / 2.0, self.win_h / 2.0 - wy)

@@ -135,7 +135,7 @@ def test_the_live_window_shows_the_named_eye_over_the_window_and_times_both(monk
         trial = object.__new__(lw.LiveTrial)
         trial.live, trial.views = [lv], [lv.views((320, 180))]
         trial.motions = [SimpleNamespace(pose=lambda *a: Pose((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)))]
-        trial.p = SimpleNamespace(_exposure=lambda scene: 1.0)
+        trial.p = SimpleNamespace(exposure=lambda scene: 1.0)
         shown.clear()
         seconds, _ = trial._render(0, 0.0, (240.0, 45.0), set(), (0.0, 0.0))
         assert seen == {"size": (32, 18), "gaze": (24.0, 4.5), "eye": eye}  # the full-window view's mapping

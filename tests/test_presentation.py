@@ -10,14 +10,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from data_schema.geometry import Display
+from data_schema.geometry import Display, EyeView, Placement
 from studyapp.presentation.base import Stimulus, TrialDisplay
-from studyapp.presentation.psychopy_window import (
+from studyapp.presentation.trial_logic import (
     AnswerState,
-    Placement,
     sequence_frame,
     validate_trial,
 )
@@ -300,3 +299,45 @@ def test_answer_state_preference_invariants(presses, n_picks):
         assert s.answered
     if s.answered:
         assert s.picks and s.rt_s in [r for _, r in presses]
+
+
+# ------------------------------------------------- one home for the geometry, a public drawing interface
+@settings(max_examples=200, deadline=None)
+@given(st.integers(64, 4096), st.integers(64, 4096), st.integers(16, 4096), st.integers(16, 4096),
+       st.floats(0, 1), st.floats(0, 1))
+def test_live_fixation_on_the_window_is_the_mapping_it_replaced(ww, wh, rw, rh, fu, fv):
+    """LiveTrial's fixation fallback now maps through EyeView.to_window: bit for bit the old
+    ``fix * window / render`` (the value used before geometry.py was its home), and to_render inverts it."""
+    u, v = fu * rw, fv * rh
+    got = EyeView("mono", 0, 0, ww, wh, rw, rh).to_window(u, v)
+    assert got == (u * ww / rw, v * wh / rh)
+    back = EyeView("mono", 0, 0, ww, wh, rw, rh).to_render(*got)
+    assert back == pytest.approx((u, v), abs=1e-9 * max(rw, rh))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(-3000, 3000), st.floats(-3000, 3000), st.floats(0.5, 5))
+def test_fovea_check_is_the_geometry_s_eccentricity_and_agrees_with_the_old_linear_one(dx, dy, fovea_deg):
+    """The gaze-outside-the-fovea check uses seed 001 Eq 3 from the fixation point (Display.outside_disc),
+    the formula of the validation error; the old ``r > fovea_deg * ppd`` differed from it only in a band of
+    (tan(f) - f tan(1 deg)) / c_r pixels at the rim (0.02 px at 2.5 deg on a 1920x1080 display 60 cm away)."""
+    d = Display(1920, 1080, 53.0, 60.0)
+    centre = (960.0, 540.0)
+    point = (centre[0] + dx, centre[1] + dy)
+    r = math.hypot(dx, dy)
+    new = d.outside_disc(point, centre, fovea_deg)
+    assert new == (d.geometry(centre).eccentricity(r) > fovea_deg)
+    c_r = d.geometry().c_r
+    rim_new, rim_old = math.tan(math.radians(fovea_deg)) / c_r, fovea_deg * d.ppd
+    assert abs(rim_new - rim_old) < 3e-3 * rim_old
+    if abs(r - rim_old) > abs(rim_new - rim_old) + 1e-9:
+        assert new == (r > rim_old)
+
+
+def test_live_trial_uses_only_the_presenter_s_public_drawing_interface():
+    """live_window reaches into no private member of the presenter (before: _visual, _gaze_window_px,
+    _exposure, _now, _frame_period, _draw_text, _progress_text, _draw_overlay, _save_shot, _emit, _info)."""
+    import re
+
+    src = (ROOT / "studyapp/presentation/live_window.py").read_text()
+    assert re.findall(r"\b(?:p|presenter|self\.p)\._[a-z]\w*", src) == []

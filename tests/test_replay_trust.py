@@ -146,7 +146,7 @@ def test_the_live_window_foveates_both_eyes_at_the_gaze_in_the_eye_it_falls_on(m
                                   fov_y_deg=30.0, condition="LaFR")]
     trial.views = [eye_views((320, 180), (32, 18), 2, stereo=True)]
     trial.motions = [SimpleNamespace(pose=lambda *a: Pose((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)))]
-    trial.p = SimpleNamespace(_exposure=lambda scene: 1.0)
+    trial.p = SimpleNamespace(exposure=lambda scene: 1.0)
     for window_gaze, gaze in (((240.0, 45.0), (8.0, 4.5)), ((40.0, 90.0), (4.0, 9.0))):
         trial._render(0, 0.0, window_gaze, set(), (0.0, 0.0))
         assert seen == {"size": (16, 18), "gaze": gaze}

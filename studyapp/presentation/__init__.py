@@ -1,1 +1,2 @@
-"""Presentation layer: the only part of studyapp that may import PsychoPy (in psychopy_window)."""
+"""Presentation layer: the only part of studyapp that may import PsychoPy (psychopy_window and its parts:
+window, text, loading, eyetracker, live_window)."""

@@ -28,18 +28,18 @@ key going down to the trial ending) is recorded in the presenter's ``trial_info`
 
 from __future__ import annotations
 
-import ctypes
 import math
 import time
 
 import numpy as np
 
-from data_schema.geometry import EYES, eye_at
+from data_schema.geometry import EYES, EyeView, eye_at
 from renderers.plugin_types import RenderCancelled
 from studyapp.runner.live import FramePacer, FrameRecord, GazeDelay
 from studyapp.runner.protocol import EXPLORE_KEYS
 
 from .base import ESCAPE, PresentationError, TrialDisplay
+from .loading import release_stim, update_texture
 
 #: How often a render asks the keyboard whether Escape went down (seconds): far inside the 100-ms bound of
 #: issue 26 item 3, rare enough to cost nothing (a poll takes microseconds).
@@ -54,43 +54,17 @@ class _Surface:
     """One eye's texture covering its viewport; a new frame replaces the texels (no new texture per frame)."""
 
     def __init__(self, presenter, view):
-        from pyglet import gl
-
         self.view = view
-        win = presenter.win
-        ww, wh = (int(v) for v in win.size)
-        self.stim = presenter._visual.ImageStim(
-            win, image=None, units="pix", size=(view.width, view.height),
-            pos=(view.x0 + view.width / 2 - ww / 2, wh / 2 - (view.y0 + view.height / 2)))
-        gl.glBindTexture(gl.GL_TEXTURE_2D, self.stim._texID)
-        for param, value in ((gl.GL_TEXTURE_MIN_FILTER, gl.GL_LINEAR), (gl.GL_TEXTURE_MAG_FILTER, gl.GL_LINEAR),
-                             (gl.GL_TEXTURE_WRAP_S, gl.GL_CLAMP_TO_EDGE), (gl.GL_TEXTURE_WRAP_T, gl.GL_CLAMP_TO_EDGE),
-                             (gl.GL_TEXTURE_MAX_LEVEL, 0)):
-            gl.glTexParameteri(gl.GL_TEXTURE_2D, param, value)
-        gl.glPixelStorei(gl.GL_UNPACK_ALIGNMENT, 1)
-        gl.glTexImage2D(gl.GL_TEXTURE_2D, 0, gl.GL_RGB, view.render_width, view.render_height, 0, gl.GL_RGB,
-                        gl.GL_UNSIGNED_BYTE, None)
-        gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
-        from ._texture import TextureRef
-
-        self.stim.image = TextureRef(self.stim._texID)
+        ww, wh = (int(v) for v in presenter.win.size)
+        centre = (view.x0 + view.width / 2 - ww / 2, wh / 2 - (view.y0 + view.height / 2))
+        self.stim = presenter.texture_stim((view.width, view.height), centre, view.render_width,
+                                           view.render_height)
 
     def update(self, rgb8: np.ndarray) -> None:
-        from pyglet import gl
-
-        data = np.ascontiguousarray(rgb8)
-        gl.glBindTexture(gl.GL_TEXTURE_2D, self.stim._texID)
-        gl.glPixelStorei(gl.GL_UNPACK_ALIGNMENT, 1)
-        gl.glTexSubImage2D(gl.GL_TEXTURE_2D, 0, 0, 0, data.shape[1], data.shape[0], gl.GL_RGB, gl.GL_UNSIGNED_BYTE,
-                           data.ctypes.data_as(ctypes.POINTER(ctypes.c_ubyte)))
-        gl.glBindTexture(gl.GL_TEXTURE_2D, 0)
+        update_texture(self.stim, rgb8)
 
     def release(self) -> None:
-        from pyglet import gl
-
-        if hasattr(self.stim, "_texID"):
-            gl.glDeleteTextures(1, ctypes.byref(self.stim._texID))
-            del self.stim._texID
+        release_stim(self.stim)
 
 
 class _Input:
@@ -191,10 +165,11 @@ class LiveTrial:
         if g is not None:
             return now, g[0], g[1]
         fix = self.trial.fixation_px
-        lv = self.live[0]
         if fix is None:
             return now, self.window[0] / 2, self.window[1] / 2
-        return now, fix[0] * self.window[0] / lv.render_size[0], fix[1] * self.window[1] / lv.render_size[1]
+        # the fixation point of the render (render pixels) on the window the render covers
+        cover = EyeView("mono", 0, 0, *self.window, *self.live[0].render_size)
+        return (now, *cover.to_window(*fix))
 
     def _render(self, i: int, t_stim: float, gaze_window, held, drag, cancel=None):
         """Render stimulus ``i`` for all its eyes at the gaze; upload; return (render seconds, pose). ``cancel``:
@@ -219,13 +194,15 @@ class LiveTrial:
             raise PresentationError(f"cannot render {lv.condition} live: {str(exc).splitlines()[0]}") from None
         both = stats.get("eye_images")
         images = [img if both is None else both[EYES.index(v.eye)] for v in views]
-        exposure = self.p._exposure(lv.scene)
+        exposure = self.p.exposure(lv.scene)
         for surf, im in zip(self._surfaces(i), images):
             surf.update(to_srgb8(im, exposure))
         seconds = stats["seconds"].get("total", time.perf_counter() - t0)
         return float(seconds), pose
 
-    def run(self, state, keys_wanted, timed_once: bool, poll_keys, on_switch):
+    def run(self, state, keys_wanted, timed_once: bool, poll_keys, on_switch, info: dict):
+        """Show the trial until answered (or its duration, or Escape); ``info`` (the presenter's
+        ``trial_info`` row) receives ``question_shown``, ``escaped_before_onset`` and ``escape_latency_s``."""
         p, trial = self.p, self.trial
         win = p.win
         frames: list[FrameRecord] = []
@@ -235,7 +212,7 @@ class LiveTrial:
         inp = _Input(win)
         pose = None
         last_dropped = dropped0
-        next_flip = p._now() + p._frame_period
+        next_flip = p.now() + p.frame_period
         escaped, playback_over = False, False
         esc = _Escape(p.kb.clock, poll_keys, keys_wanted)
         try:
@@ -244,12 +221,12 @@ class LiveTrial:
                 t_est = next_flip
                 if timed_once and onset is not None:
                     playback_over = t_est - onset >= trial.duration_s
-                t_sample = self._gaze_sample(p._now())
+                t_sample = self._gaze_sample(p.now())
                 self.delays[i].push(*t_sample)
                 used = self.delays[i].at(t_est)
                 render_s = None
                 if playback_over:
-                    p._draw_text(trial.question, p._progress_text(trial))
+                    p.draw_question(trial)
                 else:
                     t_stim = 0.0 if stim_onset is None else t_est - stim_onset
                     if not timed_once and self.live[i].motion == "path":
@@ -268,18 +245,18 @@ class LiveTrial:
                             break
                     for surf in self.surfaces[i]:
                         surf.stim.draw()
-                    p._draw_overlay(trial, state, None)
+                    p.draw_overlay(trial, state.current, state.picks)
                     if render_s is not None and p.screenshot_dir is not None:
-                        p._save_shot(trial, f"live{len(frames):05d}")
+                        p.save_shot(trial, f"live{len(frames):05d}")
                 if onset is None:  # the RT clock starts with the first frame (keys before it: rt < 0)
                     win.callOnFlip(p.kb.clock.reset)
                 t_flip = win.flip()
-                next_flip = t_flip + p._frame_period
+                next_flip = t_flip + p.frame_period
                 if stim_onset is None or (onset is not None and frames and frames[-1].stimulus != i):
                     stim_onset = t_flip
                 if onset is None:
                     onset = t_flip
-                    p._emit("onset", trial=trial.index, stimulus=i, t=t_flip)
+                    p.emit("onset", trial=trial.index, stimulus=i, t=t_flip)
                 dropped_now = win.nDroppedFrames
                 if not playback_over and pose is not None:
                     frames.append(FrameRecord(len(frames), i, t_flip, render_s,
@@ -288,9 +265,9 @@ class LiveTrial:
                                               tuple(pose.position), tuple(pose.look_at),
                                               dropped_now > last_dropped))
                 last_dropped = dropped_now
-                if playback_over and "question_shown" not in p._info:
-                    p._info["question_shown"] = t_flip
-                    p._emit("question", trial=trial.index)
+                if playback_over and "question_shown" not in info:
+                    info["question_shown"] = t_flip
+                    p.emit("question", trial=trial.index)
                 for key in poll_keys(keys_wanted):
                     if key.name != ESCAPE and key.rt is not None and key.rt < 0:
                         continue  # went down before the first frame: not an answer, not a switch
@@ -303,15 +280,15 @@ class LiveTrial:
                         stim_onset = None
                         on_switch(state.current)
                     elif event == "pick":
-                        p._emit("pick", trial=trial.index, answer=state.picks[-1])
+                        p.emit("pick", trial=trial.index, answer=state.picks[-1])
                 if escaped:
                     break
                 if (state.answered or not trial.answer_keys) and (playback_over or not timed_once):
                     break
             if escaped and onset is None:
-                p._info["escaped_before_onset"] = True
+                info["escaped_before_onset"] = True
             if escaped and esc.latency_s is not None:
-                p._info["escape_latency_s"] = round(esc.latency_s, 4)
+                info["escape_latency_s"] = round(esc.latency_s, 4)
         finally:
             win.recordFrameIntervals = False
             inp.close()
@@ -340,10 +317,10 @@ def fps_check_frames(presenter, live, seconds: float) -> tuple[list, list, list,
     trial = TrialDisplay(index=-1, family="2afc", stimuli=(Stimulus(live.condition, (), 0.0, live=live),),
                          question="", answer_keys={}, duration_s=live.duration_s)
     lt = LiveTrial(presenter, trial)
-    t0 = presenter._now()
+    t0 = presenter.now()
 
     def frame():
-        now = presenter._now()
+        now = presenter.now()
         lt.delays[0].push(*lt._gaze_sample(now))
         used = lt.delays[0].at(now)
         render_s, _ = lt._render(0, now - t0, None if used is None else used[1:], (), (0.0, 0.0))
@@ -352,7 +329,7 @@ def fps_check_frames(presenter, live, seconds: float) -> tuple[list, list, list,
         return presenter.win.flip(), render_s, None if used is None else used[0]
 
     try:
-        return sample_frames(frame, presenter._now, seconds)
+        return sample_frames(frame, presenter.now, seconds)
     finally:
         for surf in lt.surfaces.get(0, []):
             surf.release()
