@@ -18,6 +18,7 @@ from studyapp.presentation.base import Stimulus, TrialDisplay
 from studyapp.presentation.trial_logic import (
     AnswerState,
     sequence_frame,
+    stimulus_time,
     validate_trial,
 )
 
@@ -341,3 +342,16 @@ def test_live_trial_uses_only_the_presenter_s_public_drawing_interface():
 
     src = (ROOT / "studyapp/presentation/live_window.py").read_text()
     assert re.findall(r"\b(?:p|presenter|self\.p)\._[a-z]\w*", src) == []
+
+
+def test_a_switched_to_sequence_starts_at_its_first_frame():
+    """The first flip after a switch showed the new sequence at the old one's elapsed time (a verification pass
+    saw LaFR(1.8)'s screenshot at a later frame): the flip that becomes its onset shows frame 0."""
+    fps, n = 30.0, 60
+    # 1.5 s into stimulus A (onset 10.0), the participant switches: the next flip (11.5) is B's onset
+    assert stimulus_time(11.5, 10.0, onset_pending=True) == 0.0
+    assert sequence_frame(stimulus_time(11.5, 10.0, onset_pending=True), fps, n, loop=True) == 0
+    # the flips after B's onset count from it; before any onset it is 0
+    assert stimulus_time(11.6, 11.5, onset_pending=False) == pytest.approx(0.1)
+    assert sequence_frame(stimulus_time(11.6, 11.5, False), fps, n, loop=True) == 3
+    assert stimulus_time(5.0, None, onset_pending=False) == 0.0

@@ -64,7 +64,7 @@ from .base import (
 )
 from .loading import LoadedTrial, StimulusLoader, decode_image, texture_stim
 from .text import TextLayout, progress_text
-from .trial_logic import AnswerState, sequence_frame, validate_trial
+from .trial_logic import AnswerState, sequence_frame, stimulus_time, validate_trial
 from .window import Window, open_window
 
 # re-exported: the presenter's parts that callers and tests name from here
@@ -413,9 +413,7 @@ class PsychoPyPresenter:
                 if playback_over:
                     self.draw_question(trial)
                 else:
-                    self._draw_stimulus(
-                        trial, loaded, state, 0.0 if stim_onset is None else next_flip - stim_onset
-                    )
+                    self._draw_stimulus(trial, loaded, state, stimulus_time(next_flip, stim_onset, onset_pending))
                     if shot_pending:
                         self.save_shot(trial, state.current)
                         shot_pending = False

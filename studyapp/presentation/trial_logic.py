@@ -27,6 +27,13 @@ def sequence_frame(elapsed_s: float, fps: float, n_frames: int, loop: bool) -> i
     return k % n_frames if loop else min(k, n_frames - 1)
 
 
+def stimulus_time(next_flip: float, stim_onset: float | None, onset_pending: bool) -> float:
+    """Seconds into the current stimulus at the coming flip: 0 for the first flip of a stimulus (none shown yet,
+    or one just switched to, whose onset is that flip), else the time since its onset flip. A switched-to
+    sequence therefore starts at its frame 0, not at the previous stimulus' elapsed time."""
+    return 0.0 if stim_onset is None or onset_pending else next_flip - stim_onset
+
+
 def validate_trial(trial: TrialDisplay) -> None:
     """One-line errors for a trial the window cannot show."""
     n = len(trial.stimuli)
