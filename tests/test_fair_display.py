@@ -17,12 +17,14 @@ from studyapp.cli import main
 from studyapp.runner.live import Pose, live_stimulus
 from studyapp.runner.protocol import load_protocol
 
-PROTOCOLS = sorted((Path(__file__).resolve().parents[1] / "studyapp" / "protocols").glob("*_live.yaml"))
+SHIPPED = Path(__file__).resolve().parents[1] / "studyapp" / "protocols"
+PROTOCOLS = sorted(SHIPPED.glob("*_live.yaml"))
 WINDOW = (1920, 1080)
 
 
 def _placements(protocol) -> dict[str, list[EyeView]]:
-    scene = protocol.practice["scene"]  # cornell: every condition of the protocol, quick to load
+    # cornell, the practice scene: every condition of the protocol, quick to load (adaptive designs: no practice)
+    scene = protocol.practice["scene"] if protocol.practice else protocol.scenes[0]
     return {c: live_stimulus(protocol, c, scene).views(WINDOW) for c in protocol.conditions}
 
 
@@ -39,12 +41,12 @@ def test_every_condition_of_a_shipped_live_protocol_covers_the_window_at_the_sam
 def test_the_shipped_binocular_conditions_are_the_vafr_pair():
     binocular = {p.stem: sorted(c for c, v in load_protocol(p).conditions.items() if v.eyes == 2) for p in PROTOCOLS}
     assert binocular == {"seed001_2afc_live": ["VaFR_Dup", "VaFR_Rep"], "seed001_pilot_live": ["VaFR_Dup", "VaFR_Rep"],
-                         "seed003_task1_live": [], "seed003_task2_live": []}
+                         "seed003_task1_live": [], "seed003_task2_live": [], "latency_threshold_live": [],
+                         "threshold_foveation_live": []}
 
 
 def _pilot(tmp_path, *replace) -> Path:
-    text = (PROTOCOLS[1].read_text())
-    assert PROTOCOLS[1].stem == "seed001_pilot_live"
+    text = (SHIPPED / "seed001_pilot_live.yaml").read_text()
     for old, new in replace:
         assert old in text
         text = text.replace(old, new)
