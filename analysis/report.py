@@ -265,8 +265,8 @@ def threshold_tables(res) -> dict[str, Table]:
                 tuple((r.condition, r.scene, _g(r.threshold), fmt_num(r.time_ms, 1),
                        f"{fmt_num(r.time_ms_ci_low, 1)}–{fmt_num(r.time_ms_ci_high, 1)}", fmt_num(r.gt_time_ms, 1),
                        f"{fmt_num(r.time_speedup, 2)}x",
-                       f"{fmt_num(r.gt_time_ms / r.time_ms_ci_high, 2)}–{fmt_num(r.gt_time_ms / r.time_ms_ci_low, 2)}x")
-                      for r in p.itertuples()),
+                       f"{fmt_num(r.gt_time_ms / r.time_ms_ci_high, 2)}–"
+                       f"{fmt_num(r.gt_time_ms / r.time_ms_ci_low, 2)}x") for r in p.itertuples()),
                 f"Time at threshold: {res.time_label}, interpolated in log level and log time between the "
                 "ladder's measured levels, its 95 % CI carried through from the threshold's, against GT's")
     return out
