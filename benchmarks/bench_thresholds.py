@@ -157,14 +157,14 @@ def ladder_one(protocol: str, cond: str, scene: str, backend: str, scale: float,
 
 def ladder_times(protocol: str, backend: str, scale: float, repeats: int, argv: list[str]) -> tuple[list, list]:
     """The ladder rows of ``protocol`` (a child process per condition x scene) and the report's lines."""
-    from benchmarks.harness import command_line, run_child, write_csv
+    from benchmarks.harness import command_line, load_line, run_child, write_csv
     from studyapp.commands.study import _protocol
 
     protocol = os.path.abspath(protocol) if os.path.exists(protocol) else protocol  # the child runs in ROOT
     p = _protocol(protocol)
     if p.adaptive is None:
         raise SystemExit(f"bench_thresholds.py: {p.name} has no adaptive design: no ladder to time")
-    rows, t0 = [], time.perf_counter()
+    rows, t0, load0 = [], time.perf_counter(), os.getloadavg()
     for scene in p.scenes:
         for cond in (p.adaptive.reference, *p.adaptive.varied):
             out = run_child([os.path.abspath(__file__), "--one-ladder", protocol, cond, scene, "--backend", backend,
@@ -179,7 +179,8 @@ def ladder_times(protocol: str, backend: str, scale: float, repeats: int, argv: 
              f"`{command_line('benchmarks/bench_thresholds.py', argv)}` ({(time.perf_counter() - t0) / 60:.1f} min); "
              f"{rows[0]['machine']} Median of {repeats} frames per level after a 64x48 warm-up frame, one process "
              f"per condition x scene; raw rows: benchmarks/results/{name} (`studyapp analyze --frame-times`, "
-             f"with `--cost-scale {scale:g}`).", "",
+             f"with `--cost-scale {scale:g}`). Load average (1, 5, 15 min): {load_line(load0, os.getloadavg())}; "
+             "at a small --scale and under load the millisecond times are noisy.", "",
              "| condition | scene | parameter | levels | ms per frame at each level |",
              "|---|---|---|---|---|"]
     for scene in p.scenes:

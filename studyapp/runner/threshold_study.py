@@ -123,7 +123,7 @@ def frame_times(path: Path, protocol: Protocol, scale: float = 1.0) -> tuple[Cal
         lv, t = zip(*ladders[cond, scene])
         return log_interp(lv, t, level, floor=1e-6)
 
-    machine = str(df["machine"].iloc[0])
+    machine = str(df["machine"].iloc[0]).rstrip(".")
     label = f"ms per frame at {w}x{h} on the {backends[0]} backend ({machine})"
     return time_ms, lambda scene: gt[scene], label
 
