@@ -405,6 +405,8 @@ def group_table(fits: pd.DataFrame, n_boot: int = 2000, seed: int = 0, axes: Map
 PARETO_COLUMNS = ("condition", "scene", "varied", "threshold", "ci_low", "ci_high", "p_detect", "cost",
                   "cost_ci_low", "cost_ci_high", "gt_cost", "relative_cost", "relative_cost_ci_low",
                   "relative_cost_ci_high", "speedup")
+#: The time columns :func:`pareto` adds when given the frame times.
+PARETO_TIME_COLUMNS = ("time_ms", "time_ms_ci_low", "time_ms_ci_high", "gt_time_ms", "time_speedup")
 
 
 def detection(p, guess: float):
@@ -414,9 +416,17 @@ def detection(p, guess: float):
     return np.clip((np.asarray(p, dtype=float) - guess) / (1.0 - guess), 0.0, 1.0)
 
 
+def _carried(at: Callable[[float], float], g) -> tuple[float, float, float]:
+    """``at`` at a group row's threshold and at its CI's ends, the ends in increasing order (a cost may fall as
+    the level grows)."""
+    k, lo, hi = at(g["threshold"]), at(g["ci_low"]), at(g["ci_high"])
+    return (k, *sorted((lo, hi))) if np.isfinite(lo) and np.isfinite(hi) else (k, lo, hi)
+
+
 def pareto(fits: pd.DataFrame, group: pd.DataFrame, axes: Mapping[str, Axis],
            cost: Callable[[str, str, float], float], gt_cost: Callable[[str], float],
-           n_points: int = 41) -> tuple[pd.DataFrame, pd.DataFrame]:
+           n_points: int = 41, time: Callable[[str, str, float], float] | None = None,
+           gt_time: Callable[[str], float] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The perceptual Pareto front: what each renderer costs at its threshold, against the ground truth.
 
     Parameters
@@ -431,13 +441,16 @@ def pareto(fits: pd.DataFrame, group: pd.DataFrame, axes: Mapping[str, Axis],
         of rendering the condition with its varied parameter at ``level``; must be monotone in the level.
     gt_cost : callable
         ``gt_cost(scene)``: the same count for the ground truth.
+    time, gt_time : callable, optional
+        The same for the frame time (ms) on one backend, measured at the ladder's levels; with them the table
+        gains :data:`PARETO_TIME_COLUMNS`.
 
     Returns
     -------
-    table : DataFrame (:data:`PARETO_COLUMNS`)
+    table : DataFrame (:data:`PARETO_COLUMNS`, then :data:`PARETO_TIME_COLUMNS` with ``time``)
         Per condition x scene: the group threshold and CI, the probability of detection there, the cost at the
         threshold and at the CI's ends (the interval carried through), relative to GT's, and the speed-up
-        ``gt_cost / cost``.
+        ``gt_cost / cost``; with ``time`` the same for the frame time (``time_speedup = gt_time_ms / time_ms``).
     curves : DataFrame
         ``condition, scene, level, relative_cost, p_detect``: the pooled fit over the domain.
     """
@@ -450,16 +463,21 @@ def pareto(fits: pd.DataFrame, group: pd.DataFrame, axes: Mapping[str, Axis],
         guess = float(pf["guess"].iloc[0]) if len(pf) else 0.5
         crit = float(fits.loc[fits["condition"] == c, "criterion"].iloc[0])
 
-        def at(level):
-            return float(cost(c, s, float(level))) if np.isfinite(level) and level > 0 else math.nan
+        def at(level, fn=cost):
+            return float(fn(c, s, float(level))) if np.isfinite(level) and level > 0 else math.nan
 
-        k, klo, khi = at(g["threshold"]), at(g["ci_low"]), at(g["ci_high"])
-        klo, khi = (min(klo, khi), max(klo, khi)) if np.isfinite(klo) and np.isfinite(khi) else (klo, khi)
-        rows.append({"condition": c, "scene": s, "varied": g["varied"], "threshold": g["threshold"],
-                     "ci_low": g["ci_low"], "ci_high": g["ci_high"], "p_detect": float(detection(crit, guess)),
-                     "cost": k, "cost_ci_low": klo, "cost_ci_high": khi, "gt_cost": ref,
-                     "relative_cost": k / ref, "relative_cost_ci_low": klo / ref,
-                     "relative_cost_ci_high": khi / ref, "speedup": ref / k if k else math.nan})
+        k, klo, khi = _carried(at, g)
+        row = {"condition": c, "scene": s, "varied": g["varied"], "threshold": g["threshold"],
+               "ci_low": g["ci_low"], "ci_high": g["ci_high"], "p_detect": float(detection(crit, guess)),
+               "cost": k, "cost_ci_low": klo, "cost_ci_high": khi, "gt_cost": ref,
+               "relative_cost": k / ref, "relative_cost_ci_low": klo / ref,
+               "relative_cost_ci_high": khi / ref, "speedup": ref / k if k else math.nan}
+        if time is not None:
+            t, tlo, thi = _carried(lambda lv: at(lv, time), g)
+            gt_ms = float(gt_time(s))
+            row.update(time_ms=t, time_ms_ci_low=tlo, time_ms_ci_high=thi, gt_time_ms=gt_ms,
+                       time_speedup=gt_ms / t if t else math.nan)
+        rows.append(row)
         if len(pf):
             r = pf.iloc[0]
             ax = axes[c]
@@ -471,7 +489,8 @@ def pareto(fits: pd.DataFrame, group: pd.DataFrame, axes: Mapping[str, Axis],
                 lv = float(ax.to_level(x))
                 curve_rows.append({"condition": c, "scene": s, "level": lv, "relative_cost": at(lv) / ref,
                                    "p_detect": float(pd_)})
-    return (pd.DataFrame(rows, columns=list(PARETO_COLUMNS)),
+    columns = list(PARETO_COLUMNS) + (list(PARETO_TIME_COLUMNS) if time is not None else [])
+    return (pd.DataFrame(rows, columns=columns),
             pd.DataFrame(curve_rows, columns=["condition", "scene", "level", "relative_cost", "p_detect"]))
 
 
@@ -481,7 +500,8 @@ class ThresholdAnalysis:
 
     ``trials``: the adaptive trials fitted (participant, condition, scene, level, correct); ``fits``,
     ``group``: :func:`fit_thresholds`, :func:`group_table`; ``pareto``, ``curves``: :func:`pareto` (None without a
-    cost); ``cost_label``: what the cost counts; ``family``, ``criterion``: the threshold's definition;
+    cost); ``cost_label``: what the cost counts; ``time_label``: the frame times' unit, size, backend and machine
+    ("" when not measured: then ``pareto`` has no time columns); ``family``, ``criterion``: the threshold's definition;
     ``settings``: :meth:`FitSettings.describe`; ``notes``: lines for the report.
     """
 
@@ -494,6 +514,7 @@ class ThresholdAnalysis:
     pareto: pd.DataFrame | None = None
     curves: pd.DataFrame | None = None
     cost_label: str = ""
+    time_label: str = ""
     notes: list[str] | None = None
     n_boot: int = 0
 

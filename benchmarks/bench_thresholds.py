@@ -1,8 +1,18 @@
-"""Threshold studies: known-truth recovery of the adaptive procedures, coverage of their intervals, and the speed
-of the analysis (issue 28 items 4 and 6).
+"""Threshold studies: known-truth recovery of the adaptive procedures, coverage of their intervals, the speed
+of the analysis (issue 28 items 4 and 6), and the frame times of a protocol's ladders (item 5).
 
 Run:  .venv/bin/python benchmarks/bench_thresholds.py [--participants 200] [--speed-participants 25]
                                                       [--write docs/benchmarks.md]
+      .venv/bin/python benchmarks/bench_thresholds.py --ladder-times PROTOCOL [--backend cpu|gpu] [--scale 0.1]
+                                                      [--repeats 3] [--write docs/benchmarks.md]
+
+Ladder times: every level of every varied condition of an adaptive protocol and its reference (GT), on every
+scene, rendered as its stimulus (the protocol's camera, gaze at the centre) at the render size times ``--scale``
+on one backend; one child process per condition x scene (a warm-up frame at 64x48 first: compilation, scene
+upload or BVH build), the median of ``--repeats`` frames per level (the renderer's own frame time). The raw rows
+(one per condition x scene x level, GT per scene) go to
+``benchmarks/results/ladder_times_<protocol>_<backend>_<W>x<H>.csv``: the ``--frame-times`` CSV of ``studyapp
+analyze`` (give it the same ``--cost-scale``).
 
 Recovery: ``--participants`` simulated participants answer threshold_foveation's VaFR procedure on temple (the
 shipped QUEST+ settings, 40 trials, its 7-level acuity_scale ladder) from the protocol's declared psychometric
@@ -118,12 +128,97 @@ def speed(n: int) -> list[str]:
     ]
 
 
+def ladder_one(protocol: str, cond: str, scene: str, backend: str, scale: float, repeats: int) -> dict:
+    """The frame times of one condition's ladder (or the reference's one frame) on one scene, in this process."""
+    import statistics
+
+    from benchmarks.harness import gpu_device_line, machine_line
+    from renderers import registry
+    from studyapp.commands.study import _protocol
+    from studyapp.runner.threshold_study import cost_size
+
+    p = _protocol(protocol)
+    w, h = cost_size(p, scale)
+    c = p.conditions[cond]
+    v = p.adaptive.varied.get(cond)
+    ref, cam = p.scene_ref(scene), {"fov_y": p.display.fov_y_deg}
+    machine = machine_line() + (" " + gpu_device_line() if backend == "gpu" else "")
+    registry.render(ref, c.renderer, c.params, 64, 48, camera=cam, backend=backend)
+    rows = []
+    for level in (v.levels if v else [None]):
+        params = {**c.params, v.param: level} if v else c.params
+        ms = [1e3 * registry.render(ref, c.renderer, params, w, h, camera=cam, backend=backend)[1]["seconds"]["total"]
+              for _ in range(repeats)]
+        rows.append({"protocol": p.name, "backend": backend, "width": w, "height": h, "condition": cond,
+                     "renderer": c.renderer, "param": v.param if v else "", "level": "" if level is None else level,
+                     "scene": scene, "median_ms": statistics.median(ms), "repeats": repeats, "machine": machine})
+    return {"rows": rows}
+
+
+def ladder_times(protocol: str, backend: str, scale: float, repeats: int, argv: list[str]) -> tuple[list, list]:
+    """The ladder rows of ``protocol`` (a child process per condition x scene) and the report's lines."""
+    from benchmarks.harness import command_line, load_line, run_child, write_csv
+    from studyapp.commands.study import _protocol
+
+    protocol = os.path.abspath(protocol) if os.path.exists(protocol) else protocol  # the child runs in ROOT
+    p = _protocol(protocol)
+    if p.adaptive is None:
+        raise SystemExit(f"bench_thresholds.py: {p.name} has no adaptive design: no ladder to time")
+    rows, t0, load0 = [], time.perf_counter(), os.getloadavg()
+    for scene in p.scenes:
+        for cond in (p.adaptive.reference, *p.adaptive.varied):
+            out = run_child([os.path.abspath(__file__), "--one-ladder", protocol, cond, scene, "--backend", backend,
+                             "--scale", str(scale), "--repeats", str(repeats)], f"{cond} on {scene}")
+            rows += [{**r, "peak_mb": round(out["peak_mb"], 1)} for r in out["rows"]]
+            print(f"{cond} on {scene}: " + ", ".join(f"{r['median_ms']:,.0f}" for r in out["rows"]) + " ms",
+                  file=sys.stderr, flush=True)
+    w, h = rows[0]["width"], rows[0]["height"]
+    name = f"ladder_times_{p.name}_{backend}_{w}x{h}.csv"
+    write_csv(rows, name)
+    lines = [f"## Ladder frame times: {p.name} on the {backend} backend at {w}x{h} (bench_thresholds.py)", "",
+             f"`{command_line('benchmarks/bench_thresholds.py', argv)}` ({(time.perf_counter() - t0) / 60:.1f} min); "
+             f"{rows[0]['machine']} Median of {repeats} frames per level after a 64x48 warm-up frame, one process "
+             f"per condition x scene; raw rows: benchmarks/results/{name} (`studyapp analyze --frame-times`, "
+             f"with `--cost-scale {scale:g}`). Load average (1, 5, 15 min): {load_line(load0, os.getloadavg())}; "
+             "at a small --scale and under load the millisecond times are noisy.", "",
+             "| condition | scene | parameter | levels | ms per frame at each level |",
+             "|---|---|---|---|---|"]
+    for scene in p.scenes:
+        for cond in (p.adaptive.reference, *p.adaptive.varied):
+            mine = [r for r in rows if r["condition"] == cond and r["scene"] == scene]
+            lv = ", ".join(f"{r['level']:g}" for r in mine) if mine[0]["param"] else "-"
+            lines.append(f"| {cond} | {scene} | {mine[0]['param'] or '-'} | {lv} | "
+                         + ", ".join(f"{r['median_ms']:,.0f}" for r in mine) + " |")
+    return rows, lines
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--participants", type=int, default=200)
     ap.add_argument("--speed-participants", type=int, default=25)
     ap.add_argument("--write", metavar="FILE", help="replace the thresholds section of this Markdown file")
+    ap.add_argument("--ladder-times", metavar="PROTOCOL", help="time the ladders of this adaptive protocol (a file "
+                    "or a shipped name) instead: the --frame-times CSV of studyapp analyze")
+    ap.add_argument("--backend", choices=("cpu", "gpu"), default="cpu", help="ladder times: the backend")
+    ap.add_argument("--scale", type=float, default=0.1, help="ladder times: the render size times this (default "
+                    "0.1; 1 = the study's size)")
+    ap.add_argument("--repeats", type=int, default=3, help="ladder times: frames per level (median)")
+    ap.add_argument("--one-ladder", nargs=3, metavar=("PROTOCOL", "COND", "SCENE"), help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.one_ladder:
+        from benchmarks.harness import print_row
+
+        print_row(ladder_one(*args.one_ladder, args.backend, args.scale, args.repeats))
+        return 0
+    if args.ladder_times:
+        from benchmarks.harness import replace_section
+
+        _, lines = ladder_times(args.ladder_times, args.backend, args.scale, args.repeats,
+                                list(argv if argv is not None else sys.argv[1:]))
+        print("\n".join(lines))
+        if args.write:
+            replace_section(args.write, "thresholds-ladder", lines)
+        return 0
     from benchmarks.harness import command_line, machine_line, replace_section
 
     lines = ["## Threshold studies: recovery, coverage and speed (bench_thresholds.py)", "",

@@ -147,6 +147,22 @@ def test_pareto_carries_the_threshold_interval_into_the_cost():
     assert detection(0.5, 0.5) == 0.0 and detection(1.0, 0.5) == 1.0
 
 
+def test_pareto_carries_the_threshold_interval_into_the_time_when_given():
+    fits = pd.DataFrame([{"participant": POOLED, "condition": "LaFR", "scene": "temple", "estimable": True,
+                          "criterion": 0.75, "x_threshold": 0.3, "x_ci_low": 0.2, "x_ci_high": 0.4, "width": 0.5,
+                          "guess": 0.5, "lapse": 0.0}])
+    group = pd.DataFrame([{"condition": "LaFR", "scene": "temple", "varied": "delta",
+                           "threshold": 2.0, "ci_low": 1.5, "ci_high": 3.0}])
+    kw = dict(cost=lambda c, s, lv: 1000.0 / lv, gt_cost=lambda s: 2000.0)
+    table, _ = pareto(fits, group, {"LaFR": LAFR}, **kw)
+    assert "time_ms" not in table.columns
+    table, _ = pareto(fits, group, {"LaFR": LAFR}, **kw, time=lambda c, s, lv: 60.0 / lv, gt_time=lambda s: 90.0)
+    r = table.iloc[0]
+    # a stronger delta is faster: the interval's upper end gives the lower time, listed first
+    assert (r["time_ms"], r["time_ms_ci_low"], r["time_ms_ci_high"]) == pytest.approx((30.0, 20.0, 40.0))
+    assert r["gt_time_ms"] == 90.0 and r["time_speedup"] == pytest.approx(3.0) and r["speedup"] == pytest.approx(4.0)
+
+
 def test_figures_are_byte_identical_run_to_run(tmp_path):
     from analysis.figures import pareto_figure, psychometric_figure
 

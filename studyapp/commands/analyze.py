@@ -66,6 +66,9 @@ def register(sub, parser_class) -> None:
                    "(default 1: the study's size; smaller is faster, the counts of GT and LaFR shrink with it)")
     a.add_argument("--cache", metavar="DIR", help="adaptive designs: the stimulus cache the cost's frames are "
                    "read from or rendered into (default: none, rendered in memory)")
+    a.add_argument("--frame-times", metavar="CSV", help="adaptive designs: the ladders' frame times on one "
+                   "backend (benchmarks/bench_thresholds.py --ladder-times PROTOCOL --scale S, S the --cost-scale): "
+                   "the Pareto table gains the time at threshold and GT's")
     a.set_defaults(func=cmd_analyze)
 
 
@@ -97,7 +100,7 @@ def adaptive_protocol(log: Path, protocol_file: str | None):
 
 def write_thresholds(log: Path, protocol, out: Path, *, figures: bool = True, cost_scale: float = 1.0,
                      cache: str | None = None, n_boot: int | None = None, seed: int | None = None,
-                     title: str | None = None) -> list[Path]:
+                     title: str | None = None, times: str | None = None) -> list[Path]:
     """A threshold study's report (fits, group table, Pareto table and figure) into ``out``, whole or not at
     all."""
     from analysis.io import read_log
@@ -107,7 +110,7 @@ def write_thresholds(log: Path, protocol, out: Path, *, figures: bool = True, co
 
     res = analyze_thresholds(read_log(log), protocol, n_boot=2000 if n_boot is None else n_boot,
                              seed=seed or 0, cost_scale=cost_scale, cache_dir=Path(cache) if cache else None,
-                             progress=_progress)
+                             progress=_progress, times=Path(times) if times else None)
     with atomic_dir(out, marker="analysis.json") as tmp:
         paths = write_threshold_report(res, tmp, title=title or f"Thresholds of {log.name} ({protocol.name})",
                                        figures=figures, progress=_progress)
@@ -153,7 +156,7 @@ def cmd_analyze(args) -> int:
 
             real_folder(args.cache, "--cache")
         paths = write_thresholds(log, protocol, out, figures=not args.no_figures, cost_scale=args.cost_scale,
-                                 cache=args.cache, n_boot=args.n_boot, seed=args.seed)
+                                 cache=args.cache, n_boot=args.n_boot, seed=args.seed, times=args.frame_times)
         end_status()
         print(f"wrote {len(paths)} files into {args.out} (report: {Path(args.out) / 'report.md'})")
         return 0

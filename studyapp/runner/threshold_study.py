@@ -11,6 +11,10 @@ Cost at threshold: the device-independent count the renderer's foveation strengt
 light samples for the lightcuts baselines) of one frame at the study's size, measured at every level of the
 ladder (:func:`renderers.cost.cost_table`, through the stimulus cache) and interpolated linearly in log level and
 log count in between (the count is monotone in the level); GT's count is its ground truth's at the same size.
+
+Time at threshold: the median frame time of every ladder level and of GT per scene, measured on one backend at the
+same size by ``benchmarks/bench_thresholds.py --ladder-times`` (:data:`FRAME_TIME_COLUMNS`), read and checked
+against the protocol by :func:`frame_times` and interpolated like the counts (log level, log time).
 """
 
 from __future__ import annotations
@@ -29,12 +33,99 @@ from .protocol import Protocol
 COST_LABELS = {"rays_primary": "primary rays (shading points)", "light_samples": "light samples"}
 
 
+#: The columns of a frame-time CSV (benchmarks/bench_thresholds.py --ladder-times; GT rows have no param or level).
+FRAME_TIME_COLUMNS = ("protocol", "backend", "width", "height", "condition", "renderer", "param", "level", "scene",
+                      "median_ms", "repeats", "machine")
+
+
 def axes_of(protocol: Protocol) -> dict:
     """Varied condition -> :class:`analysis.thresholds.Axis` (scale, direction, the ladder's ends)."""
     from analysis.thresholds import Axis
 
     return {name: Axis(v.scale, v.stronger, (min(v.levels), max(v.levels)))
             for name, v in protocol.adaptive.varied.items()}
+
+
+def cost_size(protocol: Protocol, scale: float = 1.0) -> tuple[int, int]:
+    """The frame size the cost at threshold is counted and timed at: the protocol's render size times ``scale``
+    (at least 8 pixels a side)."""
+    w, h = (max(8, round(v * scale)) for v in protocol.render_size)
+    return w, h
+
+
+def log_interp(levels, values, level: float, floor: float) -> float:
+    """``values`` (positive, one per ladder level) at ``level``: linear interpolation in log level and log value
+    (exact for a power law; constant beyond the ladder's ends); values below ``floor`` count as ``floor``."""
+    lv = np.log(np.asarray(levels, dtype=float))
+    order = np.argsort(lv)
+    v = np.log(np.maximum(np.asarray(values, dtype=float), floor))
+    return float(math.exp(np.interp(math.log(level), lv[order], v[order])))
+
+
+def frame_times(path: Path, protocol: Protocol, scale: float = 1.0) -> tuple[Callable, Callable, str]:
+    """``(time_ms(condition, scene, level), gt_time_ms(scene), label)`` from a frame-time CSV
+    (:data:`FRAME_TIME_COLUMNS`), checked against ``protocol`` before anything is fitted: one backend, the size
+    of :func:`cost_size`, a row for every ladder level of every varied condition and for the reference on every
+    scene (a :class:`~data_schema.errors.UserError` naming what is missing otherwise)."""
+    import pandas as pd
+
+    from data_schema.errors import UserError
+
+    where = f"--frame-times {path}"
+    try:
+        df = pd.read_csv(path)
+    except (OSError, ValueError) as exc:
+        raise UserError(f"{where}: cannot read it as CSV ({str(exc).splitlines()[0] if str(exc) else exc})") from None
+    lacking = [c for c in FRAME_TIME_COLUMNS if c not in df.columns]
+    if lacking:
+        raise UserError(f"{where}: lacks the column(s) {', '.join(lacking)} (write it with "
+                        "benchmarks/bench_thresholds.py --ladder-times)")
+    ms = pd.to_numeric(df["median_ms"], errors="coerce")
+    if not (np.isfinite(ms) & (ms > 0)).all():
+        raise UserError(f"{where}: median_ms must be a positive number in every row")
+    names = sorted(set(df["protocol"].astype(str)))
+    if names != [protocol.name]:
+        raise UserError(f"{where}: measured for protocol {', '.join(names)}, not {protocol.name}")
+    backends = sorted(set(df["backend"].astype(str)))
+    if len(backends) != 1:
+        raise UserError(f"{where}: holds {len(backends)} backends ({', '.join(backends)}): give one backend's times")
+    w, h = cost_size(protocol, scale)
+    sizes = sorted({f"{a}x{b}" for a, b in zip(df["width"], df["height"])})
+    if sizes != [f"{w}x{h}"]:
+        raise UserError(f"{where}: measured at {', '.join(sizes)}, the cost is counted at {w}x{h} (render size "
+                        f"{protocol.render_size[0]}x{protocol.render_size[1]} x --cost-scale {scale:g}): measure "
+                        f"with --scale {scale:g} or pass the --cost-scale it was measured at")
+    ref = protocol.adaptive.reference
+    df = df.assign(median_ms=ms, level=pd.to_numeric(df["level"], errors="coerce"))
+    ladders, gt, missing = {}, {}, []
+    for scene in protocol.scenes:
+        rows = df[(df["condition"] == ref) & (df["scene"] == scene)]
+        if rows.empty:
+            missing.append(f"{ref} on {scene}")
+        else:
+            gt[scene] = float(rows["median_ms"].iloc[0])
+        for cond, v in protocol.adaptive.varied.items():
+            rows = df[(df["condition"] == cond) & (df["scene"] == scene) & (df["param"] == v.param)]
+            pick = []
+            for lv in v.levels:
+                hit = rows[np.isclose(rows["level"], lv, rtol=1e-6, atol=0.0)]
+                if hit.empty:
+                    missing.append(f"{cond} {v.param}={lv:g} on {scene}")
+                else:
+                    pick.append((lv, float(hit["median_ms"].iloc[0])))
+            ladders[cond, scene] = pick
+    if missing:
+        more = f" and {len(missing) - 4} more" if len(missing) > 4 else ""
+        raise UserError(f"{where} does not match protocol {protocol.name}: no time for "
+                        f"{', '.join(missing[:4])}{more}")
+
+    def time_ms(cond: str, scene: str, level: float) -> float:
+        lv, t = zip(*ladders[cond, scene])
+        return log_interp(lv, t, level, floor=1e-6)
+
+    machine = str(df["machine"].iloc[0]).rstrip(".")
+    label = f"ms per frame at {w}x{h} on the {backends[0]} backend ({machine})"
+    return time_ms, lambda scene: gt[scene], label
 
 
 def ladder_cost(protocol: Protocol, scale: float = 1.0, cache_dir: Path | None = None,
@@ -44,7 +135,7 @@ def ladder_cost(protocol: Protocol, scale: float = 1.0, cache_dir: Path | None =
     from renderers.cost import cost_table
     from renderers.registry import foveation_strength
 
-    w, h = (max(8, round(v * scale)) for v in protocol.render_size)
+    w, h = cost_size(protocol, scale)
     camera = {"fov_y": protocol.display.fov_y_deg}
     ref = protocol.conditions[protocol.adaptive.reference]
     tables, labels = {}, set()
@@ -63,8 +154,7 @@ def ladder_cost(protocol: Protocol, scale: float = 1.0, cache_dir: Path | None =
 
     def cost(cond: str, scene: str, level: float) -> float:
         t = table(cond, scene)
-        lv, work = np.log(t["level"].to_numpy(float)), np.log(np.maximum(t["work"].to_numpy(float), 1.0))
-        return float(math.exp(np.interp(math.log(level), lv, work)))
+        return log_interp(t["level"], t["work"], level, floor=1.0)
 
     def gt_cost(scene: str) -> float:
         cond = next(iter(protocol.adaptive.varied))
@@ -78,8 +168,10 @@ def ladder_cost(protocol: Protocol, scale: float = 1.0, cache_dir: Path | None =
 
 def analyze_thresholds(df, protocol: Protocol, *, n_boot: int = 2000, seed: int = 0, workers: int = 2,
                        cost: bool = True, cost_scale: float = 1.0, cache_dir: Path | None = None,
-                       settings=None, progress: Callable[[str], None] | None = None):
-    """The :class:`analysis.thresholds.ThresholdAnalysis` of a tidy log of ``protocol`` (adaptive)."""
+                       settings=None, progress: Callable[[str], None] | None = None,
+                       times: Path | None = None):
+    """The :class:`analysis.thresholds.ThresholdAnalysis` of a tidy log of ``protocol`` (adaptive); ``times``: a
+    frame-time CSV (:func:`frame_times`) for the time at threshold."""
     from analysis.thresholds import (
         FitSettings,
         ThresholdAnalysis,
@@ -99,6 +191,7 @@ def analyze_thresholds(df, protocol: Protocol, *, n_boot: int = 2000, seed: int 
         raise UserError("the log has no answered adaptive trials (columns procedure, level, correct)")
     axes = axes_of(protocol)
     say = progress or (lambda msg: None)
+    timing = frame_times(Path(times), protocol, cost_scale) if times is not None and cost else None
 
     def tick(done, total):
         say(f"fits {done}/{total}")
@@ -113,8 +206,14 @@ def analyze_thresholds(df, protocol: Protocol, *, n_boot: int = 2000, seed: int 
                             n_boot=n_boot)
     if cost:
         c, g, label = ladder_cost(protocol, cost_scale, cache_dir, progress=say)
-        res.pareto, res.curves = pareto(fits, group, axes, c, g)
+        t, gt_t, res.time_label = timing or (None, None, "")
+        res.pareto, res.curves = pareto(fits, group, axes, c, g, time=t, gt_time=gt_t)
         res.cost_label = label
+        if timing is None:
+            w, h = cost_size(protocol, cost_scale)
+            notes.append(f"Frame time at threshold: not measured. Measure the ladders with `python "
+                         f"benchmarks/bench_thresholds.py --ladder-times {protocol.name} --scale {cost_scale:g} "
+                         f"[--backend gpu]` ({w}x{h}) and pass its CSV as `studyapp analyze --frame-times`.")
     return res
 
 
