@@ -151,7 +151,8 @@ def write_report(res: StudyAnalysis, out_dir, title: str = "Study analysis", fig
                 md += [f"![scores]({p.relative_to(out).as_posix()})", ""]
         if f"{fam}_gee" in t:
             g = t[f"{fam}_gee"]
-            cap = (f"Logistic GEE ({fam}): {family.gee_odds_caption} {labels.get(reference, reference)}, 95 % Wald intervals "
+            cap = (f"Logistic GEE ({fam}): {family.gee_odds_caption} {labels.get(reference, reference)}, "
+                   "95 % Wald intervals "
                    "(participants as clusters, exchangeable working correlation, robust SEs)")
             emit(f"{fam}_gee", gee_table(g, cap, labels), g)
         scale_name = f"{fam}_scale"
