@@ -212,9 +212,9 @@ def validate_log(df: pd.DataFrame, name: str = "log", first_line: int | None = N
         if need:
             raise LogError(f"{name}: {fam} trials need column(s) {', '.join(need)}")
     if "response" in df.columns:
-        yes_no = (df["family"] == "yes_no").to_numpy()
-        df["response"] = _binary_column(df["response"], "response", name, first_line, "of a yes_no trial",
-                                        rows=yes_no)
+        scored = [f for f in FAMILIES if "response" in FAMILY_COLUMNS[f]]  # the families that log a yes/no
+        df["response"] = _binary_column(df["response"], "response", name, first_line,
+                                        f"of a {'/'.join(scored)} trial", rows=df["family"].isin(scored).to_numpy())
     for c in ("practice", "catch"):
         if c in df.columns:
             flag = _binary_column(df[c], c, name, first_line, "(a flag)")

@@ -106,6 +106,7 @@ def write_report(res: StudyAnalysis, out_dir, title: str = "Study analysis", fig
             md.extend([to_markdown(table), ""])
 
     for fam in res.families:
+        family = families.get(fam)
         order = res.conditions[fam]
         reference = res.plan.reference or order[0]
         md += [f"## {_FAMILY_TITLE[fam]}", ""]
@@ -142,36 +143,29 @@ def write_report(res: StudyAnalysis, out_dir, title: str = "Study analysis", fig
                 emit(f"{fam}_summary_table{suffix}", summary_vs_reference_table(grp, reference, cap, labels), None)
         if f"{fam}_units" in t:
             written.append(write_text(tdir / f"{fam}_units.csv", to_csv(t[f"{fam}_units"])))
-            if fam == "yes_no" and figures:
+            if family.kind == "score" and figures:
                 from .figures import scores_figure
 
-                p = fdir / "yes_no_scores.png"
-                written.append(scores_figure(t["yes_no_units"], order, p, "Mean score per condition", labels))
+                p = fdir / f"{fam}_scores.png"
+                written.append(scores_figure(t[f"{fam}_units"], order, p, "Mean score per condition", labels))
                 md += [f"![scores]({p.relative_to(out).as_posix()})", ""]
         if f"{fam}_gee" in t:
             g = t[f"{fam}_gee"]
-            what = ("odds of a yes against" if fam == "yes_no" else
-                    "odds of choosing each condition over")
-            cap = (f"Logistic GEE ({fam}): {what} {labels.get(reference, reference)}, 95 % Wald intervals "
+            cap = (f"Logistic GEE ({fam}): {family.gee_odds_caption} {labels.get(reference, reference)}, "
+                   "95 % Wald intervals "
                    "(participants as clusters, exchangeable working correlation, robust SEs)")
             emit(f"{fam}_gee", gee_table(g, cap, labels), g)
         scale_name = f"{fam}_scale"
         if scale_name in t:
             sc = t[scale_name]
-            if fam == "2afc":
-                what = " and ".join(n for c, n in (("jod", "Thurstone Case V (JOD)"), ("bt", "Bradley-Terry"))
-                                    if c in sc.columns)
-            else:
-                what = "Plackett-Luce"
+            what, fig_title = _scale_titles(family, sc)
             ci = f", {res.plan.n_boot} bootstrap replicates over participants" if res.plan.n_boot else ""
-            prior = f", prior {res.plan.prior}" if fam == "2afc" and "jod" in sc.columns else ""
+            prior = f", prior {res.plan.prior}" if "jod" in sc.columns else ""  # pwcmp's prior: the JOD scale
             emit(scale_name, scale_table(sc, f"{what} scores, reference {reference} = 0{prior}{ci}", labels), sc)
             if figures:
                 from .figures import scale_figure
 
                 p = fdir / f"{fam}_scale.png"
-                fig_title = ("Plackett-Luce scale" if fam != "2afc" else
-                             "Thurstone Case V scale" if "jod" in sc.columns else "Bradley-Terry scale")
                 if res.plan.n_boot:
                     fig_title += f" (95 % bootstrap intervals, {res.plan.n_boot} replicates)"
                 written.append(scale_figure(sc, p, fig_title, labels))
@@ -181,6 +175,16 @@ def write_report(res: StudyAnalysis, out_dir, title: str = "Study analysis", fig
                               + "\n"))
     written.append(write_text(out / "report.md", "\n".join(md).rstrip("\n") + "\n"))
     return written
+
+
+def _scale_titles(family: families.TrialFamily, sc: pd.DataFrame) -> tuple[str, str]:
+    """The scale table's caption words and the figure's title for the family's ``scale_model``: paired
+    comparisons name the scales present (JOD column ``jod``, Bradley-Terry ``bt``), rankings Plackett-Luce."""
+    if family.scale_model == "pairs":
+        what = " and ".join(n for c, n in (("jod", "Thurstone Case V (JOD)"), ("bt", "Bradley-Terry"))
+                            if c in sc.columns)
+        return what, "Thurstone Case V scale" if "jod" in sc.columns else "Bradley-Terry scale"
+    return "Plackett-Luce", "Plackett-Luce scale"
 
 
 def _slug(s: str) -> str:

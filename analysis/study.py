@@ -22,9 +22,10 @@ Tables (per trial family present in the log; names are stable):
 ``<fam>_summary`` (test ``summary_table``)
     mean ± SD, p, Cohen's d and label of every condition against the reference (seed 003
     Tables 5-6), overall and per scene.
-``2afc_scale`` / ``preference_scale`` (tests ``thurstone``, ``bradley_terry`` / ``plackett_luce``)
+``<fam>_scale`` (the family's ``scale_tests``: ``thurstone``, ``bradley_terry`` / ``plackett_luce``)
     Thurstone Case V (JOD) and Bradley-Terry scores (2AFC) or Plackett-Luce scores
-    (preference) with bootstrap intervals over participants, under the plan's prior.
+    (preference) with bootstrap intervals over participants, under the plan's prior; the family's
+    ``scale_model`` picks the scaling (:data:`SCALES`).
 ``<fam>_gee`` (test ``gee``; yes/no and 2AFC)
     Logistic GEE odds ratios against the reference (:func:`analysis.gee.logistic_gee`).
 
@@ -159,13 +160,14 @@ def _group_frames(df: pd.DataFrame, plan: AnalysisPlan) -> list[tuple[str, str, 
 
 
 # --- 2AFC and preference: votes ------------------------------------------------------------------------------
-def _choice_counts(df: pd.DataFrame, family: str, conds: list[str]):
+def _choice_counts(df: pd.DataFrame, family: families.TrialFamily, conds: list[str]):
     """Per row: codes of the shown conditions (n_rows x m, -1 padded) and of the picks (n_rows x 2): the
     family's reading of its answers (data_schema.families)."""
-    return families.get(family).shown_and_picks(df, conds, _codes)
+    return family.shown_and_picks(df, conds, _codes)
 
 
-def _votes_table(df, shown, picks, conds, family) -> pd.DataFrame:
+def _votes_table(df, shown, picks, conds, family: families.TrialFamily) -> pd.DataFrame:
+    """Votes per block, scene and condition; first and second choices apart where the family picks several."""
     k = len(conds)
     bc = [str(c) for c in df["block"].cat.categories]
     sc = [str(c) for c in df["scene"].cat.categories]
@@ -191,7 +193,7 @@ def _votes_table(df, shown, picks, conds, family) -> pd.DataFrame:
             rows.append((bc[gi // len(sc)], sc[gi % len(sc)], c, int(first[gi, ci] + second[gi, ci]),
                          int(first[gi, ci]), int(second[gi, ci]), int(n_shown[gi, ci])))
     out = pd.DataFrame(rows, columns=["block", "scene", "condition", "votes", "first", "second", "shown"])
-    if family == "2afc":
+    if not family.has_picks:
         out = out.drop(columns=["first", "second"])
     out["share"] = np.where(out["shown"] > 0, out["votes"] / out["shown"].where(out["shown"] > 0, 1), np.nan)
     return out.sort_values(["block", "scene"], kind="stable").reset_index(drop=True)
@@ -278,7 +280,7 @@ def _other_prior(plan: AnalysisPlan) -> str:
     return "none" if plan.prior == "none" else "weak"
 
 
-def _scale_2afc(df, shown, picks, conds, reference, plan) -> pd.DataFrame:
+def _scale_pairs(df, shown, picks, conds, reference, plan) -> pd.DataFrame:
     """Thurstone (JOD) and Bradley-Terry on (participant, winner, loser) counts (exact observer bootstrap)."""
     k = len(conds)
     p = df["participant"].cat.codes.to_numpy().astype(np.int64)
@@ -308,7 +310,7 @@ def _scale_2afc(df, shown, picks, conds, reference, plan) -> pd.DataFrame:
     return out.sort_values("order").drop(columns="order").reset_index(drop=True)
 
 
-def _scale_preference(df, shown, picks, conds, reference, plan) -> pd.DataFrame:
+def _scale_rankings(df, shown, picks, conds, reference, plan) -> pd.DataFrame:
     """Plackett-Luce on (participant, offered set, first, second) counts."""
     k = len(conds)
     p = df["participant"].cat.codes.to_numpy().astype(np.int64)
@@ -328,12 +330,26 @@ def _scale_preference(df, shown, picks, conds, reference, plan) -> pd.DataFrame:
     return out.sort_values("order").drop(columns="order").reset_index(drop=True)
 
 
+#: A family's ``scale_model`` -> the scaling of its choices and the note on its priors.
+SCALES = {
+    "pairs": (_scale_pairs, lambda plan: f"scales: prior {plan.prior!r} (JOD), {_other_prior(plan)!r} "
+                                         "(Bradley-Terry)"),
+    "rankings": (_scale_rankings, lambda plan: f"Plackett-Luce prior {_other_prior(plan)!r}"),
+}
+
+
+def _scales(family: families.TrialFamily, plan: AnalysisPlan) -> bool:
+    """Whether the plan asks for one of the family's scales."""
+    return family.scale_model is not None and bool(set(family.scale_tests) & set(plan.tests))
+
+
 # --- logistic GEE --------------------------------------------------------------------------------------------
-def _gee(sub: pd.DataFrame, fam: str, shown, picks, conds: list[str], reference: str) -> pd.DataFrame:
+def _gee(sub: pd.DataFrame, family: families.TrialFamily, shown, picks, conds: list[str],
+         reference: str) -> pd.DataFrame:
     """yes/no: every answer by condition (treatment coding, reference = baseline); 2AFC: the trials that show
     the reference, 1 when the other condition was chosen (no intercept: odds of beating the reference)."""
     part = sub["participant"].astype(str).to_numpy()
-    if fam == "yes_no":
+    if family.kind == "score":
         data = pd.DataFrame({"participant": part, "condition": sub["condition"].astype(str).to_numpy(),
                              "y": sub["response"].to_numpy(dtype=float)})
         return logistic_gee(data, "y", "condition", "participant", reference, order=conds, intercept=True)
@@ -344,7 +360,7 @@ def _gee(sub: pd.DataFrame, fam: str, shown, picks, conds: list[str], reference:
                          "y": (picks[with_ref, 0] == other).astype(float)})
     order = [c for c in conds if c != reference and (data["condition"] == c).any()]
     if not order:
-        raise UserError(f"gee: no 2afc trial shows the reference {reference!r} with another condition")
+        raise UserError(f"gee: no {family.name} trial shows the reference {reference!r} with another condition")
     return logistic_gee(data, "y", "condition", "participant", reference, order=order, intercept=False)
 
 
@@ -385,8 +401,8 @@ def analyze_log(df: pd.DataFrame, plan: AnalysisPlan | None = None, progress=Non
         if family.kind == "score":
             shown = picks = None
         else:
-            shown, picks = _choice_counts(sub, fam, conds)
-            res.tables[f"{fam}_votes"] = _votes_table(sub, shown, picks, conds, fam)
+            shown, picks = _choice_counts(sub, family, conds)
+            res.tables[f"{fam}_votes"] = _votes_table(sub, shown, picks, conds, family)
 
         omni, pair_rows, dunn_rows, summ_rows, unit_frames = [], [], [], [], []
         for block, scene, mask in _group_frames(sub, plan):
@@ -416,16 +432,13 @@ def analyze_log(df: pd.DataFrame, plan: AnalysisPlan | None = None, progress=Non
         for name, rows in (("pairwise", pair_rows), ("dunn", dunn_rows), ("summary", summ_rows)):
             if rows:
                 res.tables[f"{fam}_{name}"] = pd.concat(rows, ignore_index=True)
-        if fam == "2afc" and {"thurstone", "bradley_terry"} & set(plan.tests):
+        if _scales(family, plan):
             say(f"{fam}: scaling")
-            res.tables["2afc_scale"] = _scale_2afc(sub, shown, picks, conds, reference, plan)
-        elif fam == "preference" and "plackett_luce" in plan.tests:
-            say(f"{fam}: scaling")
-            res.tables["preference_scale"] = _scale_preference(sub, shown, picks, conds, reference, plan)
+            res.tables[f"{fam}_scale"] = SCALES[family.scale_model][0](sub, shown, picks, conds, reference, plan)
         if "gee" in plan.tests and "gee" in family.tests:
             say(f"{fam}: logistic GEE")
-            res.tables[f"{fam}_gee"] = _gee(sub, fam, shown, picks, conds, reference)
-        res.notes.append(_unit_note(fam, plan, dv, reference))
+            res.tables[f"{fam}_gee"] = _gee(sub, family, shown, picks, conds, reference)
+        res.notes.append(_unit_note(family, plan, dv, reference))
         res.notes += _degenerate_notes(res, fam)
     return res
 
@@ -448,20 +461,20 @@ def _degenerate_notes(res: StudyAnalysis, fam: str) -> list[str]:
     return notes
 
 
-def _unit_note(fam: str, plan: AnalysisPlan, dv: str, reference: str) -> str:
+def _unit_note(family: families.TrialFamily, plan: AnalysisPlan, dv: str, reference: str) -> str:
     unit = {"participant": "one value per participant and condition",
             "participant_block": "one value per participant, block and condition",
             "participant_scene": "one value per participant, scene and condition",
             "trial": "every trial is one observation"}[plan.unit]
     what = {"votes": "votes (times chosen, first or second choice)",
-            "chosen": "times chosen" if fam == "2afc" else "times chosen first",
+            "chosen": family.chosen_caption,
             "response": "mean score (1 = yes/acceptable)"}[dv]
     if plan.unit == "trial":
         what = {"votes": "chosen (1/0) each time a condition was shown",
                 "chosen": "chosen first (1/0) each time a condition was shown",
                 "response": "score (1 = yes/acceptable)"}[dv]
     d = "paired d_z over participants" if plan.paired else "pooled-SD Cohen's d of independent groups"
-    parts = [f"{fam}: dependent variable {what}; unit of analysis: {unit}; reference {reference!r}",
+    parts = [f"{family.name}: dependent variable {what}; unit of analysis: {unit}; reference {reference!r}",
              "omnibus: Kruskal-Wallis over all conditions"]
     if "pairwise_kruskal" in plan.tests:
         parts.append("pairwise p: two-sided Kruskal-Wallis on each pair, Holm-adjusted across the pairs")
@@ -471,15 +484,11 @@ def _unit_note(fam: str, plan: AnalysisPlan, dv: str, reference: str) -> str:
         parts.append("p against the reference: two-sided Mann-Whitney (= two-group Kruskal-Wallis), unadjusted, "
                      f"as in seed 003 Tables 5-6; effect size: {d} (condition minus reference, SDs with ddof = 1), "
                      "Sawilowsky (2009) labels")
-    if fam == "2afc" and {"thurstone", "bradley_terry"} & set(plan.tests):
-        parts.append(f"scales: prior {plan.prior!r} (JOD), {_other_prior(plan)!r} (Bradley-Terry)")
-    if fam == "preference" and "plackett_luce" in plan.tests:
-        parts.append(f"Plackett-Luce prior {_other_prior(plan)!r}")
-    if "gee" in plan.tests and fam == "preference":
-        parts.append("no logistic GEE for top-two-of-N choices (yes/no and 2AFC only)")
-    if "gee" in plan.tests and fam != "preference":
+    if _scales(family, plan):
+        parts.append(SCALES[family.scale_model][1](plan))
+    if "gee" in plan.tests and "gee" not in family.tests:
+        parts.append(family.no_gee_note)
+    if "gee" in plan.tests and "gee" in family.tests:
         parts.append("logistic GEE (statsmodels; participants as clusters, exchangeable working correlation, robust "
-                     "SEs): odds ratios with 95 % Wald intervals " + (
-                         "of a yes against the reference" if fam == "yes_no" else
-                         "of choosing each condition over the reference, in the trials that show both"))
+                     "SEs): odds ratios with 95 % Wald intervals " + family.gee_note)
     return "; ".join(parts) + "."

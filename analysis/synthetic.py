@@ -21,6 +21,8 @@ import pandas as pd
 from scipy import special
 
 from data_schema.errors import UserError
+from data_schema.families.two_afc import FAMILY as TWO_AFC
+from data_schema.families.yes_no import FAMILY as YES_NO
 
 from .scaling import JOD_SIGMA
 
@@ -77,7 +79,7 @@ def seed001_2afc_log(seed: int = 0, n_participants: int = 25, headsets=SEED001_H
                         i, j = j, i
                     p_a = special.ndtr((qp[i] - qp[j]) / JOD_SIGMA)
                     chosen = modes[i] if u[t] < p_a else modes[j]
-                    rows.append((pid, f"{pid}-{h}", h, s, len(rows), "2afc", modes[i], modes[j], chosen))
+                    rows.append((pid, f"{pid}-{h}", h, s, len(rows), TWO_AFC.name, modes[i], modes[j], chosen))
     df = pd.DataFrame(rows, columns=["participant", "session", "block", "scene", "trial", "family",
                                      "condition_a", "condition_b", "chosen"])
     df["trial"] = df.groupby("participant").cumcount()
@@ -107,7 +109,7 @@ def seed003_yes_no_log(task: int = 5, seed: int = 0, n_participants: int = 32, r
         y[rng.permutation(n)[:ones]] = 1
         frames.append(pd.DataFrame({
             "participant": [f"P{p + 1:02d}" for p, _, _ in cells], "block": f"task{task - 4}",
-            "scene": [s for _, s, _ in cells], "family": "yes_no", "condition": cond, "response": y}))
+            "scene": [s for _, s, _ in cells], "family": YES_NO.name, "condition": cond, "response": y}))
     df = pd.concat(frames, ignore_index=True)
     df = df.sort_values(["participant", "scene"], kind="stable").reset_index(drop=True)
     df.insert(1, "session", df["participant"] + f"-task{task - 4}")
@@ -141,7 +143,7 @@ def synthetic_2afc_log(n_trials: int, seed: int = 0, trials_per_participant: int
         "block": pd.Categorical.from_codes(np.zeros(n_trials, dtype=np.int64), ["hmd"]),
         "scene": pd.Categorical.from_codes((np.arange(n_trials) // 10) % len(scenes), list(scenes)),
         "trial": np.arange(n_trials) - part * trials_per_participant,
-        "family": pd.Categorical.from_codes(np.zeros(n_trials, dtype=np.int64), ["2afc"]),
+        "family": pd.Categorical.from_codes(np.zeros(n_trials, dtype=np.int64), [TWO_AFC.name]),
         "condition_a": pd.Categorical.from_codes(a, list(modes)),
         "condition_b": pd.Categorical.from_codes(b, list(modes)),
         "chosen": pd.Categorical.from_codes(chosen, list(modes)),

@@ -50,6 +50,32 @@ def test_declarations_agree_with_each_other(name):
                                                                     len(CONDS) if name == "preference" else 4)
 
 
+@pytest.mark.parametrize("name", families.NAMES)
+def test_what_the_analysis_and_the_report_ask_is_declared(name):
+    """analysis/ and the report read these instead of testing the family's name (tests/test_architecture.py):
+    a scale has a scaling in analysis.study.SCALES, a GEE its captions, a plan asking for a GEE the family has
+    none of a note, the ``chosen`` dependent variable its words, and every family exports CSV and Parquet."""
+    from analysis.study import SCALES
+
+    fam = families.get(name)
+    assert (fam.scale_model is None) == (not fam.scale_tests)
+    assert fam.scale_model is None or fam.scale_model in SCALES
+    if "gee" in fam.tests:
+        assert fam.gee_odds_caption and fam.gee_note and not fam.no_gee_note
+    else:
+        assert fam.no_gee_note and not fam.gee_odds_caption
+    assert bool(fam.chosen_caption) == ("chosen" in fam.dvs)
+    assert {"csv", "parquet"} <= set(fam.exports) and ("pwcmp" in fam.exports) == (fam.scale_model == "pairs")
+
+
+def test_declared_values():
+    two, pref, yn = (families.get(n) for n in ("2afc", "preference", "yes_no"))
+    assert (two.scale_model, pref.scale_model, yn.scale_model) == ("pairs", "rankings", None)
+    assert (two.chosen_caption, pref.chosen_caption) == ("times chosen", "times chosen first")
+    assert yn.gee_odds_caption == "odds of a yes against" and two.exports == ("csv", "parquet", "pwcmp")
+    assert families.single_stimulus() is yn
+
+
 @pytest.mark.parametrize("name,reps,expected", [("2afc", 3, 6 * 3), ("yes_no", 2, 4 * 2), ("preference", 5, 5)])
 def test_schedule_items_of_one_scene(name, reps, expected):
     fam = families.get(name)

@@ -26,4 +26,10 @@ def get(name: str) -> TrialFamily:
         raise UserError(f"unknown trial family {name!r}: allowed {', '.join(FAMILIES)}") from None
 
 
-__all__ = ["FAMILIES", "NAMES", "Observer", "TrialFamily", "get"]
+def single_stimulus() -> TrialFamily:
+    """The family whose trial shows one stimulus alone, played once (``yes_no``): what a labelled reference or a
+    preview display is shown as."""
+    return next(f for f in FAMILIES.values() if f.stimuli_range(1) == (1, 1) and not f.loops)
+
+
+__all__ = ["FAMILIES", "NAMES", "Observer", "TrialFamily", "get", "single_stimulus"]

@@ -8,12 +8,14 @@ A family (``2afc``, ``preference``, ``yes_no``) declares here, and nowhere else:
 - its **schedule items**: the trials of one scene, of a practice set, and a catch trial;
 - how its answers are **logged and interpreted**: the presenter's answers -> ``chosen``/``chosen_2``/
   ``response``, and the tidy log's family columns;
-- its **analysis**: the dependent variables it supports and the default one, the scaling tests that apply,
-  and, for choice families, the shown/picked condition codes of every trial (vectorised);
+- its **analysis**: the dependent variables it supports and the default one, the tests and the scaling tests
+  that apply (and the kind of data they scale), the report's captions, its export formats, its threshold
+  criterion, and, for choice families, the shown/picked condition codes of every trial (vectorised);
 - its **simulated answer**: what the simulated observer answers given the impairment of each stimulus.
 
 The protocol schema, the scheduler, the presenter, the store, the simulated observer and the analysis all ask
-the family object (:func:`data_schema.families.get`); adding a family is a module here and its tests.
+the family object (:func:`data_schema.families.get`) and never test a family's name (tests/test_architecture.py);
+adding a family is a module here and its tests.
 This package imports numpy only (``import analysis`` stays light).
 """
 
@@ -55,12 +57,24 @@ class TrialFamily:
     dvs: tuple[str, ...] = ()
     record_dv: str = ""
     default_dv: str = ""
-    #: Paired-comparison scaling tests that apply (analysis.vocabulary names).
+    #: Paired-comparison scaling tests that apply (analysis.vocabulary names) and the kind of choice data they
+    #: scale: ``"pairs"`` (winner/loser counts: Thurstone, Bradley-Terry) or ``"rankings"`` (first/second pick
+    #: of an offered set: Plackett-Luce); None: no scale.
     scale_tests: tuple[str, ...] = ()
+    scale_model: str | None = None
     #: Columns holding the conditions a trial showed (``|``-separated lists allowed).
     condition_columns: tuple[str, ...] = ()
     #: The analysis tests (analysis.vocabulary) that apply to this family.
     tests: tuple[str, ...] = ()
+    #: Export formats of its trial log (data_schema.store): pwcmp's table needs paired comparisons.
+    exports: tuple[str, ...] = ("csv", "parquet")
+    #: The report's and the analysis notes' words for this family (analysis.study, analysis.report): the
+    #: ``chosen`` dependent variable, the logistic GEE's odds ratio (table caption and note), and the note when
+    #: the plan asks for a GEE the family has none of.
+    chosen_caption: str = ""
+    gee_odds_caption: str = ""
+    gee_note: str = ""
+    no_gee_note: str = ""
     catch_kinds: tuple[str, ...] = ()
     has_positions: bool = False  # which condition is shown first/left can be balanced
     has_picks: bool = False  # the participant picks up to n_picks favourites

@@ -24,6 +24,9 @@ class Preference(TrialFamily):
     record_dv = "votes"
     default_dv = "votes"
     scale_tests = ("plackett_luce",)
+    scale_model = "rankings"
+    chosen_caption = "times chosen first"
+    no_gee_note = "no logistic GEE for top-two-of-N choices (yes/no and 2AFC only)"
     condition_columns = ("conditions",)
     tests = ("summary_table", "pairwise_kruskal", "kruskal_dunn", "plackett_luce")
     catch_kinds = ()

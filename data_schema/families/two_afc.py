@@ -26,6 +26,11 @@ class TwoAFC(TrialFamily):
     record_dv = "chosen"
     default_dv = "votes"
     scale_tests = ("thurstone", "bradley_terry")
+    scale_model = "pairs"
+    exports = ("csv", "parquet", "pwcmp")
+    chosen_caption = "times chosen"
+    gee_odds_caption = "odds of choosing each condition over"
+    gee_note = "of choosing each condition over the reference, in the trials that show both"
     condition_columns = ("condition_a", "condition_b")
     tests = ("summary_table", "pairwise_kruskal", "kruskal_dunn", "thurstone", "bradley_terry", "gee")
     catch_kinds = ("degraded", "repeat")

@@ -22,6 +22,8 @@ class YesNo(TrialFamily):
     record_dv = "response"
     default_dv = "response"
     scale_tests = ()
+    gee_odds_caption = "odds of a yes against"
+    gee_note = "of a yes against the reference"
     condition_columns = ("condition",)
     tests = ("summary_table", "pairwise_kruskal", "kruskal_dunn", "gee")
     catch_kinds = ("degraded",)

@@ -515,7 +515,7 @@ def demo_step(out_dir: Path, progress) -> list[Path]:
     eccentricity-dependent blur and noise) at ``--scale 0.25``, so the observer answers from images. Writes a
     fresh database per protocol, the tidy CSVs and the pwcmp file into ``out_dir/study``.
     """
-    from data_schema import store
+    from data_schema import families, store
     from studyapp.runner.stimuli import write_synthetic_stimuli
 
     out = Path(out_dir) / "study"
@@ -528,7 +528,7 @@ def demo_step(out_dir: Path, progress) -> list[Path]:
         write_synthetic_stimuli(p, DEMO_SCALE, max_frames=2)
         db = simulated_study(p, out / f"{name}.db", n_participants, progress, scale=DEMO_SCALE)
         written += [db, store.export_csv(db, out / f"{name}_trials.csv")]
-        if p.family == "2afc":
+        if "pwcmp" in families.get(p.family).exports:
             written.append(store.export_pwcmp(db, out / f"{name}_pwcmp.csv"))
     return written
 

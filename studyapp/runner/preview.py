@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from data_schema import families
+
 from studyapp.presentation.base import CONTINUE_KEY, ESCAPE, END_KEY, RESUME_KEY, TrialDisplay, key_text
 
 from .fpscheck import measure, seconds_per_cell, table_lines
@@ -47,7 +49,7 @@ def preview_trials(protocol: Protocol, stimuli) -> list[TrialDisplay]:
     out = []
     for k, (cond, scene) in enumerate(cells):
         out.append(TrialDisplay(
-            index=k, family="yes_no", stimuli=(stimuli.stimulus(cond, scene),), question="",
+            index=k, family=families.single_stimulus().name, stimuli=(stimuli.stimulus(cond, scene),), question="",
             answer_keys={} if timed else {CONTINUE_KEY: "seen"},
             duration_s=protocol.duration_s if timed else None, black_before_s=protocol.black_s,
             label=f"preview {k + 1} / {len(cells)}: {cond} in {scene}", scene=scene, kind="reference",
