@@ -171,9 +171,9 @@ def test_no_module_imports_a_benchmark_script():
     assert scripts and bad == []
 
 
-#: Files still allowed to name a family while the helpers that remove their literals finish (h14-store,
-#: h10-presenter). TEMPORARY: the integrator removes this allowance once those changes land.
-FAMILY_NAME_ALLOWED = {"data_schema/store.py", "studyapp/presentation/live_window.py"}
+#: Files still allowed to name a family while the store's split removes its literals. TEMPORARY: removed once
+#: that change lands.
+FAMILY_NAME_ALLOWED = {"data_schema/store.py"}
 
 
 def _docstrings(tree: ast.AST) -> set[int]:

@@ -314,7 +314,10 @@ def fps_check_frames(presenter, live, seconds: float) -> tuple[list, list, list,
 
     from .base import Stimulus
 
-    trial = TrialDisplay(index=-1, family="2afc", stimuli=(Stimulus(live.condition, (), 0.0, live=live),),
+    from data_schema import families
+
+    # one stimulus shown alone: the family that shows a lone stimulus (its keys are not read here)
+    trial = TrialDisplay(index=-1, family=families.single_stimulus().name, stimuli=(Stimulus(live.condition, (), 0.0, live=live),),
                          question="", answer_keys={}, duration_s=live.duration_s)
     lt = LiveTrial(presenter, trial)
     t0 = presenter.now()
