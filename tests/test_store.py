@@ -183,7 +183,9 @@ def test_analysis_plan_and_sessions(tmp_path):
 
 
 def test_commit_latency_helper_commits_every_response(tmp_path):
-    lat = S.timed_commit_latencies(tmp_path / "b.db", n=20)
+    from benchmarks.bench_runner import timed_commit_latencies
+
+    lat = timed_commit_latencies(tmp_path / "b.db", n=20)
     assert len(lat) == 20 and min(lat) > 0
     with open_store(tmp_path / "b.db") as st:
         assert st.conn.execute("SELECT COUNT(*) FROM responses").fetchone()[0] == 20

@@ -65,6 +65,10 @@ class TrialFamily:
     has_positions: bool = False  # which condition is shown first/left can be balanced
     has_picks: bool = False  # the participant picks up to n_picks favourites
     loops: bool = True  # sequences loop while the participant switches among the stimuli
+    #: Export layouts beyond the tidy log that this family's trials are written in (data_schema.store's
+    #: exporters): layout -> the tidy-log columns it takes, in order. ``pwcmp``: the condition shown
+    #: first/left, the one shown second/right, the one chosen.
+    export_columns: dict[str, tuple[str, ...]] = {}  # noqa: RUF012 - read only, like the tuples above
     #: Adaptive designs (studyapp.runner.adaptive): whether a trial has a correct answer a procedure can adapt
     #: on (2AFC: picked the original; yes/no: said "not the ground truth" to a test stimulus, i.e. detected),
     #: the proportion of such answers that defines the threshold, the chance rate (None: a free false-alarm

@@ -31,6 +31,7 @@ class TwoAFC(TrialFamily):
     catch_kinds = ("degraded", "repeat")
     has_positions = True
     loops = True
+    export_columns = {"pwcmp": ("condition_a", "condition_b", "chosen")}  # noqa: RUF012 - read only
     has_correct_answer = True  # adaptive trials: "which one is the original?"
     threshold_criterion = 0.75
     guess_rate = 0.5
