@@ -33,6 +33,7 @@ def export_pwcmp(db_path, out) -> Path:
         rows = [r for r in st.tidy_rows() if pwcmp_columns(r["family"]) and not r["practice"] and not r["catch"]]
     if not rows:
         names = " or ".join(f.name for f in families.FAMILIES.values() if LAYOUT in f.export_columns)
+        names = names or "paired-comparison"
         raise StoreError(f"{db_path}: no {names} trials to export in the pwcmp layout")
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
