@@ -5,7 +5,7 @@ Run:  .venv/bin/python benchmarks/bench_export.py [--rows 360000,1440000] [--bef
           [--dir DIR] [--write docs/benchmarks.md]
 
 Each database holds ``N`` flips of live 2AFC trials (720 flips each: 8 s at 90 Hz; 100 trials per participant)
-written through the store's own insert path (``data_schema.store.synthetic_frames_study``: every row with its
+written through the store's own insert path (:func:`synthetic_frames_study` below: every row with its
 checksum, as a session writes it). Building 1.44 M rows is the slow part (about a minute), so the databases are
 kept in ``--dir`` (default: ``$TMPDIR/studyapp_bench_export``) and reused by later runs.
 
@@ -43,10 +43,48 @@ df.to_parquet(sys.argv[2], index=False)
 """
 
 
+def synthetic_frames_study(db_path, n_frames: int, per_trial: int = 720, trials_per_participant: int = 100) -> Path:
+    """A new study database holding ``n_frames`` flips of live 2AFC trials (``per_trial`` flips each: 8 s at
+    90 Hz), written through :meth:`data_schema.store.Store.commit_response` like a session's (this benchmark's
+    databases and tests/test_export_frames.py's).
+
+    Every value is one studyapp logs: flips 1/90 s apart, a render time on new frames (None on every 9th: the
+    last frame shown again), a gaze sample 4-8 ms old (none on every 50th flip), a camera walking along x,
+    every 100th flip dropped.
+    """
+    from types import SimpleNamespace
+
+    from data_schema.store import PlannedRow, open_store
+
+    n_trials = -(-n_frames // per_trial)
+    with open_store(db_path, "create") as st:
+        st.bind_protocol("synthetic_frames", "1", "0" * 64, {"name": "synthetic_frames"})
+        for p in range(-(-n_trials // trials_per_participant)):
+            pid = f"P{p + 1:03d}"
+            first = p * trials_per_participant
+            count = min(trials_per_participant, n_trials - first)
+            st.enrol(pid, p, p, "0" * 64, [PlannedRow(i, "trial", "2afc", "hall", "", ("LaFR", "GT"), "", False)
+                                           for i in range(count)])
+            sid = st.start_session(pid, "0" * 64, p, {}, {}, {}, "synthetic")
+            for i in range(count):
+                n = min(per_trial, n_frames - (first + i) * per_trial)
+                flips = [SimpleNamespace(
+                    frame=k, stimulus=(k // 360) % 2, flip_s=10.0 * i + k / 90.0,
+                    render_s=None if k % 9 == 8 else 0.004 + (k % 7) * 1e-4,
+                    gaze_t=None if k % 50 == 49 else 10.0 * i + k / 90.0 - 0.004 - (k % 5) * 1e-3,
+                    gaze_x=None if k % 50 == 49 else 960.0 + (k % 200) * 1.5,
+                    gaze_y=None if k % 50 == 49 else 540.0 - (k % 120) * 0.75,
+                    position=(k * 0.01, 1.6, -3.0), look_at=(k * 0.01, 1.2, 0.0), dropped=k % 100 == 99)
+                    for k in range(n)]
+                st.commit_response(pid, i, sid, ["A"], chosen="LaFR", rt_s=0.8, onset_s=10.0 * i, frames=flips)
+            st.end_session(sid, "completed")
+    return Path(db_path)
+
+
 def database(folder: Path, rows: int) -> tuple[Path, float | None]:
     """The cached database of ``rows`` flips (built, under a temporary name then renamed, if missing) and the
     seconds its build took (None: reused)."""
-    from data_schema.store import remove_database, synthetic_frames_study
+    from data_schema.store import remove_database
 
     db = folder / f"frames_{rows}.db"
     if db.is_file():

@@ -49,9 +49,24 @@ def fdatasync_floor(folder: Path, n: int) -> list[float]:
     return lat
 
 
-def bench_commits(folder: Path, n: int) -> dict:
-    from data_schema.store import timed_commit_latencies
+def timed_commit_latencies(db_path, n: int = 1000) -> list[float]:
+    """Seconds per :meth:`data_schema.store.Store.commit_response` for ``n`` responses in a scratch study."""
+    from data_schema.store import PlannedRow, open_store
 
+    lat = []
+    with open_store(db_path, "create") as st:
+        st.bind_protocol("bench", "1", "0" * 64, {"name": "bench"})
+        planned = [PlannedRow(i, "trial", "2afc", "s", "", ("a", "b"), "", False) for i in range(n)]
+        st.enrol("B1", 1, 0, "0" * 64, planned)
+        sid = st.start_session("B1", "0" * 64, 0, {}, {}, {}, "bench")
+        for i in range(n):
+            t0 = time.perf_counter()
+            st.commit_response("B1", i, sid, ["A"], chosen="a", rt_s=0.5, onset_s=1.0)
+            lat.append(time.perf_counter() - t0)
+    return lat
+
+
+def bench_commits(folder: Path, n: int) -> dict:
     lat = timed_commit_latencies(folder / "bench.db", n)
     floor = fdatasync_floor(folder, min(n, 1000))
     return {"n": n, "p50": percentile(lat, 50), "p90": percentile(lat, 90), "p99": percentile(lat, 99),

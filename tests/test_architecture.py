@@ -171,11 +171,6 @@ def test_no_module_imports_a_benchmark_script():
     assert scripts and bad == []
 
 
-#: Files still allowed to name a family while the store's split removes its literals. TEMPORARY: removed once
-#: that change lands.
-FAMILY_NAME_ALLOWED = {"data_schema/store.py"}
-
-
 def _docstrings(tree: ast.AST) -> set[int]:
     """``id`` of every docstring node of ``tree`` (module, class, function)."""
     out = set()
@@ -207,7 +202,7 @@ def test_no_family_name_outside_the_families_package():
     for _, files in _product_files():
         for path in files:
             rel = path.relative_to(ROOT).as_posix()
-            if rel.startswith("data_schema/families/") or rel in FAMILY_NAME_ALLOWED:
+            if rel.startswith("data_schema/families/"):
                 continue
             bad += [f"{rel}:{line}: {name!r}" for line, name in
                     _family_literals(path.read_text(encoding="utf-8"), set(NAMES))]

@@ -13,8 +13,9 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
+from benchmarks.bench_export import synthetic_frames_study
 from data_schema import store
-from data_schema.store import PlannedRow, open_store, synthetic_frames_study
+from data_schema.store import PlannedRow, frames_export, open_store
 
 ROOT = Path(__file__).resolve().parents[1]
 BLOCK = store.FRAMES_BLOCK_ROWS
@@ -53,9 +54,9 @@ def crafted_db(tmp_path_factory):
 
 @pytest.mark.parametrize("block", [BLOCK, 7])
 def test_streamed_frames_export_is_the_whole_table_export(crafted_db, tmp_path, monkeypatch, block):
-    monkeypatch.setattr(store, "FRAMES_BLOCK_ROWS", block)
+    monkeypatch.setattr(frames_export, "FRAMES_BLOCK_ROWS", block)
     if block == 7:  # row groups of 3 blocks
-        monkeypatch.setattr(store, "FRAMES_ROW_GROUP_ROWS", 20)
+        monkeypatch.setattr(frames_export, "FRAMES_ROW_GROUP_ROWS", 20)
     for suffix in (".csv", ".parquet"):
         old, new = tmp_path / f"old{suffix}", tmp_path / f"new{suffix}"
         whole_table_export(crafted_db, old)
@@ -92,9 +93,9 @@ def test_a_frame_value_studyapp_never_logs_is_one_line_and_nothing_is_written(cr
 
 CHILD = """
 import resource, sys
-from data_schema import store
-store.FRAMES_BLOCK_ROWS, store.FRAMES_ROW_GROUP_ROWS = 4096, 8192
-store.export_frames(sys.argv[1], sys.argv[2])
+from data_schema.store import frames_export
+frames_export.FRAMES_BLOCK_ROWS, frames_export.FRAMES_ROW_GROUP_ROWS = 4096, 8192
+frames_export.export_frames(sys.argv[1], sys.argv[2])
 print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
 """
 

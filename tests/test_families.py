@@ -118,3 +118,14 @@ def test_a_clearly_worse_stimulus_loses():
     yn = families.get("yes_no")
     yes = sum(yn.simulate([0.0], obs, rng, False, 1)[0] == ["yes"] for _ in range(200))
     assert yes > 180  # 0 JND against a criterion of 1 JND
+
+
+@pytest.mark.parametrize("name", families.NAMES)
+def test_export_columns_are_columns_the_family_logs(name):
+    """An export layout a family declares (``export_columns``: layout -> tidy-log columns) takes only columns its
+    trials fill; pwcmp takes three (first/left, second/right, chosen), and only the pair family declares it."""
+    fam = families.get(name)
+    logged = set(fam.log_columns) | set(fam.condition_columns)
+    assert all(set(cols) <= logged for cols in fam.export_columns.values())
+    assert all(len(cols) == 3 for layout, cols in fam.export_columns.items() if layout == "pwcmp")
+    assert ("pwcmp" in fam.export_columns) == (fam.condition_columns == ("condition_a", "condition_b"))

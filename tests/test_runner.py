@@ -309,7 +309,7 @@ def test_resume_after_a_stop_behind_the_last_answer_closes_the_session(tmp_path,
     run_session(p, "P1", db, _sim(p, "P1"), allow_declared=True)
     with open_store(db, "write") as st:  # as if killed after the last commit, before the session was closed
         with st.transaction("reopen") as c:
-            S._update(c, "sessions", {"id": "P1-s1"}, {"status": "running", "ended_utc": None})
+            S.tables._update(c, "sessions", {"id": "P1-s1"}, {"status": "running", "ended_utc": None})
     s = run_session(p, "P1", db, _sim(p, "P1"), resume=True, allow_declared=True)
     assert (s.session, s.status, s.answered, s.planned) == ("P1-s1", "completed", 4, 4)
     with open_store(db) as st:

@@ -170,6 +170,22 @@ def test_pwcmp_layout(tmp_path):
         S.export_pwcmp(_filled(tmp_path, "yes_no"), tmp_path / "pw2.csv")
 
 
+def test_pwcmp_takes_its_columns_from_the_family(tmp_path, monkeypatch):
+    """The exporter asks the family which tidy columns are the pair and the pick (``export_columns``): declared
+    the other way round, condition_1 and condition_2 swap and the selection follows; a family that declares no
+    pwcmp layout has no trials to export."""
+    from data_schema import families
+
+    db = _filled(tmp_path)
+    two = type(families.get("2afc"))
+    monkeypatch.setattr(two, "export_columns", {"pwcmp": ("condition_b", "condition_a", "chosen")})
+    rows = list(csv.reader(S.export_pwcmp(db, tmp_path / "swapped.csv").open()))
+    assert [r[3:] for r in rows[1:3]] == [["y", "x", "1"], ["y", "x", "2"]]
+    monkeypatch.setattr(two, "export_columns", {})
+    with pytest.raises(StoreError, match=r"no paired-comparison trials to export in the pwcmp layout"):
+        S.export_pwcmp(db, tmp_path / "none.csv")
+
+
 def test_analysis_plan_and_sessions(tmp_path):
     db = _filled(tmp_path)
     plan = S.read_analysis_plan(db)
@@ -183,7 +199,9 @@ def test_analysis_plan_and_sessions(tmp_path):
 
 
 def test_commit_latency_helper_commits_every_response(tmp_path):
-    lat = S.timed_commit_latencies(tmp_path / "b.db", n=20)
+    from benchmarks.bench_runner import timed_commit_latencies
+
+    lat = timed_commit_latencies(tmp_path / "b.db", n=20)
     assert len(lat) == 20 and min(lat) > 0
     with open_store(tmp_path / "b.db") as st:
         assert st.conn.execute("SELECT COUNT(*) FROM responses").fetchone()[0] == 20
@@ -202,3 +220,20 @@ def test_a_negative_zero_logged_reads_back_undamaged(tmp_path):
         rows = st.tidy_rows()
     assert frames and all(f["gaze_x"] == 0.0 and math.copysign(1.0, f["gaze_x"]) == 1.0 for f in frames)
     assert len(rows) == len({f["idx"] for f in frames})
+
+
+def test_the_store_names_no_trial_family():
+    """The store asks the family (``families.get(name)``) and never branches on a family's name: no string in
+    data_schema/store/ (docstrings included) holds one."""
+    import ast
+    import re
+    from pathlib import Path
+
+    from data_schema import families
+
+    names = re.compile(r"\b(" + "|".join(map(re.escape, families.NAMES)) + r")\b", re.IGNORECASE)
+    found = [f"{path.name}:{node.lineno}: {node.value[:60]!r}"
+             for path in sorted((Path(S.__file__).parent).glob("*.py"))
+             for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+             if isinstance(node, ast.Constant) and isinstance(node.value, str) and names.search(node.value)]
+    assert found == []

@@ -66,8 +66,6 @@ class TrialFamily:
     condition_columns: tuple[str, ...] = ()
     #: The analysis tests (analysis.vocabulary) that apply to this family.
     tests: tuple[str, ...] = ()
-    #: Export formats of its trial log (data_schema.store): pwcmp's table needs paired comparisons.
-    exports: tuple[str, ...] = ("csv", "parquet")
     #: The report's and the analysis notes' words for this family (analysis.study, analysis.report): the
     #: ``chosen`` dependent variable, the logistic GEE's odds ratio (table caption and note), and the note when
     #: the plan asks for a GEE the family has none of.
@@ -79,6 +77,10 @@ class TrialFamily:
     has_positions: bool = False  # which condition is shown first/left can be balanced
     has_picks: bool = False  # the participant picks up to n_picks favourites
     loops: bool = True  # sequences loop while the participant switches among the stimuli
+    #: Export layouts beyond the tidy log that this family's trials are written in (data_schema.store's
+    #: exporters): layout -> the tidy-log columns it takes, in order. ``pwcmp``: the condition shown
+    #: first/left, the one shown second/right, the one chosen.
+    export_columns: dict[str, tuple[str, ...]] = {}  # noqa: RUF012 - read only, like the tuples above
     #: Adaptive designs (studyapp.runner.adaptive): whether a trial has a correct answer a procedure can adapt
     #: on (2AFC: picked the original; yes/no: said "not the ground truth" to a test stimulus, i.e. detected),
     #: the proportion of such answers that defines the threshold, the chance rate (None: a free false-alarm
@@ -89,6 +91,12 @@ class TrialFamily:
     psignifit_type: str | None = None
 
     # -- protocol parameters and keys ------------------------------------------------------------------------
+    @property
+    def exports(self) -> tuple[str, ...]:
+        """Export formats of its trial log (data_schema.store): the tidy log's, and the layouts it declares in
+        :attr:`export_columns` (pwcmp's table needs paired comparisons)."""
+        return ("csv", "parquet", *self.export_columns)
+
     def default_n_picks(self, n_conditions: int) -> int:
         return 1
 

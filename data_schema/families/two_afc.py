@@ -27,7 +27,6 @@ class TwoAFC(TrialFamily):
     default_dv = "votes"
     scale_tests = ("thurstone", "bradley_terry")
     scale_model = "pairs"
-    exports = ("csv", "parquet", "pwcmp")
     chosen_caption = "times chosen"
     gee_odds_caption = "odds of choosing each condition over"
     gee_note = "of choosing each condition over the reference, in the trials that show both"
@@ -36,6 +35,7 @@ class TwoAFC(TrialFamily):
     catch_kinds = ("degraded", "repeat")
     has_positions = True
     loops = True
+    export_columns = {"pwcmp": ("condition_a", "condition_b", "chosen")}  # noqa: RUF012 - read only
     has_correct_answer = True  # adaptive trials: "which one is the original?"
     threshold_criterion = 0.75
     guess_rate = 0.5
