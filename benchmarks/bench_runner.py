@@ -1,6 +1,6 @@
 """Benchmark of the study runner: durable response commits and schedule generation.
 
-Run:  .venv/bin/python benchmarks/bench_runner.py [--commits 2000] [--dir DIR] [--write docs/benchmarks.md]
+Run:  .venv/bin/python benchmarks/bench_runner.py [--commits 2000] [--dir DIR] [--smoke] [--write docs/benchmarks.md]
 
 - Commit latency: ``Store.commit_response`` (one fsynced SQLite transaction in WAL mode, ``synchronous=FULL``)
   for ``--commits`` responses in a scratch study in ``--dir`` (default: a temporary folder on the disk of the
@@ -9,11 +9,16 @@ Run:  .venv/bin/python benchmarks/bench_runner.py [--commits 2000] [--dir DIR] [
 - Schedules: ``build_schedule`` for 1,000 participants of each shipped protocol (best of 3 passes), and
   whether a second pass gives byte-identical schedules.
 - A whole simulated session (seed 003 Task 1, declared qualities) in a fresh database: wall time.
+
+Each measurement (the commits, each protocol's schedules, the session) runs in its own child process
+(``harness.run_child``: its peak memory, wall time and the load after it); the raw rows go to
+``benchmarks/results/bench_runner.csv``. ``--smoke`` runs every measurement at tiny sizes.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import tempfile
@@ -23,7 +28,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.harness import load_average, machine_line, replace_section  # noqa: E402
+from benchmarks.harness import (load_average, load_line, machine_line, print_row, replace_section,  # noqa: E402
+                                results_ref, run_child, write_csv)
 
 
 def percentile(values, q):
@@ -75,27 +81,27 @@ def bench_commits(folder: Path, n: int) -> dict:
             "floor_share_5ms": sum(x <= 0.005 for x in floor) / len(floor)}
 
 
-def bench_schedules(n: int = 1000) -> list[dict]:
+def bench_schedule(path: str, n: int = 1000) -> dict:
+    """``build_schedule`` for ``n`` participants of the protocol at ``path``: best of 3 passes, and whether the
+    passes give byte-identical schedules."""
     from studyapp.runner.protocol import load_protocol
     from studyapp.runner.schedule import build_schedule, schedule_bytes
 
-    rows = []
-    for path in sorted((ROOT / "protocols").glob("seed*.yaml")):
-        p = load_protocol(path, check_renderers=False)
-        best, cpu, first = float("inf"), float("inf"), None
-        for _ in range(3):
-            t0, c0 = time.perf_counter(), time.process_time()
-            scheds = [build_schedule(p, f"P{i}", 0) for i in range(n)]
-            best = min(best, time.perf_counter() - t0)
-            cpu = min(cpu, time.process_time() - c0)
-            blob = b"".join(schedule_bytes(s) for s in scheds)
-            first = blob if first is None else first
-        rows.append({"protocol": p.name, "trials": len(scheds[0]), "seconds": best, "cpu": cpu,
-                     "identical": blob == first})
-    return rows
+    p = load_protocol(path, check_renderers=False)
+    best, cpu, first = float("inf"), float("inf"), None
+    for _ in range(3):
+        t0, c0 = time.perf_counter(), time.process_time()
+        scheds = [build_schedule(p, f"P{i}", 0) for i in range(n)]
+        best = min(best, time.perf_counter() - t0)
+        cpu = min(cpu, time.process_time() - c0)
+        blob = b"".join(schedule_bytes(s) for s in scheds)
+        first = blob if first is None else first
+    return {"protocol": p.name, "participants": n, "trials": len(scheds[0]), "seconds": best, "cpu": cpu,
+            "identical": blob == first}
 
 
 def bench_session(folder: Path) -> dict:
+    """A whole simulated session of seed003_task1 (declared qualities) in a fresh database: its wall time."""
     from studyapp.runner.observer import SimulatedObserver
     from studyapp.runner.protocol import load_protocol
     from studyapp.runner.session import ground_truth_stimuli, run_session
@@ -108,23 +114,58 @@ def bench_session(folder: Path) -> dict:
     return {"trials": s.planned, "seconds": time.perf_counter() - t0}
 
 
+def measure(kind: str, arg, folder: str) -> dict:
+    """One configuration in this process (``--one``): ``commits`` (``arg`` responses), ``schedule`` (``arg``: the
+    protocol's path) or ``session``, with its scratch databases in a fresh folder under ``folder``."""
+    with tempfile.TemporaryDirectory(dir=folder, prefix=".bench_runner_") as tmp:
+        if kind == "commits":
+            return {"kind": kind, **bench_commits(Path(tmp), arg)}
+        if kind == "schedule":
+            path, n = arg
+            return {"kind": kind, **bench_schedule(path, n)}
+        return {"kind": kind, **bench_session(Path(tmp))}
+
+
+def run(commits: int, participants: int, folder: str) -> list[dict]:
+    """Every configuration in its own child process (its peak memory, wall time and the load after it)."""
+    jobs = [["commits", commits]] + [["schedule", [str(p), participants]]
+                                     for p in sorted((ROOT / "protocols").glob("seed*.yaml"))] + [["session", None]]
+    rows = []
+    for kind, arg in jobs:
+        r = run_child([str(Path(__file__).resolve()), "--one", json.dumps([kind, arg, folder])], f"{kind} {arg or ''}")
+        rows.append(r)
+        print(f"{kind} {r.get('protocol', '')}: peak {r['peak_mb']:.0f} MB, wall {r['wall_s']:.1f} s, load "
+              f"{r['load']:.1f}", file=sys.stderr, flush=True)
+    return rows
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--commits", type=int, default=2000)
     ap.add_argument("--dir", help="folder for the scratch databases (default: a temporary folder in the repo)")
     ap.add_argument("--write", metavar="MD", help="replace the runner section of this Markdown file")
+    ap.add_argument("--smoke", action="store_true", help="tiny sizes (50 commits, schedules for 10 participants): "
+                    "checks that every configuration runs; its figures mean nothing")
+    ap.add_argument("--one", help=argparse.SUPPRESS)
     args = ap.parse_args()
-    with tempfile.TemporaryDirectory(dir=args.dir or ROOT, prefix=".bench_runner_") as tmp:
-        folder = Path(tmp)
-        commits = bench_commits(folder, args.commits)
-        schedules = bench_schedules()
-        session = bench_session(folder)
+    if args.one:
+        print_row(measure(*json.loads(args.one)))
+        return 0
+    n_commits, participants = (50, 10) if args.smoke else (args.commits, 1000)
+    load0 = load_average()
+    rows = run(n_commits, participants, str(Path(args.dir or ROOT).resolve()))
+    name = f"bench_runner{'_smoke' if args.smoke else ''}.csv"
+    write_csv(rows, name)
+    commits = next(r for r in rows if r["kind"] == "commits")
+    schedules = [r for r in rows if r["kind"] == "schedule"]
+    session = next(r for r in rows if r["kind"] == "session")
     ms = 1000.0
     lines = [
         "## Study runner (`benchmarks/bench_runner.py`)",
         "",
-        machine_line() + f" Load average during the run: {load_average()[0]:.1f} (other jobs share the 2 cores "
-        "and the disk; wall times include their interference, CPU times do not).",
+        machine_line() + f" One child process per measurement (peak memory up to "
+        f"{max(r['peak_mb'] for r in rows):.0f} MB); load average {load_line(load0, load_average())} (other jobs "
+        "share the 2 cores and the disk; wall times include their interference, CPU times do not).",
         "",
         "| measurement | value | target |",
         "|---|---:|---|",
@@ -137,7 +178,7 @@ def main() -> int:
          f"{commits['floor_p99'] * ms:.2f} ms (within 5 ms: {commits['floor_share_5ms']:.1%}) | |"),
     ]
     for r in schedules:
-        lines.append(f"| schedules for 1,000 participants, {r['protocol']} ({r['trials']} trials each) | "
+        lines.append(f"| schedules for {r['participants']:,} participants, {r['protocol']} ({r['trials']} trials each) | "
                      f"{r['seconds']:.3f} s wall, {r['cpu']:.3f} s CPU"
                      f"{'' if r['identical'] else ' (NOT identical on re-run)'} | ≤ 1 s |")
     lines.append(f"| whole simulated session, seed003_task1 ({session['trials']} trials, fresh DB) | "
@@ -149,7 +190,8 @@ def main() -> int:
                    "this shared virtual disk the flush varies between runs (other runs measured flushes of one "
                    "or two ~4 ms ticks, p99 8-12 ms, while other jobs were writing). Re-running gives "
                    f"byte-identical schedules: {'yes' if all(r['identical'] for r in schedules) else 'NO'}."), "",
-              "Reproduce: `.venv/bin/python benchmarks/bench_runner.py --write docs/benchmarks.md`"]
+              "Reproduce: `.venv/bin/python benchmarks/bench_runner.py --write docs/benchmarks.md` (raw rows: "
+              f"`{results_ref(name)}`)"]
     print("\n".join(lines))
     if args.write:
         replace_section(args.write, "runner", lines)
