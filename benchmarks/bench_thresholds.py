@@ -1,7 +1,7 @@
 """Threshold studies: known-truth recovery of the adaptive procedures, coverage of their intervals, the speed
 of the analysis (issue 28 items 4 and 6), and the frame times of a protocol's ladders (item 5).
 
-Run:  .venv/bin/python benchmarks/bench_thresholds.py [--participants 200] [--speed-participants 25]
+Run:  .venv/bin/python benchmarks/bench_thresholds.py [--participants 200] [--speed-participants 25] [--smoke]
                                                       [--write docs/benchmarks.md]
       .venv/bin/python benchmarks/bench_thresholds.py --ladder-times PROTOCOL [--backend cpu|gpu] [--scale 0.1]
                                                       [--repeats 3] [--write docs/benchmarks.md]
@@ -27,6 +27,10 @@ Speed: 25 participants x 3 renderers x 2 scenes x 60 trials simulated (not timed
 plus 6 pooled ones, the group table (2,000 bootstrap replicates), the report with a fit figure per participant
 and the pooled one (the Pareto front's cost needs renders of the ladders and is left out here). The fit's
 settings are printed with the figures.
+
+Recovery and speed each run in their own child process (``harness.run_child``: its peak memory, wall time and the
+load after it), as the ladder times do per condition x scene; their rows go to
+``benchmarks/results/bench_thresholds.csv``. ``--smoke`` runs both parts over 3 and 1 participants.
 """
 
 from __future__ import annotations
@@ -203,8 +207,17 @@ def main(argv=None) -> int:
     ap.add_argument("--scale", type=float, default=0.1, help="ladder times: the render size times this (default "
                     "0.1; 1 = the study's size)")
     ap.add_argument("--repeats", type=int, default=3, help="ladder times: frames per level (median)")
+    ap.add_argument("--smoke", action="store_true", help="recovery over 3 participants and speed over 1: checks "
+                    "that both parts run; their figures mean nothing")
     ap.add_argument("--one-ladder", nargs=3, metavar=("PROTOCOL", "COND", "SCENE"), help=argparse.SUPPRESS)
+    ap.add_argument("--one", nargs=2, metavar=("PART", "N"), help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.one:
+        from benchmarks.harness import print_row
+
+        part, n = args.one[0], int(args.one[1])
+        print_row({"lines": (recovery if part == "recovery" else speed)(n)})
+        return 0
     if args.one_ladder:
         from benchmarks.harness import print_row
 
@@ -219,16 +232,37 @@ def main(argv=None) -> int:
         if args.write:
             replace_section(args.write, "thresholds-ladder", lines)
         return 0
-    from benchmarks.harness import command_line, machine_line, replace_section
+    from benchmarks.harness import command_line, load_line, machine_line, replace_section, write_csv
 
+    if args.smoke:
+        args.participants, args.speed_participants = 3, 1
+    load0 = os.getloadavg()
+    parts = recovery_and_speed(args.participants, args.speed_participants)
+    name = f"bench_thresholds{'_smoke' if args.smoke else ''}.csv"
+    write_csv([{k: v for k, v in r.items() if k != "lines"} for r in parts], name)
     lines = ["## Threshold studies: recovery, coverage and speed (bench_thresholds.py)", "",
              f"`{command_line('benchmarks/bench_thresholds.py', list(argv or sys.argv[1:]))}`; "
-             f"{machine_line()} Load average at the start: {os.getloadavg()[0]:.1f}.", ""]
-    lines += recovery(args.participants) + [""] + speed(args.speed_participants)
+             f"{machine_line()} Recovery and speed each in its own child process (peak memory "
+             + ", ".join(f"{r['part']} {r['peak_mb']:.0f} MB" for r in parts)
+             + f"); load average {load_line(load0, os.getloadavg())}; raw rows: benchmarks/results/{name}.", ""]
+    lines += parts[0]["lines"] + [""] + parts[1]["lines"]
     print("\n".join(lines))
     if args.write:
         replace_section(args.write, "thresholds", lines)
     return 0
+
+
+def recovery_and_speed(participants: int, speed_participants: int) -> list[dict]:
+    """The recovery and the speed parts, each in its own child process (its peak memory, wall time, load)."""
+    from benchmarks.harness import run_child
+
+    out = []
+    for part, n in (("recovery", participants), ("speed", speed_participants)):
+        r = run_child([os.path.abspath(__file__), "--one", part, str(n)], f"{part} ({n} participants)")
+        out.append({"part": part, "participants": n, **r})
+        print(f"{part}: peak {r['peak_mb']:.0f} MB, wall {r['wall_s']:.1f} s, load {r['load']:.1f}",
+              file=sys.stderr, flush=True)
+    return out
 
 
 if __name__ == "__main__":
