@@ -2,7 +2,7 @@
 
 Run:  .venv/bin/python benchmarks/bench_lightcuts_readings.py [--width 192 --height 108] [--gt-samples 1024]
       [--readings derived,blur,retained] [--budgets equal-time,equal-samples] [--views ...] [--repeats 2]
-      [--out DIR] [--write docs/benchmarks.md]
+      [--smoke] [--write docs/benchmarks.md]
 
 For every view (``VIEWS``: the four scenes' cameras and the Cornell box seen from inside with a 100° field),
 every reading of Eq 4–8 (``fsl``'s ``fpsm_reading``) and every budget accounting (``tables.BUDGETS``) it runs
@@ -23,8 +23,10 @@ number of samples could reach against a uniform count: with per-pixel variance `
 estimate (from ``N`` renders of SL at 1 light sample + 1 glossy ray, clipped to [0, 1]), the allocation
 ``n ∝ σ`` (Neyman) gives ``mean(σ²) / mean(σ)²``. GT comes from the
 stimulus cache (``--cache``), rendered once per view. Writes ``lightcuts_readings.csv`` and
-``lightcuts_readings.md`` to ``--out`` (default ``benchmarks/results/``, not committed); ``--write`` puts the Markdown into the ``lightcuts-readings`` section of
-that file. The machine load (``os.getloadavg``) is printed with the figures: frame times on a shared machine
+``lightcuts_readings.md`` to ``benchmarks/results/`` (not committed); ``--write`` puts the Markdown into the
+``lightcuts-readings`` section of that file. Each view x reading x accounting, and each view's variance renders,
+runs in its own child process (``harness.run_child``: its peak memory, wall time and the load after it, in the
+CSV's ``peak_mb``, ``wall_s``, ``load``). ``--smoke`` runs one tiny configuration of each kind. The machine load (``os.getloadavg``) is printed with the figures: frame times on a shared machine
 vary, the sample counts and MSE do not (fixed seeds).
 """
 
@@ -32,7 +34,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import io
 import os
 import sys
 import time
@@ -41,7 +42,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from benchmarks.harness import RESULTS, load_average, machine_line, replace_section  # noqa: E402
+from benchmarks.harness import (load_average, machine_line, print_row, replace_section,  # noqa: E402
+                                results_path, run_child, write_csv)
 
 #: view name -> (scene, camera overrides). "cornell_inside" is the Cornell box seen from just inside its open
 #: front with a 100° vertical field, close to the seed's HMD field (its scenes are seen through an HTC Cosmos).
@@ -104,53 +106,77 @@ def neyman_bound(scene, camera, width: int, height: int, renders: int, periphery
     return float(var.mean() / sd.mean() ** 2) if sd.mean() > 0 else float("nan")
 
 
-def run_variance(args) -> dict:
+def variance_one(args, view: str) -> dict:
+    """The Neyman bound of one view, in this process (``--one variance VIEW``)."""
     from analysis.quality import region_masks
     from renderers.catalog import resolve
     from renderers.lightcuts.scenes import SCENES
 
-    out = {}
-    for view in args.views:
-        scene_name, camera = VIEWS[view]
-        scene = SCENES[scene_name]()
-        cam = resolve(scene).camera.override(camera)
-        periphery = region_masks(args.width, args.height, cam.fov_y, None, 5.0).periphery
-        out[view] = neyman_bound(scene, camera, args.width, args.height, args.variance_renders, periphery)
-        print(f"{view}: Neyman bound {out[view]:.2f}", file=sys.stderr, flush=True)
-    return out
+    scene_name, camera = VIEWS[view]
+    scene = SCENES[scene_name]()
+    cam = resolve(scene).camera.override(camera)
+    periphery = region_masks(args.width, args.height, cam.fov_y, None, 5.0).periphery
+    return {"view": view, "bound": neyman_bound(scene, camera, args.width, args.height, args.variance_renders,
+                                                periphery)}
 
 
-def run(args) -> list[dict]:
+def table_one(args, view: str, reading: str, budget: str) -> dict:
+    """One view x reading x budget accounting, in this process (``--one table VIEW READING BUDGET``)."""
     from analysis.quality import region_masks
     from renderers.catalog import resolve
     from renderers.lightcuts.scenes import SCENES
     from renderers.lightcuts.tables import lightcut_tables, summary_ratios
 
+    scene_name, camera = VIEWS[view]
+    scene = SCENES[scene_name]()
+    cam = resolve(scene).camera.override(camera)
+    regions = region_masks(args.width, args.height, cam.fov_y, None, 5.0)
+    t0 = time.perf_counter()
+    im: dict = {}
+    rec = lightcut_tables(scene, args.width, args.height, alphas=(), alpha=ALPHA,
+                          gt_lspp=args.gt_samples, gt_rspp=args.gt_samples, seed=args.seed,
+                          camera=camera, images=im, cache_dir=args.cache, fpsm_reading=reading,
+                          budget=budget, repeats=args.repeats)
+    r = summary_ratios(rec, budget)
+    return {"view": view, "reading": reading, "budget": budget,
+            "sl_f_over_ours": r["speedup_vs_sl_f"],
+            "periphery_sl_e_over_ours": r["peripheral_mse_sl_e_over_ours"],
+            "multires": r["multires_speedup"], "fovea_sl_e_over_ours": r["foveal_mse_sl_e_over_ours"],
+            **_causes(rec, im, regions, 48), "seconds": time.perf_counter() - t0}
+
+
+def _child(args, one: list[str], label: str) -> dict:
+    """``--one ...`` of this script with this run's options, in its own child process (``harness.run_child``:
+    its peak memory, wall time and the load after it)."""
+    opts = ["--width", str(args.width), "--height", str(args.height), "--gt-samples", str(args.gt_samples),
+            "--seed", str(args.seed), "--repeats", str(args.repeats), "--cache", os.path.abspath(args.cache),
+            "--variance-renders", str(args.variance_renders)]
+    return run_child([os.path.abspath(__file__), *opts, "--one", *one], label)
+
+
+def run_variance(args) -> dict:
+    """The Neyman bound per view, one child process per view."""
+    out = {}
+    for view in args.views:
+        r = _child(args, ["variance", view], f"variance {view}")
+        out[view] = r["bound"]
+        print(f"{view}: Neyman bound {out[view]:.2f} (peak {r['peak_mb']:.0f} MB, {r['wall_s']:.0f} s)",
+              file=sys.stderr, flush=True)
+    return out
+
+
+def run(args) -> list[dict]:
+    """Every view x reading x budget accounting, one child process each."""
     rows = []
     for view in args.views:
-        scene_name, camera = VIEWS[view]
-        scene = SCENES[scene_name]()
-        cam = resolve(scene).camera.override(camera)
-        regions = region_masks(args.width, args.height, cam.fov_y, None, 5.0)
         for reading in args.readings:
             for budget in args.budgets:
-                t0 = time.perf_counter()
-                im: dict = {}
-                rec = lightcut_tables(scene, args.width, args.height, alphas=(), alpha=ALPHA,
-                                      gt_lspp=args.gt_samples, gt_rspp=args.gt_samples, seed=args.seed,
-                                      camera=camera, images=im, cache_dir=args.cache, fpsm_reading=reading,
-                                      budget=budget, repeats=args.repeats)
-                r = summary_ratios(rec, budget)
-                row = {"view": view, "reading": reading, "budget": budget,
-                       "sl_f_over_ours": r["speedup_vs_sl_f"],
-                       "periphery_sl_e_over_ours": r["peripheral_mse_sl_e_over_ours"],
-                       "multires": r["multires_speedup"], "fovea_sl_e_over_ours": r["foveal_mse_sl_e_over_ours"],
-                       **_causes(rec, im, regions, 48), "seconds": time.perf_counter() - t0,
-                       "load": os.getloadavg()[0]}
+                row = _child(args, ["table", view, reading, budget], f"{view} {reading} {budget}")
                 rows.append(row)
                 print(f"{view} {reading} {budget}: SL_f/Ours {row['sl_f_over_ours']:.2f}, periphery SL_e/Ours "
                       f"{row['periphery_sl_e_over_ours']:.2f}, multi-res {row['multires']:.2f} "
-                      f"({row['seconds']:.0f} s, load {row['load']:.1f})", file=sys.stderr, flush=True)
+                      f"({row['seconds']:.0f} s, peak {row['peak_mb']:.0f} MB, load {row['load']:.1f})",
+                      file=sys.stderr, flush=True)
     return rows
 
 
@@ -176,7 +202,8 @@ def markdown(rows: list[dict], args, load: tuple[float, float], bounds: dict) ->
              machine_line() + f" {args.width}×{args.height}, α = {ALPHA}, GT {args.gt_samples} light + "
              f"{args.gt_samples} glossy samples per pixel, seed {args.seed}, Table 3 times the minimum of "
              f"{args.repeats} renders; load average {load[0]:.1f} at the start, {load[1]:.1f} at the end "
-             "(2 shared cores).", "",
+             f"(2 shared cores); one child process per row, peak memory up to "
+             f"{max(r.get('peak_mb', float('nan')) for r in rows):.0f} MB.", "",
              "Ratios > 1 have the seed's direction (✓), ✓✓ reach the seed's lower bound (SL_f / Ours ≥ 2.5, "
              "peripheral MSE SL_e / Ours ≥ 1.2, multi-resolution gain ≥ 1.3). Equal time: SL_e renders in Ours' "
              "frame time, cost = frame time. Equal samples: SL_e draws Ours' light samples and glossy rays per "
@@ -243,10 +270,16 @@ def main(argv=None) -> int:
     ap.add_argument("--variance-only", action="store_true", help="only the Neyman bound per view")
     ap.add_argument("--from-csv", metavar="CSV", help="report the rows of an earlier run's CSV instead of measuring "
                     "(pass that run's --width/--height/--gt-samples/--repeats/--seed)")
-    ap.add_argument("--out", metavar="DIR", default=RESULTS,
-                    help="write lightcuts_readings.csv and .md here (default: benchmarks/results, not committed)")
+    ap.add_argument("--smoke", action="store_true", help="tiny: cornell_many at 32x18, GT 4 samples, the first "
+                    "reading and accounting, 2 variance renders, one repeat (checks that it runs; figures mean nothing)")
     ap.add_argument("--write", metavar="MD", help="write the 'lightcuts-readings' section into this Markdown file")
+    ap.add_argument("--one", nargs="+", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.smoke:
+        args.width, args.height, args.gt_samples, args.repeats, args.variance_renders = 32, 18, 4, 1, 2
+        args.views, args.readings, args.budgets = ("cornell_many", FPSM_READINGS[0], BUDGETS[0])
+        if args.cache == ap.get_default("cache"):  # its tiny GT renders stay out of the stimulus cache
+            args.cache = results_path("smoke_cache")
     for name, allowed in (("views", VIEWS), ("readings", FPSM_READINGS), ("budgets", BUDGETS)):
         values = [v.strip() for v in getattr(args, name).split(",") if v.strip()]
         bad = [v for v in values if v not in allowed]
@@ -255,6 +288,10 @@ def main(argv=None) -> int:
         setattr(args, name, values)
     if args.variance_renders == 1 or args.variance_renders < 0:
         ap.error("--variance-renders: must be 0 or >= 2")
+    if args.one:
+        kind, *rest = args.one
+        print_row(variance_one(args, *rest) if kind == "variance" else table_one(args, *rest))
+        return 0
     load0 = load_average()[0]
     bounds = run_variance(args) if args.variance_renders else {}
     if args.variance_only:
@@ -274,16 +311,11 @@ def main(argv=None) -> int:
         load = (load0, load_average()[0])
     lines = markdown(rows, args, load, bounds)
     print("\n".join(lines))
-    if args.out:
+    if not args.from_csv:
         from data_schema.atomic import write_text
 
-        os.makedirs(args.out, exist_ok=True)
-        buf = io.StringIO()
-        w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
-        w.writeheader()
-        w.writerows({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()} for r in rows)
-        write_text(os.path.join(args.out, "lightcuts_readings.csv"), buf.getvalue())
-        write_text(os.path.join(args.out, "lightcuts_readings.md"), "\n".join(lines) + "\n")
+        write_csv(rows, "lightcuts_readings.csv")
+        write_text(results_path("lightcuts_readings.md"), "\n".join(lines) + "\n")
     if args.write:
         replace_section(args.write, "lightcuts-readings", lines)
     return 0

@@ -14,6 +14,12 @@ The 1-spp GT aliases (one ray per pixel centre), so errors are also measured aga
 GT with 16 stratified samples per pixel and a 1-px tent filter (``gt`` ``spp=16, filter=tent``; issue 13 item 7),
 rendered up to ``--reference-max-pixels`` (default 4K; 16x the GT's cost) and reported beside the GT columns.
 
+Unlike the other scripts, the configurations run as Dask tasks, not in ``harness.run_child`` children: spreading
+them over workers is what this script measures (docs/benchmarks.md). Each row still carries its render's own peak
+memory, ``peak_mb``: the process's high-water mark (VmHWM), reset before every render
+(``/proc/self/clear_refs``), so it is per task; ``peak_mb_is_per_render`` says whether the reset succeeded (when it
+did not, the figure is the process's peak so far).
+
 Writes ``docs/benchmarks.md`` section ``render``; the raw rows and the plot go to ``benchmarks/results/``
 (``bench_render.csv``, ``bench_render.png``; not committed).
 
@@ -206,7 +212,8 @@ def row(scene, res, label, st, err, gt_total, err_ref=None):
          "antialias_s": s["antialias"], "inverse_map_s": s["inverse_map"],
          "speedup_vs_gt": gt_total / s["total"], "shading_points": st["shading_points"],
          "rays_primary": st["rays_primary"], "rays_shadow": st["rays_shadow"], "peak_mb": st["peak_mb"],
-         "lights_culled": st["lights_culled"], "offscreen_lp_pixels": st["offscreen_lp_pixels"]}
+         "peak_mb_is_per_render": st.get("peak_mb_is_per_render", False), "lights_culled": st["lights_culled"],
+         "offscreen_lp_pixels": st["offscreen_lp_pixels"]}
     for k in ("mse_fovea", "psnr_fovea", "ssim_fovea", "mse_periphery", "psnr_periphery", "ssim_periphery"):
         r[k] = None if err is None else err[k]
         r[f"{k}_ref"] = None if err_ref is None else err_ref[k]
