@@ -1,5 +1,5 @@
 """The benchmark harness (benchmarks/harness.py): every script uses it and no script imports another; a child per
-configuration with its peak memory and the load; the command a section records reruns the same arguments; a
+configuration with its peak memory and the load (in every script but the stated exceptions); the command a section records reruns the same arguments; a
 section is replaced without touching the others; raw results go to the ignored benchmarks/results/, not docs/."""
 
 import ast
@@ -91,6 +91,31 @@ def test_every_script_uses_the_harness_and_imports_no_other_script():
         assert "harness" in used, f"{path.name} does not use benchmarks/harness.py"
         others = used - {"harness", path.stem}  # bench_render imports itself: Dask tasks by reference
         assert not others, f"{path.name} imports {sorted(others)}: shared code belongs in the harness"
+
+
+#: Scripts that measure sessions, windows or Dask workers (what they start is what they measure), not
+#: configurations in children: the list docs/benchmarks.md's introduction states.
+NO_CHILD_PER_CONFIGURATION = {"bench_render", "bench_live", "bench_presentation", "bench_cluster"}
+
+
+def _calls_run_child(path: Path) -> bool:
+    """Whether ``path`` calls ``run_child`` (``run_child(...)`` or ``harness.run_child(...)``)."""
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Call):
+            f = node.func
+            if (isinstance(f, ast.Name) and f.id == "run_child") or (isinstance(f, ast.Attribute)
+                                                                     and f.attr == "run_child"):
+                return True
+    return False
+
+
+def test_every_script_runs_each_configuration_in_a_child_but_the_stated_exceptions():
+    names = {p.stem for p in SCRIPTS}
+    assert NO_CHILD_PER_CONFIGURATION <= names
+    missing = sorted(p.stem for p in SCRIPTS if p.stem not in NO_CHILD_PER_CONFIGURATION and not _calls_run_child(p))
+    assert not missing, f"{missing} measure configurations without harness.run_child (one child per configuration)"
+    intro = (ROOT / "docs" / "benchmarks.md").read_text(encoding="utf-8").split("\n<!-- ", 1)[0]
+    assert all(f"`{n}.py`" in intro for n in NO_CHILD_PER_CONFIGURATION), "docs/benchmarks.md must state the exceptions"
 
 
 def test_raw_results_are_ignored_and_not_in_docs():
