@@ -26,7 +26,8 @@ stimulus cache (``--cache``), rendered once per view. Writes ``lightcuts_reading
 ``lightcuts_readings.md`` to ``benchmarks/results/`` (not committed); ``--write`` puts the Markdown into the
 ``lightcuts-readings`` section of that file. Each view x reading x accounting, and each view's variance renders,
 runs in its own child process (``harness.run_child``: its peak memory, wall time and the load after it, in the
-CSV's ``peak_mb``, ``wall_s``, ``load``). ``--smoke`` runs one tiny configuration of each kind. The machine load (``os.getloadavg``) is printed with the figures: frame times on a shared machine
+CSV's ``peak_mb``, ``wall_s``, ``load``). ``--smoke`` runs one tiny configuration of each kind. The machine load
+(``os.getloadavg``) is printed with the figures: frame times on a shared machine
 vary, the sample counts and MSE do not (fixed seeds).
 """
 
@@ -271,7 +272,8 @@ def main(argv=None) -> int:
     ap.add_argument("--from-csv", metavar="CSV", help="report the rows of an earlier run's CSV instead of measuring "
                     "(pass that run's --width/--height/--gt-samples/--repeats/--seed)")
     ap.add_argument("--smoke", action="store_true", help="tiny: cornell_many at 32x18, GT 4 samples, the first "
-                    "reading and accounting, 2 variance renders, one repeat (checks that it runs; figures mean nothing)")
+                    "reading and accounting, 2 variance renders, one repeat (checks that it runs; figures mean "
+                    "nothing)")
     ap.add_argument("--write", metavar="MD", help="write the 'lightcuts-readings' section into this Markdown file")
     ap.add_argument("--one", nargs="+", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)

@@ -178,7 +178,8 @@ def main() -> int:
          f"{commits['floor_p99'] * ms:.2f} ms (within 5 ms: {commits['floor_share_5ms']:.1%}) | |"),
     ]
     for r in schedules:
-        lines.append(f"| schedules for {r['participants']:,} participants, {r['protocol']} ({r['trials']} trials each) | "
+        lines.append(f"| schedules for {r['participants']:,} participants, {r['protocol']} "
+                     f"({r['trials']} trials each) | "
                      f"{r['seconds']:.3f} s wall, {r['cpu']:.3f} s CPU"
                      f"{'' if r['identical'] else ' (NOT identical on re-run)'} | ≤ 1 s |")
     lines.append(f"| whole simulated session, seed003_task1 ({session['trials']} trials, fresh DB) | "

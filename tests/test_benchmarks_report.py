@@ -1,6 +1,7 @@
 """The benchmark harness (benchmarks/harness.py): every script uses it and no script imports another; a child per
-configuration with its peak memory and the load (in every script but the stated exceptions); the command a section records reruns the same arguments; a
-section is replaced without touching the others; raw results go to the ignored benchmarks/results/, not docs/."""
+configuration with its peak memory and the load (in every script but the stated exceptions); the command a section
+records reruns the same arguments; a section is replaced without touching the others; raw results go to the ignored
+benchmarks/results/, not docs/."""
 
 import ast
 import datetime
