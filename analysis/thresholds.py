@@ -438,8 +438,7 @@ def pareto(fits: pd.DataFrame, group: pd.DataFrame, axes: Mapping[str, Axis],
                 [r["x_ci_low"] - 2 * r["width"], r["x_ci_high"] + 2 * r["width"]])
             xs = np.linspace(float(np.min(ends)), float(np.max(ends)), n_points)
             p = detection(psychometric(xs, r["x_threshold"], r["width"], r["guess"], r["lapse"], crit), guess)
-            for x, pd_ in zip(xs, p):
-                lv = float(ax.to_level(x))
+            for lv, pd_ in zip(ax.to_level(xs).tolist(), p):  # the whole curve at once, as before the move
                 curve_rows.append({"condition": c, "scene": s, "level": lv, "relative_cost": at(lv) / ref,
                                    "p_detect": float(pd_)})
     columns = list(PARETO_COLUMNS) + (list(PARETO_TIME_COLUMNS) if time is not None else [])
