@@ -137,7 +137,9 @@ def psychometric_figure(trials: pd.DataFrame, fits: pd.DataFrame, path: Path, ti
     proportion correct per level (marker area proportional to the trials at that level), the fitted
     psychometric function, the threshold at the criterion and its 95 % credible interval. A fit that is not
     estimable shows its data and the reason."""
-    from .thresholds import Axis, psychometric
+    from data_schema.intensity import Axis
+
+    from .thresholds import psychometric
 
     plt = _plt()
     labels = labels or {}
@@ -163,7 +165,7 @@ def psychometric_figure(trials: pd.DataFrame, fits: pd.DataFrame, path: Path, ti
             ax.axhline(r["criterion"], color="0.7", lw=0.6, ls=":")
             if bool(r["estimable"]):
                 lv = sub[level].to_numpy(float) if len(sub) else np.array([r["threshold"]])
-                xs = np.linspace(*sorted(axis.to_x([lv.min(), lv.max()])), 200)
+                xs = np.linspace(*sorted(axis.to_intensity([lv.min(), lv.max()])), 200)
                 lo_x, hi_x = min(xs[0], r["x_threshold"]), max(xs[-1], r["x_threshold"])
                 xs = np.linspace(lo_x, hi_x, 200)
                 ax.plot(axis.to_level(xs), psychometric(xs, r["x_threshold"], r["width"], r["guess"], r["lapse"],

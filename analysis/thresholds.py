@@ -8,8 +8,9 @@ Harmeling, Macke & Wichmann 2016, Vision Research 122, Eq 1)::
 
     psi(x) = gamma + (1 - gamma - lambda) S(x; m, w)
 
-on the *strength axis* ``x`` (``log10(level)`` for a log domain, ``level`` for a linear one; negated where a
-lower level is stronger foveation, so that detection always grows with ``x``), ``S`` a logistic sigmoid with
+on the *intensity axis* ``x`` of :class:`data_schema.intensity.Axis` (``log10(level)`` for a log domain, ``level``
+for a linear one; negated where a lower level is stronger foveation, so that detection always grows with ``x``;
+the procedures' axis too), ``S`` a logistic sigmoid with
 threshold ``m`` (``S(m) = 0.5``) and width ``w`` (``S`` rises from 0.05 to 0.95 over ``w``), ``gamma`` the
 guess rate (fixed at 0.5 in 2AFC, fitted in yes/no) and ``lambda`` the lapse rate.
 
@@ -43,7 +44,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-__all__ = ["FIT_COLUMNS", "GROUP_COLUMNS", "MIN_TRIALS", "PARETO_COLUMNS", "POOLED", "PRIOR_TEXT", "Axis",
+from data_schema.intensity import Axis
+
+__all__ = ["FIT_COLUMNS", "GROUP_COLUMNS", "MIN_TRIALS", "PARETO_COLUMNS", "POOLED", "PRIOR_TEXT",
            "FitSettings", "ThresholdAnalysis", "adaptive_trials", "detection", "fit_one", "fit_thresholds",
            "group_table", "pareto", "psychometric"]
 
@@ -66,56 +69,6 @@ FIT_COLUMNS = ("participant", "condition", "scene", "varied", "n_trials", "n_lev
 #: Columns of :func:`group_table`.
 GROUP_COLUMNS = ("condition", "scene", "varied", "n_participants", "n_not_estimable", "axis", "mean_x", "sd_x",
                  "ci_low_x", "ci_high_x", "threshold", "ci_low", "ci_high", "n_boot")
-
-
-@dataclass(frozen=True)
-class Axis:
-    """How a varied parameter's levels map onto the strength axis of the fit.
-
-    Parameters
-    ----------
-    scale : {"log", "linear"}
-        ``log``: ``x = log10(level)`` (levels must be > 0); ``linear``: ``x = level``.
-    stronger : {"higher", "lower"}
-        ``higher``: a higher level is stronger foveation (detection grows with the level); ``lower``: a lower
-        level is (VaFR's acuity scale, samples per pixel); the axis is then negated. The same axis as the
-        procedures' intensity (``studyapp.runner.adaptive.intensity``), which analysis may not import.
-    bounds : tuple of float, optional
-        The procedure's domain (levels); psignifit's stimulus range and priors are set from it. Default: the
-        levels tested.
-    """
-
-    scale: str = "log"
-    stronger: str = "higher"
-    bounds: tuple[float, float] | None = None
-
-    def __post_init__(self) -> None:
-        if self.scale not in ("log", "linear"):
-            raise ValueError(f"axis scale {self.scale!r}: expected log or linear")
-        if self.stronger not in ("higher", "lower"):
-            raise ValueError(f"axis direction {self.stronger!r}: expected higher or lower")
-
-    @property
-    def unit(self) -> str:
-        """The unit of ``x`` (and of the group table's SD)."""
-        return "log10" if self.scale == "log" else "linear"
-
-    def to_x(self, level):
-        """Level(s) -> strength axis."""
-        v = np.asarray(level, dtype=float)
-        x = np.log10(v) if self.scale == "log" else v
-        return -x if self.stronger == "lower" else x
-
-    def to_level(self, x):
-        """Strength axis -> level(s) (inverse of :meth:`to_x`)."""
-        v = np.asarray(x, dtype=float)
-        v = -v if self.stronger == "lower" else v
-        return np.power(10.0, v) if self.scale == "log" else v
-
-    def x_range(self, levels: np.ndarray) -> tuple[float, float]:
-        """The stimulus range on the strength axis: the domain if declared, else the levels tested."""
-        ends = self.to_x(np.asarray(self.bounds if self.bounds is not None else (levels.min(), levels.max())))
-        return float(ends.min()), float(ends.max())
 
 
 #: Fit grids leaner than psignifit's defaults (threshold 40, width 40, lambda 20, gamma 20, eta 20 fine points;
@@ -250,7 +203,7 @@ def _infer_axis(levels: np.ndarray, correct: np.ndarray) -> Axis:
     """An axis for a condition with none declared: log if every level is > 0; detection's direction from the
     sign of the level-correctness correlation over all its trials."""
     scale = "log" if np.all(levels > 0) else "linear"
-    x = np.log10(levels) if scale == "log" else levels
+    x = Axis(scale).to_intensity(levels)
     r = np.corrcoef(x, correct)[0, 1] if np.std(x) > 0 and np.std(correct) > 0 else 1.0
     return Axis(scale, "higher" if not r < 0 else "lower")
 
@@ -324,7 +277,7 @@ def fit_thresholds(df: pd.DataFrame, *, criterion: float, experiment_type: str,
         if not reason:
             kw = {"criterion": criterion, "experiment_type": experiment_type, "x_range": ax.x_range(lv),
                   "settings": settings, "pooled": p == POOLED}
-            tasks.append(({"_i": len(rows) - 1}, ax.to_x(lv), y, kw))
+            tasks.append(({"_i": len(rows) - 1}, ax.to_intensity(lv), y, kw))
     results = _run(tasks, workers, progress)
     for r in results:
         i = r.pop("_i")
@@ -481,12 +434,11 @@ def pareto(fits: pd.DataFrame, group: pd.DataFrame, axes: Mapping[str, Axis],
         if len(pf):
             r = pf.iloc[0]
             ax = axes[c]
-            ends = ax.to_x(np.asarray(ax.bounds)) if ax.bounds is not None else np.array(
+            ends = ax.to_intensity(np.asarray(ax.bounds)) if ax.bounds is not None else np.array(
                 [r["x_ci_low"] - 2 * r["width"], r["x_ci_high"] + 2 * r["width"]])
             xs = np.linspace(float(np.min(ends)), float(np.max(ends)), n_points)
             p = detection(psychometric(xs, r["x_threshold"], r["width"], r["guess"], r["lapse"], crit), guess)
-            for x, pd_ in zip(xs, p):
-                lv = float(ax.to_level(x))
+            for lv, pd_ in zip(ax.to_level(xs).tolist(), p):  # the whole curve at once, as before the move
                 curve_rows.append({"condition": c, "scene": s, "level": lv, "relative_cost": at(lv) / ref,
                                    "p_detect": float(pd_)})
     columns = list(PARETO_COLUMNS) + (list(PARETO_TIME_COLUMNS) if time is not None else [])

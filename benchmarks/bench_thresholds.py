@@ -51,7 +51,7 @@ def recovery(n: int) -> list[str]:
     from analysis.thresholds import FitSettings, fit_one
     from studyapp.commands.study import SHIPPED, _protocol
     from studyapp.runner.observer import declared_function
-    from studyapp.runner.threshold_study import quest_interval, run_procedure
+    from studyapp.runner.threshold_study import run_procedure
 
     p = _protocol(str(SHIPPED / "threshold_foveation.yaml"))
     p.simulation["threshold_sd"] = 0.0
@@ -63,7 +63,7 @@ def recovery(n: int) -> list[str]:
     for i in range(n):
         proc, steps = run_procedure(spec, truth, 10_000 + i)
         est.append(proc.estimate()["mean"])
-        lo, hi = quest_interval(proc)
+        lo, hi = proc.credible_interval(0.95)
         cover.append(lo <= truth.threshold <= hi)
         x = np.array([truth.intensity(s["level"]) for s in steps])
         y = np.array([s["correct"] for s in steps], float)
@@ -75,7 +75,7 @@ def recovery(n: int) -> list[str]:
             fit_err.append(f["x_threshold"] - at75)
     t_q = time.perf_counter() - t0
     # a staircase converges on its target when its steps are small: 24 levels over the same domain
-    from studyapp.runner.adaptive import grid
+    from data_schema.intensity import grid
 
     fine = grid("log", min(spec["levels"]), max(spec["levels"]), 24)
     st = {**spec, "levels": fine, "method": "staircase", "rule": "1-up-2-down", "steps": [1],

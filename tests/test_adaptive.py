@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from studyapp.runner.adaptive import (AdaptiveSpecError, check_spec, grid, intensity, level_of, make_procedure,
-                                      replay)
+from data_schema.intensity import Axis, grid
+from studyapp.runner.adaptive import AdaptiveSpecError, check_spec, make_procedure, replay
 
 LADDER = grid("log", 0.1, 1.5, 7)
 
@@ -21,14 +21,46 @@ def _spec(**over):
     return spec
 
 
+def intensity(spec, level):
+    return Axis.of_spec(spec).to_intensity(level)
+
+
 def test_intensity_axis_grows_with_foveation_and_inverts():
     # acuity_scale: lower is stronger -> x = -log10(v); delta: higher is stronger -> x = log10(v)
     assert intensity({"scale": "log", "stronger": "lower"}, 0.1) == pytest.approx(1.0)
     assert intensity({"scale": "log", "stronger": "higher"}, 100.0) == pytest.approx(2.0)
     assert intensity({"scale": "linear", "stronger": "lower"}, 3.0) == -3.0
     for spec in ({"scale": "log", "stronger": "lower"}, {"scale": "linear", "stronger": "higher"}):
-        assert level_of(spec, intensity(spec, 0.37)) == pytest.approx(0.37)
+        ax = Axis.of_spec(spec)
+        assert ax.to_level(ax.to_intensity(0.37)) == pytest.approx(0.37)
+        # scalars come back as floats, arrays element by element as the scalars
+        assert type(ax.to_intensity(0.37)) is float and type(ax.to_level(0.5)) is float
+        v = np.array([0.1, 0.37, 2.0])
+        np.testing.assert_allclose(ax.to_intensity(v), [ax.to_intensity(s) for s in v], rtol=1e-15)
+        np.testing.assert_allclose(ax.to_level(ax.to_intensity(v)), v, rtol=1e-12)
     assert grid("log", 0.1, 1.0, 3) == [0.1, 0.316228, 1.0]
+    # a procedure's axis is its spec's, bounded by the ladder
+    proc = make_procedure(_spec(), 0)
+    assert proc.axis == Axis("log", "lower", (0.1, 1.5)) and proc.x == sorted(proc.x)
+
+
+def test_quest_plus_credible_interval_is_the_central_mass_of_its_threshold_posterior():
+    proc = make_procedure(_spec(), 3)
+    for i, correct in [(0, True), (2, True), (5, False), (3, True), (4, False), (3, True)]:
+        proc.update(LADDER[i], correct)
+    t, marg = proc.posterior()
+    np.testing.assert_allclose(t, np.linspace(proc.x[0], proc.x[-1], 31))
+    assert marg.sum() == pytest.approx(1.0) and marg.shape == t.shape
+    lo, hi = proc.credible_interval(0.95)
+    inside = marg[(t >= lo) & (t <= hi)].sum()
+    assert lo < proc.estimate()["mean"] < hi and inside >= 0.95
+    # the narrowest such grid interval: dropping either end point leaves less than 97.5 % on that side
+    assert marg[t <= lo].sum() >= 0.025 and marg[t >= hi].sum() >= 0.025
+    lo50, hi50 = proc.credible_interval(0.5)
+    assert lo <= lo50 <= hi50 <= hi and (hi50 - lo50) < (hi - lo)
+    # a copy: changing it does not change the procedure
+    t[:] = 0.0
+    assert proc.posterior()[0][0] == proc.x[0]
 
 
 @pytest.mark.parametrize("function", ["weibull", "logistic"])

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
+from data_schema.intensity import Axis
 from data_schema.protocol_schema import ProtocolError
-from studyapp.runner.adaptive import intensity
 from studyapp.runner.protocol import load_protocol
 from studyapp.runner.schedule import build_schedule
 from studyapp.runner.stimuli import needed_stimuli
@@ -38,7 +38,7 @@ def test_the_ladder_is_the_prepared_stimulus_set():
     assert len(need) == 2 * (3 * 7 + 1) and ("LMFR(1.2)", "temple") in need and ("VaFR", "temple") not in need
     # the detection axis: stronger VaFR (lower acuity_scale) has the higher intensity
     spec = p.adaptive.spec("VaFR")
-    assert intensity(spec, 0.1) > intensity(spec, 1.5)
+    assert Axis.of_spec(spec).to_intensity(0.1) > Axis.of_spec(spec).to_intensity(1.5)
     sched = build_schedule(p, "P1", 0)
     assert len(sched) == 3 * 2 * 40
     by_proc = {}

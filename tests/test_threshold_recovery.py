@@ -8,14 +8,14 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from studyapp.runner.adaptive import grid, intensity
+from data_schema.intensity import Axis, grid
 from studyapp.runner.observer import DeclaredFunction, declared_function
-from studyapp.runner.threshold_study import quest_interval, run_procedure
+from studyapp.runner.threshold_study import run_procedure
 
 LEVELS = grid("log", 0.05, 2.0, 24)
 QUEST = {"method": "quest_plus", "levels": LEVELS, "scale": "log", "stronger": "lower", "guess": 0.5,
          "stop": {"trials": 40}, "function": "weibull"}
-TRUE = DeclaredFunction("VaFR", QUEST, intensity(QUEST, 0.4), 3.5, 0.02, 0.5)
+TRUE = DeclaredFunction("VaFR", QUEST, Axis.of_spec(QUEST).to_intensity(0.4), 3.5, 0.02, 0.5)
 
 
 def test_quest_plus_recovers_the_declared_threshold_and_its_intervals_cover_it():
@@ -27,7 +27,7 @@ def test_quest_plus_recovers_the_declared_threshold_and_its_intervals_cover_it()
         proc, steps = run_procedure(QUEST, TRUE, 1000 + i)
         assert len(steps) == 40
         est.append(proc.estimate()["mean"])
-        lo, hi = quest_interval(proc)
+        lo, hi = proc.credible_interval(0.95)
         covered.append(lo <= TRUE.threshold <= hi)
     assert abs(np.median(est) - TRUE.threshold) < 0.1
     assert 0.85 <= np.mean(covered) <= 1.0
@@ -64,7 +64,7 @@ def test_declared_function_reads_the_simulation_block_with_scene_overrides_and_p
     g = declared_function(protocol, "VaFR", "street", "P01", 0)
     assert f.guess == 0.5 and f.slope == 2.0 and f.lapse == 0.02
     spread = [declared_function(protocol, "VaFR", "temple", f"P{i:02d}", 0).threshold for i in range(200)]
-    assert np.mean(spread) == pytest.approx(intensity(QUEST, 0.4), abs=0.03)
+    assert np.mean(spread) == pytest.approx(Axis.of_spec(QUEST).to_intensity(0.4), abs=0.03)
     assert np.std(spread) == pytest.approx(0.1, abs=0.02)
     exact = SimpleNamespace(**{**vars(protocol), "simulation": {**protocol.simulation, "threshold_sd": 0.0}})
     t, s = (declared_function(exact, "VaFR", sc, "P01", 0).threshold for sc in ("temple", "street"))

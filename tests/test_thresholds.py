@@ -12,7 +12,6 @@ import pytest
 from analysis.thresholds import (
     FIT_COLUMNS,
     POOLED,
-    Axis,
     FitSettings,
     detection,
     fit_one,
@@ -21,6 +20,7 @@ from analysis.thresholds import (
     pareto,
     psychometric,
 )
+from data_schema.intensity import Axis
 
 VAFR = Axis("log", "lower", (0.1, 1.0))
 LAFR = Axis("log", "higher", (0.5, 5.0))
@@ -38,7 +38,7 @@ def _trials(truth: dict, participants: int, n: int, seed: int = 0, scenes=("temp
             ladder = np.geomspace(*ax.bounds, 9)
             for s in scenes:
                 lv = rng.choice(ladder, n)
-                pc = psychometric(ax.to_x(lv), float(ax.to_x(t)), 0.5, 0.5, 0.02, 0.75)
+                pc = psychometric(ax.to_intensity(lv), float(ax.to_intensity(t)), 0.5, 0.5, 0.02, 0.75)
                 for level, q in zip(lv, pc):
                     rows.append({"participant": f"P{p:02d}", "condition": cond, "scene": s, "level": float(level),
                                  "correct": int(rng.random() < q), "varied": "x"})
@@ -186,7 +186,7 @@ def test_yes_no_fit_estimates_the_false_alarm_rate_and_the_50_percent_level():
     rng = np.random.default_rng(5)
     ax = Axis("log", "higher", (0.5, 5.0))
     lv = rng.choice(np.geomspace(0.5, 5.0, 9), 600)
-    pc = psychometric(ax.to_x(lv), np.log10(2.0), 0.6, 0.1, 0.02, 0.5)
+    pc = psychometric(ax.to_intensity(lv), np.log10(2.0), 0.6, 0.1, 0.02, 0.5)
     df = pd.DataFrame({"participant": "P01", "condition": "FSL", "scene": "cornell", "level": lv,
                        "correct": (rng.random(lv.size) < pc).astype(int)})
     r = fit_thresholds(df, criterion=0.5, experiment_type="yes/no", axes={"FSL": ax}, pooled=False).iloc[0]

@@ -102,7 +102,7 @@ class AdaptiveRow:
     procedure: str
     varied: str
     level: float
-    intensity: float  # the level on the procedure's axis (studyapp.runner.adaptive.intensity)
+    intensity: float  # the level on the procedure's axis (data_schema.intensity.Axis.to_intensity)
     correct: bool | None  # None: skipped (the procedure had stopped)
     estimate_mean: float | None
     estimate_sd: float | None

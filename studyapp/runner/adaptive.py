@@ -7,15 +7,10 @@ correct)`` pairs, which is how a resumed session proposes the level an uninterru
 The intensity axis
 ------------------
 Procedures work on an *intensity* ``x`` in which detection increases: the renderer parameter ``v`` mapped by
-the domain's ``scale`` and the direction in which foveation gets ``stronger`` (the renderer's declaration,
-``renderers.registry.foveation_strength``)::
-
-    scale log:     x = log10(v)  (stronger: higher)     x = -log10(v)  (stronger: lower, e.g. VaFR acuity_scale)
-    scale linear:  x = v         (stronger: higher)     x = -v         (stronger: lower)
-
-so a log domain is measured in log10 units of the parameter, and thresholds and their SDs (``estimate()``) are
-in intensity units; :func:`level_of` maps an intensity back to the parameter. ``level`` (what
-:meth:`Procedure.next_level` returns and a trial stores) is always the parameter's own value ``v``.
+the domain's ``scale`` and the direction in which foveation gets ``stronger`` (``x = ±log10(v)`` or ``±v``),
+one mapping for the runner and analysis: :class:`data_schema.intensity.Axis` (``Procedure.axis``). Thresholds
+and their SDs (``estimate()``) are in intensity units; ``level`` (what :meth:`Procedure.next_level` returns and
+a trial stores) is always the parameter's own value ``v``.
 
 ``correct`` is what the procedure updates on: for 2AFC "picked the original", for yes/no "answered *not the
 ground truth* to the test stimulus" (detected).
@@ -61,6 +56,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from data_schema.errors import UserError
+from data_schema.intensity import Axis
 
 METHODS = ("quest_plus", "staircase")
 FUNCTIONS = ("weibull", "logistic")
@@ -76,33 +72,10 @@ class AdaptiveSpecError(UserError):
     """A procedure spec that cannot run; one line naming the field."""
 
 
-# -- the intensity axis ----------------------------------------------------------------------------------------
-def intensity(spec: dict, level: float) -> float:
-    """The detection axis ``x`` of parameter value ``level`` (see the module docstring)."""
-    v = float(level)
-    x = math.log10(v) if spec.get("scale", "log") == "log" else v
-    return -x if spec.get("stronger", "higher") == "lower" else x
-
-
-def level_of(spec: dict, x: float) -> float:
-    """The parameter value whose intensity is ``x`` (inverse of :func:`intensity`)."""
-    y = -float(x) if spec.get("stronger", "higher") == "lower" else float(x)
-    return 10.0 ** y if spec.get("scale", "log") == "log" else y
-
-
-def grid(scale: str, lo: float, hi: float, n: int) -> list[float]:
-    """``n`` levels from ``lo`` to ``hi``, evenly spaced on ``scale`` (log or linear), rounded to 6 significant
-    digits so that they are stable names in a cache key."""
-    if scale == "log":
-        values = np.geomspace(lo, hi, n)
-    else:
-        values = np.linspace(lo, hi, n)
-    return [float(f"{v:.6g}") for v in values]
-
-
 def _levels_by_intensity(spec: dict) -> list[float]:
     """The spec's levels sorted by increasing intensity."""
-    return sorted((float(v) for v in spec["levels"]), key=lambda v: intensity(spec, v))
+    axis = Axis.of_spec(spec)
+    return sorted((float(v) for v in spec["levels"]), key=axis.to_intensity)
 
 
 def check_spec(spec: dict) -> None:
@@ -165,8 +138,9 @@ class Procedure:
         check_spec(spec)
         self.spec = dict(spec)
         self.seed = int(seed)
+        self.axis = Axis.of_spec(spec)
         self.levels = _levels_by_intensity(spec)
-        self.x = [intensity(spec, v) for v in self.levels]
+        self.x = [self.axis.to_intensity(v) for v in self.levels]
         self.history: list[tuple[float, bool]] = []
 
     # the contract ---------------------------------------------------------------------------------------------
@@ -296,12 +270,26 @@ class QuestPlusProcedure(Procedure):
         axes = tuple(i for i, k in enumerate(self._param_names) if k != name)
         return self._post.reshape(self._param_shape).sum(axis=axes)
 
+    def posterior(self, name: str = "threshold") -> tuple[np.ndarray, np.ndarray]:
+        """Parameter ``name``'s grid (intensity units for the threshold) and its marginal posterior on it."""
+        return self._coords[name].copy(), self.marginal(name)
+
+    def credible_interval(self, level: float = 0.95) -> tuple[float, float]:
+        """The central ``level`` credible interval of the threshold (intensity units): the grid points where
+        the marginal posterior's cumulative sum first reaches (1 - level) / 2 and (1 + level) / 2."""
+        t, marg = self.posterior("threshold")
+        c = np.cumsum(marg)
+        c /= c[-1]
+        lo = t[min(int(np.searchsorted(c, (1 - level) / 2)), t.size - 1)]
+        hi = t[min(int(np.searchsorted(c, (1 + level) / 2)), t.size - 1)]
+        return float(lo), float(hi)
+
     def estimate(self) -> dict:
         t = self._coords["threshold"]
         marg = self.marginal("threshold")
         mean = float(np.sum(marg * t))
         sd = float(math.sqrt(max(float(np.sum(marg * (t - mean) ** 2)), 0.0)))
-        out = {"mean": mean, "sd": sd, "level": level_of(self.spec, mean), "trials": len(self.history)}
+        out = {"mean": mean, "sd": sd, "level": self.axis.to_level(mean), "trials": len(self.history)}
         for name in ("slope", "lapse_rate", "lower_asymptote"):
             out[name] = float(np.sum(self.marginal(name) * self._coords[name]))
         return out
@@ -353,7 +341,7 @@ class StaircaseProcedure(Procedure):
         last = self.reversals[-k:] if self.reversals else [self.x[self.pos]]
         mean = float(np.mean(last))
         sd = float(np.std(last, ddof=1)) if len(last) > 1 else None
-        return {"mean": mean, "sd": sd, "level": level_of(self.spec, mean), "trials": len(self.history),
+        return {"mean": mean, "sd": sd, "level": self.axis.to_level(mean), "trials": len(self.history),
                 "reversals": len(self.reversals)}
 
     def state(self) -> dict:
@@ -433,5 +421,4 @@ class AdaptiveDesign:
 
 
 __all__ = ["AdaptiveDesign", "AdaptiveSpecError", "Procedure", "QuestPlusProcedure", "StaircaseProcedure", "Varied",
-           "check_spec", "grid", "intensity", "level_condition", "level_of", "make_procedure", "procedure_id",
-           "replay"]
+           "check_spec", "level_condition", "make_procedure", "procedure_id", "replay"]

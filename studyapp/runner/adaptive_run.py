@@ -17,7 +17,7 @@ import json
 from data_schema import families
 from data_schema.store import AdaptiveRow, StoreError
 
-from .adaptive import Procedure, intensity, level_condition, make_procedure, procedure_id
+from .adaptive import Procedure, level_condition, make_procedure, procedure_id
 from .protocol import Protocol
 
 
@@ -103,7 +103,7 @@ class AdaptiveRun:
         correct = bool(self.family.adaptive_correct(t.conditions, test, derived))
         proc.update(level, correct)
         est = proc.estimate()
-        return AdaptiveRow(pid, varied, level, intensity(proc.spec, level), correct, est["mean"], est["sd"],
+        return AdaptiveRow(pid, varied, level, proc.axis.to_intensity(level), correct, est["mean"], est["sd"],
                            state_json(proc))
 
     def skip(self, t) -> AdaptiveRow:
@@ -111,5 +111,5 @@ class AdaptiveRun:
         shown, level, varied, pid = self.shown(t)
         proc = self._procedure(pid)
         est = proc.estimate()
-        return AdaptiveRow(pid, varied, level, intensity(proc.spec, level), None, est["mean"], est["sd"],
+        return AdaptiveRow(pid, varied, level, proc.axis.to_intensity(level), None, est["mean"], est["sd"],
                            state_json(proc), skipped=True)

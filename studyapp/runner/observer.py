@@ -31,7 +31,7 @@ bias ``b ~ N(0, bias_sd)``, lapse rate ``lambda`` (``simulation.lapse``). With `
 *Adaptive trials* (a threshold design: the trial carries the ``level`` of the varied parameter and its
 ``procedure``, ``COND@scene``). Where ``simulation.psychometric`` declares a psychometric function for the
 varied condition, the observer is a known-truth one: with ``x`` the procedure's intensity of the level
-(``studyapp.runner.adaptive.intensity``: log10 of the level for a log domain, negated where a lower level is
+(``data_schema.intensity.Axis``: log10 of the level for a log domain, negated where a lower level is
 stronger foveation) and the declared threshold ``t`` (a level, mapped the same way), slope ``b``, lapse ``l``
 and guess rate ``g`` (the family's chance rate: 2AFC 0.5; yes/no the declared false-alarm rate)::
 
@@ -62,6 +62,7 @@ from data_schema import families
 from data_schema.errors import UserError
 from data_schema.families import Observer
 from data_schema.geometry import Display
+from data_schema.intensity import Axis
 from studyapp.presentation.base import Stimulus, TrialDisplay, TrialResult
 
 from .images import load_gray
@@ -135,9 +136,8 @@ class DeclaredFunction:
     function: str = "weibull"
 
     def intensity(self, level: float) -> float:
-        from .adaptive import intensity
-
-        return intensity(self.spec, level)
+        """The intensity of parameter value ``level`` on the spec's axis (:class:`data_schema.intensity.Axis`)."""
+        return Axis.of_spec(self.spec).to_intensity(level)
 
     def p_correct(self, x):
         """P(correct) at intensity ``x`` (module docstring)."""
@@ -149,13 +149,11 @@ class DeclaredFunction:
 
     def level_at(self, p: float) -> float:
         """The level at which P(correct) = ``p`` (the threshold at a family's criterion), by bisection."""
-        from .adaptive import level_of
-
         lo, hi = self.threshold - 20.0 / self.slope, self.threshold + 20.0 / self.slope
         for _ in range(100):
             mid = 0.5 * (lo + hi)
             lo, hi = (mid, hi) if self.p_correct(mid) < p else (lo, mid)
-        return level_of(self.spec, 0.5 * (lo + hi))
+        return Axis.of_spec(self.spec).to_level(0.5 * (lo + hi))
 
 
 def declared_function(protocol: Protocol, condition: str, scene: str, participant: str,
@@ -168,13 +166,11 @@ def declared_function(protocol: Protocol, condition: str, scene: str, participan
         return None
     decl = {**decl, **(decl.get("scenes") or {}).get(scene, {})}
     spec = adaptive.spec(condition)
-    from .adaptive import intensity
-
     fam = families.get(protocol.family)
     guess = fam.guess_rate if fam.guess_rate is not None else float(decl.get("guess", DEFAULT_FALSE_ALARMS))
     sd = float(protocol.simulation.get("threshold_sd", 0.0))
     z = np.random.default_rng(_key("threshold", seed, participant, condition, scene)).standard_normal()
-    return DeclaredFunction(condition, spec, intensity(spec, float(decl["threshold"])) + sd * float(z),
+    return DeclaredFunction(condition, spec, Axis.of_spec(spec).to_intensity(float(decl["threshold"])) + sd * float(z),
                             float(decl.get("slope", 3.5)), float(decl.get("lapse", 0.02)), float(guess),
                             str(decl.get("function", "weibull")))
 

@@ -29,10 +29,11 @@ from pathlib import Path
 from data_schema import families
 from data_schema.errors import UserError
 from data_schema.geometry import Display, ViewingGeometry
+from data_schema.intensity import grid
 from data_schema.names import check_name, check_unique
 from data_schema.protocol_schema import LoadedYAML, load_yaml, validate_document
 
-from .adaptive import DEFAULT_YES_NO_GUESS, AdaptiveDesign, Varied, check_spec, grid, level_condition
+from .adaptive import DEFAULT_YES_NO_GUESS, AdaptiveDesign, Varied, check_spec, level_condition
 
 #: Keys of free exploration (``motion: explore``; psychtoolbox key names): move forward/back/left/right, turn.
 #: A protocol's answer and switch keys may not use them.

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from data_schema import families
+from data_schema.intensity import Axis
 
 from .protocol import Protocol
 
@@ -39,9 +40,7 @@ FRAME_TIME_COLUMNS = ("protocol", "backend", "width", "height", "condition", "re
 
 
 def axes_of(protocol: Protocol) -> dict:
-    """Varied condition -> :class:`analysis.thresholds.Axis` (scale, direction, the ladder's ends)."""
-    from analysis.thresholds import Axis
-
+    """Varied condition -> :class:`data_schema.intensity.Axis` (scale, direction, the ladder's ends)."""
     return {name: Axis(v.scale, v.stronger, (min(v.levels), max(v.levels)))
             for name, v in protocol.adaptive.varied.items()}
 
@@ -251,17 +250,6 @@ def simulate_adaptive(protocol: Protocol, participants: int | list[str], seed: i
                 rows += [{"participant": pid, "condition": cond, "scene": scene, "trial": k, "procedure": proc_id,
                           "varied": v.param, **step} for k, step in enumerate(steps)]
     return pd.DataFrame(rows)
-
-
-def quest_interval(proc, level: float = 0.95) -> tuple[float, float]:
-    """The central ``level`` credible interval of a QUEST+ procedure's threshold (intensity units), from its
-    posterior marginal on the threshold grid."""
-    t = proc._coords["threshold"]  # the grid QUEST+ was built on (studyapp.runner.adaptive)
-    c = np.cumsum(proc.marginal("threshold"))
-    c /= c[-1]
-    lo = t[min(int(np.searchsorted(c, (1 - level) / 2)), t.size - 1)]
-    hi = t[min(int(np.searchsorted(c, (1 + level) / 2)), t.size - 1)]
-    return float(lo), float(hi)
 
 
 def run_procedure(spec: dict, observer, seed: int):
