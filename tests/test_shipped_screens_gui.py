@@ -1,15 +1,18 @@
 """What a participant sees in every shipped protocol (issue 26, "Done when"): `studyapp run` in a real window
 of the protocol's display (1920x1080) under Xvfb, answered with xdotool through its practice trial(s) into its
-first main trial, checked from the screenshots the window saves (``run --screenshot-dir``: the black interval
-before each trial, the first frame of each stimulus, every rendered live frame) and X-screen grabs of the
-second half of a labelled reference.
+first main trial (an adaptive design, which has no practice: its first two trials), checked from the
+screenshots the window saves (``run --screenshot-dir``: the black interval before each trial, the first frame
+of each stimulus, every rendered live frame) and X-screen grabs of a labelled reference (a sequence: its
+second half; a still image: before SPACE ends it).
 
 Each session runs a copy of the shipped protocol with its timing shortened (tests/gui/shipped_session.py:
 short_copy): pre-rendered stimuli are uniform frames of a colour per condition (an adaptive ladder: per
-level, ``NAME(level)``) written where ``prepare --scale`` writes them (rendering the real set at --scale 0.05
-took 10 min here), live ones render at 58x32 (:func:`scale_of`) with their renderer's preview parameters. The nine sessions run at once, each in its own Xvfb: about
-3 min on the shared 2-core machine at load 13-16 (each `run` takes 10-20 s to open its window there, and
-the live trials render on llvmpipe).
+level, ``NAME(level)``; the level a trial showed is read from the session's ``adaptive`` row) written where
+``prepare --scale`` writes them (rendering the real set at --scale 0.05 took 10 min here), live ones render
+at 58x32 (:func:`scale_of`) with their renderer's preview parameters. The sessions of the selected protocols
+(``-k``) run at once, each in its own Xvfb: the nine of the fixed designs about 3 min on the shared 2-core
+machine at load 13-16 (each `run` takes 10-20 s to open its window there, and the live trials render on
+llvmpipe), the four adaptive ones 26-38 s each at load 3.
 
 Measures (pixels only):
 

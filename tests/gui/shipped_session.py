@@ -132,7 +132,8 @@ def drive(x: Xvfb, copy: Path, workdir: Path, scale: float, n_main: int = 1, tim
     """Run participant P1 of the protocol ``copy`` (cwd ``workdir``) and answer every trial up to and
     including the ``n_main``-th trial that is neither practice nor reference: each stimulus of a trial is
     shown once (switch keys), then the first answer key (two picks where the family picks two) is pressed; at
-    the next trial Escape, then E, end the session. A reference's screen is grabbed from X near its end."""
+    the next trial Escape, then E, end the session. A reference's screen is grabbed from X near its end (a
+    still reference, which stays until SPACE: for a second before SPACE is pressed)."""
     from studyapp.runner.protocol import load_protocol
     from studyapp.runner.schedule import build_schedule
 
