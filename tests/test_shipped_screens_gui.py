@@ -159,8 +159,8 @@ def sessions(request, tmp_path_factory):
     require_tools()
     out, refs = {}, {}
     texts = set()
-    names = [n for n in [*NAMES, OFF] if any(getattr(i, "callspec", None) and i.callspec.params.get("name") == n
-                                             for i in request.session.items)]
+    selected = {i.callspec.params.get("name") for i in request.session.items if hasattr(i, "callspec")}
+    names = [n for n in [*NAMES, OFF] if n in selected]
     for name in names:  # the copies' schedules (their content, hence their schedule seed, differs)
         copy = copy_of(name, tmp_path_factory.mktemp("copies"))
         pairs = expected_progress(load_protocol(copy, check_renderers=False)).values()
@@ -317,7 +317,8 @@ def test_shipped_protocol_screens(sessions, name):
     assert run.trials[-1].kind in ("trial", "catch")
     assert any(t.kind == "practice" for t in run.trials) == bool(p.practice)  # adaptive designs have none
     if p.adaptive is not None:  # each main trial showed a level of its ladder
-        assert all(any("(" in c for c in shown_conditions(p, run, t)) for t in run.trials if counted(t)), rects
+        levels = [shown_conditions(p, run, t) for t in run.trials if counted(t)]
+        assert all(any("(" in c for c in shown) for shown in levels), levels
     for scene, by_cond in rects.items():  # one rectangle for every condition shown (within one render pixel)
         r = np.array(list(by_cond.values()))
         pixel = W / p.render_geometry(scale_of(p)).width + 1
