@@ -280,7 +280,8 @@ def test_shipped_protocol_screens(sessions, name):
                          if not p.live else (g.max(axis=2) > 8).mean() > 0.2)]
             end_label = min((ink(g.astype(int), refs["label_mask"], (255, 255, 255)) for g in shown),
                             default=None)
-            half = "" if end_label is None else f" (2nd half: {len(shown)} grabs, min {end_label:.2f})"
+            when = "2nd half" if p.duration_s else "before SPACE"  # a sequence / a still reference
+            half = "" if end_label is None else f" ({when}: {len(shown)} grabs, min {end_label:.2f})"
             print(f"SCREEN {name} trial {t.index} {t.kind} {t.scene} {cond}: frame {frame} rect {rect} label "
                   f"{label:.2f}{half} tag {tag:.2f} reminder ink {reminder}")
             if t.kind == "reference":
