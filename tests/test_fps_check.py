@@ -9,7 +9,8 @@ import pytest
 
 from crafted_db import live_text
 from data_schema.timing import format_fps
-from studyapp.runner.fpscheck import MAX_TOTAL_S, TooSlow, measure, sample_frames, seconds_per_cell
+from studyapp.runner.fpscheck import (MAX_TOTAL_S, TooSlow, measure, sample_frames, seconds_per_cell,
+                                      table_lines)
 
 #: frames per second of each condition in the fake window
 RATES = {"GT": 128.0, "LaFR": 16.0}  # frame times exact in binary
@@ -74,6 +75,15 @@ def test_the_check_lasts_fps_check_s_per_cell_bounded_in_total(tmp_path):
 def test_frame_rates_below_one_are_never_printed_as_zero():
     assert format_fps(0.13) == "0.13" and format_fps(0.04) == "0.04" and format_fps(7.66) == "7.7"
     assert format_fps(math.nan) == "-"
+
+
+def test_the_table_stays_aligned_with_an_adaptive_level_longer_than_the_column():
+    # latency_threshold_live's check renders LaFR_150ms(1.2): 15 characters, one more than the default column
+    rows = [{"condition": c, "scene": "temple", "fps_p5": 5.0, "fps_p50": 7.8, "latency_p50_ms": 396.0,
+             "frames": 15} for c in ("GT", "LaFR_150ms(1.2)")]
+    head, *body = table_lines(rows, 30)[1:]
+    assert [line.index("temple") for line in body] == [head.index("scene")] * 2
+    assert {len(line) for line in body} == {len(head) + len("  BELOW min_fps")}
 
 
 class WindowLike:

@@ -1,15 +1,18 @@
 """What a participant sees in every shipped protocol (issue 26, "Done when"): `studyapp run` in a real window
 of the protocol's display (1920x1080) under Xvfb, answered with xdotool through its practice trial(s) into its
-first main trial, checked from the screenshots the window saves (``run --screenshot-dir``: the black interval
-before each trial, the first frame of each stimulus, every rendered live frame) and X-screen grabs of the
-second half of a labelled reference.
+first main trial (an adaptive design, which has no practice: its first two trials), checked from the
+screenshots the window saves (``run --screenshot-dir``: the black interval before each trial, the first frame
+of each stimulus, every rendered live frame) and X-screen grabs of a labelled reference (a sequence: its
+second half; a still image: before SPACE ends it).
 
 Each session runs a copy of the shipped protocol with its timing shortened (tests/gui/shipped_session.py:
-short_copy): pre-rendered stimuli are uniform frames of a colour per condition written where ``prepare
---scale`` writes them (rendering the real set at --scale 0.05 took 10 min here), live ones render at --scale
-0.03 with their renderer's preview parameters. The nine sessions run at once, each in its own Xvfb: about
-3 min on the shared 2-core machine at load 13-16 (each `run` takes 10-20 s to open its window there, and
-the live trials render on llvmpipe).
+short_copy): pre-rendered stimuli are uniform frames of a colour per condition (an adaptive ladder: per
+level, ``NAME(level)``; the level a trial showed is read from the session's ``adaptive`` row) written where
+``prepare --scale`` writes them (rendering the real set at --scale 0.05 took 10 min here), live ones render
+at 58x32 (:func:`scale_of`) with their renderer's preview parameters. The sessions of the selected protocols
+(``-k``) run at once, each in its own Xvfb: the nine of the fixed designs about 3 min on the shared 2-core
+machine at load 13-16 (each `run` takes 10-20 s to open its window there, and the live trials render on
+llvmpipe), the four adaptive ones 26-38 s each at load 3.
 
 Measures (pixels only):
 
@@ -43,9 +46,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent / "gui"))
 import psychopy  # noqa: E402,F401 - the GUI tests need it: a missing install is a failure, not a skip
 from shipped_session import (colour, drive, load, short_copy, shots_of,  # noqa: E402
                              write_frames)
-from xvfb import Driver, Xvfb, require_tools  # noqa: E402
+from xvfb import Driver, Xvfb, query, require_tools  # noqa: E402
 
 from data_schema.geometry import eye_views  # noqa: E402
+from studyapp.runner.adaptive import level_condition  # noqa: E402
+from studyapp.runner.adaptive_run import varied_of  # noqa: E402
 from studyapp.runner.live import live_stimulus  # noqa: E402
 from studyapp.runner.protocol import load_protocol  # noqa: E402
 from studyapp.runner.session import counted  # noqa: E402
@@ -122,9 +127,10 @@ def n_main(p) -> int:
     of the window (cornell and cornell_many leave black around the box), so that a rectangle is measured
     against the viewport."""
     mains = [t for t in _schedule(p) if counted(t)]
+    least = 1 if p.adaptive is None else 2  # adaptive: two levels shown (a yes/no trial shows one stimulus)
     if not p.live:
-        return 1
-    return next(k + 1 for k, t in enumerate(mains) if t.scene not in BOXED)
+        return least
+    return max(least, next(k + 1 for k, t in enumerate(mains) if t.scene not in BOXED))
 
 
 def expected_progress(p) -> dict[int, tuple[str, str]]:
@@ -147,18 +153,20 @@ def expected_progress(p) -> dict[int, tuple[str, str]]:
 
 
 @pytest.fixture(scope="module")
-def sessions(tmp_path_factory):
-    """Every shipped protocol's session (and the reminder-off variant) and the reference renderings, at
-    once."""
+def sessions(request, tmp_path_factory):
+    """The session of every shipped protocol (and the reminder-off variant) whose test is selected (``-k``),
+    and the reference renderings, at once."""
     require_tools()
     out, refs = {}, {}
     texts = set()
-    for name in [*NAMES, OFF]:  # the copies' schedules (their content, hence their schedule seed, differs)
+    selected = {i.callspec.params.get("name") for i in request.session.items if hasattr(i, "callspec")}
+    names = [n for n in [*NAMES, OFF] if n in selected]
+    for name in names:  # the copies' schedules (their content, hence their schedule seed, differs)
         copy = copy_of(name, tmp_path_factory.mktemp("copies"))
         pairs = expected_progress(load_protocol(copy, check_renderers=False)).values()
         texts |= {t for pair in pairs for t in pair}
     threads = [threading.Thread(target=_session, args=(n, tmp_path_factory.mktemp(n.replace("+", "_")), out))
-               for n in [*NAMES, OFF]]
+               for n in names]
     threads.append(threading.Thread(target=_references,
                                     args=(tmp_path_factory.mktemp("refs"), sorted(texts), refs)))
     for t in threads:
@@ -186,21 +194,33 @@ def band_ink(shot: np.ndarray, y0: int, y1: int) -> int:
     return int((shot[y0:y1].min(axis=2) > 205).sum())
 
 
+def shown_conditions(p, run, t) -> tuple[str, ...]:
+    """``t``'s conditions as shown: an adaptive slot's varied condition as ``NAME(level)`` at the level its
+    procedure chose (the session's ``adaptive`` row of the trial)."""
+    test = varied_of(p, t.conditions) if t.kind == "trial" else None
+    if test is None:
+        return tuple(t.conditions)
+    (level,), = query(run.db, "SELECT level FROM adaptive WHERE participant = 'P1' AND idx = ?", t.index)
+    return tuple(level_condition(c, level) if c == test else c for c in t.conditions)
+
+
 def first_shots(p, run, t) -> list[tuple[str, np.ndarray]]:
-    """(condition, screenshot of its first frame) for each stimulus of trial ``t`` (live: the first frame,
-    then the second rendered after each switch)."""
+    """(condition as shown, screenshot of its first frame) for each stimulus of trial ``t`` (live: the first
+    frame, then the second rendered after each switch)."""
+    shown = shown_conditions(p, run, t)
     if not p.live:
-        return [(c, load(shots_of(run.shots, t.index, f"stim{i}")[0])) for i, c in enumerate(t.conditions)]
+        return [(c, load(shots_of(run.shots, t.index, f"stim{i}")[0])) for i, c in enumerate(shown)]
     live = shots_of(run.shots, t.index, "live")
-    return [(c, load(live[run.live_first.get((t.index, i), 0)])) for i, c in enumerate(t.conditions)]
+    return [(c, load(live[run.live_first.get((t.index, i), 0)])) for i, c in enumerate(shown)]
 
 
 def scale_of(p) -> float:
-    """The test's --scale: live 0.03 (58x32 renders; at 0.02 seed001_2afc_live's catch condition COARSE, LaFR
-    delta 8, has 3 log-polar rows and stops the session); pre-rendered the smallest of a few that keeps the
-    render's aspect ratio exact (seed001 0.05: 48x27, seed003 0.125: 32x18)."""
+    """The test's --scale: live 58x32 renders (0.03 of 1920x1080, 0.06 of 960x540; at 0.02 seed001_2afc_live's
+    catch condition COARSE, LaFR delta 8, has 3 log-polar rows and stops the session, as does the top of the
+    threshold protocols' delta ladder at 29x16); pre-rendered the smallest of a few that keeps the render's
+    aspect ratio exact (seed001 0.05: 48x27, seed003 0.125: 32x18, threshold_foveation 0.05: 48x27)."""
     if p.live:
-        return 0.03
+        return round(0.03 * 1080 / p.render_size[1], 4)
     w, h = p.render_size
     for s in (0.05, 0.0625, 0.1, 0.125, 0.25, 0.5):
         g = p.render_geometry(s)
@@ -260,15 +280,19 @@ def test_shipped_protocol_screens(sessions, name):
                          if not p.live else (g.max(axis=2) > 8).mean() > 0.2)]
             end_label = min((ink(g.astype(int), refs["label_mask"], (255, 255, 255)) for g in shown),
                             default=None)
-            half = "" if end_label is None else f" (2nd half: {len(shown)} grabs, min {end_label:.2f})"
+            when = "2nd half" if p.duration_s else "before SPACE"  # a sequence / a still reference
+            half = "" if end_label is None else f" ({when}: {len(shown)} grabs, min {end_label:.2f})"
             print(f"SCREEN {name} trial {t.index} {t.kind} {t.scene} {cond}: frame {frame} rect {rect} label "
                   f"{label:.2f}{half} tag {tag:.2f} reminder ink {reminder}")
             if t.kind == "reference":
                 assert label >= 0.9, (t.index, cond, label)
                 assert shown and end_label >= 0.9, (t.index, "second half", len(shown), end_label)
-                if not p.live:  # the last frame of the sequence was grabbed: the label stayed to the end
+                if not p.live and p.n_frames > 1:  # the sequence's last frame was grabbed: the label stayed
                     assert any(tuple(g[H // 2, W // 4]) == colour(index[cond], 1) for g in shown), t.index
-                assert reminder == 0  # a reference has no keys
+                if p.duration_s is None:  # a still reference stays until SPACE: its key is recalled
+                    assert reminder > 100, (t.index, cond, reminder)
+                else:
+                    assert reminder == 0  # a played reference has no keys
                 continue
             assert label < 0.5, (t.index, cond, label)
             assert (tag >= 0.9) == (t.kind == "practice"), (t.index, cond, t.kind, tag)
@@ -291,7 +315,11 @@ def test_shipped_protocol_screens(sessions, name):
             assert np.abs(bottom - refs["progress"][want]).max() <= 8, (t.index, want)
             if wrong != want:
                 assert np.abs(bottom - refs["progress"][wrong]).max() > 8, (t.index, "counts practice", wrong)
-    assert run.trials[-1].kind in ("trial", "catch") and any(t.kind == "practice" for t in run.trials)
+    assert run.trials[-1].kind in ("trial", "catch")
+    assert any(t.kind == "practice" for t in run.trials) == bool(p.practice)  # adaptive designs have none
+    if p.adaptive is not None:  # each main trial showed a level of its ladder
+        levels = [shown_conditions(p, run, t) for t in run.trials if counted(t)]
+        assert all(any("(" in c for c in shown) for shown in levels), levels
     for scene, by_cond in rects.items():  # one rectangle for every condition shown (within one render pixel)
         r = np.array(list(by_cond.values()))
         pixel = W / p.render_geometry(scale_of(p)).width + 1

@@ -80,13 +80,16 @@ def too_slow(rows: list[dict], min_fps: float | None) -> list[dict]:
 
 
 def table_lines(rows: list[dict], min_fps: float | None) -> list[str]:
-    """The table for the experimenter's console."""
+    """The table for the experimenter's console (columns as wide as the longest condition and scene name: an
+    adaptive level such as ``LaFR_150ms(1.2)`` keeps the columns aligned)."""
     floor = f" (min_fps {min_fps:g})" if min_fps else ""
+    cw = max([14, *(len(r["condition"]) for r in rows)])
+    sw = max([14, *(len(r["scene"]) for r in rows)])
     out = [f"frame-rate check{floor}:",
-           f"  {'condition':<14} {'scene':<14} {'fps p5':>8} {'fps p50':>8} {'lat p50':>8} {'frames':>6}"]
+           f"  {'condition':<{cw}} {'scene':<{sw}} {'fps p5':>8} {'fps p50':>8} {'lat p50':>8} {'frames':>6}"]
     for r in rows:
         lat = r["latency_p50_ms"]
-        out.append(f"  {r['condition']:<14} {r['scene']:<14} {format_fps(r['fps_p5']):>8} "
+        out.append(f"  {r['condition']:<{cw}} {r['scene']:<{sw}} {format_fps(r['fps_p5']):>8} "
                    f"{format_fps(r['fps_p50']):>8} {'-' if math.isnan(lat) else f'{lat:.0f}ms':>8} {r['frames']:>6}"
                    + ("  BELOW min_fps" if r in too_slow(rows, min_fps) else ""))
     return out

@@ -3,7 +3,7 @@ hand, not part of the suite (minutes per protocol on llvmpipe):
 
     PYTHONPATH=$PWD python tests/gui/fps_tables.py OUT_DIR [--scale 0.05] [--shipped] [NAME ...]
 
-For each live protocol (default: all four) a real windowed session, `studyapp run PROTOCOL --scale S
+For each live protocol (default: all six) a real windowed session, `studyapp run PROTOCOL --scale S
 --accept-slow`, runs under a private Xvfb of the display's size (1920x1080): the frame-rate check renders
 every condition x scene for ``stimulus.fps_check_s`` seconds before the first trial
 (studyapp/runner/fpscheck.py) and stores its table with the session; xdotool then presses SPACE and the
@@ -31,7 +31,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from shipped_session import PROTOCOLS, xkey  # noqa: E402
 from xvfb import PYTHON, ROOT, Xvfb, query  # noqa: E402
 
-LIVE = ["seed001_pilot_live", "seed001_2afc_live", "seed003_task1_live", "seed003_task2_live"]
+LIVE = ["seed001_pilot_live", "seed001_2afc_live", "seed003_task1_live", "seed003_task2_live",
+        "threshold_foveation_live", "latency_threshold_live"]
 
 
 def without_calibration(name: str, folder: Path) -> Path:

@@ -52,7 +52,7 @@ def short_copy(name: str, folder: Path, **presentation) -> Path:
         for cond in data["conditions"].values():
             if cond.get("renderer"):
                 cond["params"] = preview_params(cond["renderer"], cond.get("params", {}))
-    else:
+    elif stim.get("kind", "image") == "sequence":
         stim["duration_s"], stim["fps"] = 2.0, 1
     data["timing"]["black_s"] = 0.3
     if presentation:
@@ -103,6 +103,7 @@ class Run:
     grabs: dict = field(default_factory=dict)  # reference trial -> X-screen grabs (RGB) of its second half
     trials: list = field(default_factory=list)  # the PlannedTrials driven, in order
     live_first: dict = field(default_factory=dict)  # (trial, stimulus) -> index of a live shot of it
+    db: Path | None = None  # the session's database
     stdout: str = ""
     stderr: str = ""
     seconds: float = 0.0
@@ -131,7 +132,8 @@ def drive(x: Xvfb, copy: Path, workdir: Path, scale: float, n_main: int = 1, tim
     """Run participant P1 of the protocol ``copy`` (cwd ``workdir``) and answer every trial up to and
     including the ``n_main``-th trial that is neither practice nor reference: each stimulus of a trial is
     shown once (switch keys), then the first answer key (two picks where the family picks two) is pressed; at
-    the next trial Escape, then E, end the session. A reference's screen is grabbed from X near its end."""
+    the next trial Escape, then E, end the session. A reference's screen is grabbed from X near its end (a
+    still reference, which stays until SPACE: for a second before SPACE is pressed)."""
     from studyapp.runner.protocol import load_protocol
     from studyapp.runner.schedule import build_schedule
 
@@ -139,7 +141,7 @@ def drive(x: Xvfb, copy: Path, workdir: Path, scale: float, n_main: int = 1, tim
     schedule = build_schedule(p, "P1", 0)
     shots = workdir / "shots"
     shots.mkdir()
-    run = Run(shots)
+    run = Run(shots, db=workdir / "s.db")
     t0 = time.monotonic()
     err = open(workdir / "run.stderr", "w")
     proc = subprocess.Popen(
@@ -159,6 +161,16 @@ def drive(x: Xvfb, copy: Path, workdir: Path, scale: float, n_main: int = 1, tim
         for t in schedule:
             run.trials.append(t)
             first = _wait(lambda: shots_of(shots, t.index, what), timeout_s, proc)[0]
+            if t.kind == "reference" and p.duration_s is None:  # a still reference stays until SPACE: grab
+                # the X screen for a while, then press SPACE until the next trial's black interval
+                nxt = schedule[len(run.trials)].index
+                grabs = run.grabs.setdefault(t.index, [])
+                time.sleep(0.3)
+                for _ in range(5):
+                    grabs.append(np.asarray(ImageGrab.grab(xdisplay=x.display).convert("RGB")))
+                    time.sleep(0.2)
+                _wait(lambda: shots_of(shots, nxt, "black"), timeout_s, proc, lambda: x.key("space"), 1.5)
+                continue
             if t.kind == "reference":  # plays without keys: grab the X screen from mid-way until it has ended
                 # (timed from the shot's file, written just before the onset flip, not from when it was seen)
                 nxt = schedule[len(run.trials)].index
