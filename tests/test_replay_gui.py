@@ -18,8 +18,10 @@ import numpy as np
 import pandas as pd
 import pytest
 from PIL import Image
+import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "gui"))
+from test_live_gui import PROTOCOL as LIVE_PROTOCOL  # noqa: E402
 from test_live_gui import _press_until, _psnr, _wait  # noqa: E402
 from xvfb import ROOT, Xvfb, require_tools  # noqa: E402
 from xvfb import query as _q  # noqa: E402
@@ -27,29 +29,21 @@ from xvfb import query as _q  # noqa: E402
 W, H = 384, 216  # the display; --scale 0.25 renders 96 x 54, magnified 4x by the window
 BACKEND = os.environ.get("STUDYAPP_LIVE_TEST_BACKEND", "gpu")  # the live backend; cpu also works
 
-PROTOCOL = f"""
-schema_version: 1
-name: gui_replay
-version: "1"
-family: yes_no
-question: "Acceptable? Y / N"
-display: {{width_px: {W}, height_px: {H}, width_cm: 40.0, distance_cm: 40.0, refresh_hz: 60STEREO}}
-fixation: {{x: 0.5, y: 0.5, mark: false}}
-presentation: {{key_reminder: "off"}}
-scenes: [interior]
-conditions:
-  LaFR: {{renderer: lafr, params: {{delta: 2.0}}, backend: {BACKEND}}}
-  LaFR_Dup: {{renderer: lafr, params: {{delta: 2.0, stereo: dup EYE}}, backend: {BACKEND}}}
-stimulus:
-  kind: live
-  duration_s: 1.0
-  motion: explore
-  gaze: mouse
-  fps_check_s: 0.2
-timing: {{black_s: 0.2}}
-design: {{repetitions: 1, trial_order: interleaved}}
-analysis: {{dv: response, unit: trial, test: summary_table}}
-"""
+def _protocol(stereo: bool) -> str:
+    """test_live_gui's protocol in interior at the display size, without the key reminder: LaFR and LaFR_Dup
+    (binocular: its right eye over the window on a mono display, side by side on a stereo one)."""
+    doc = yaml.safe_load(LIVE_PROTOCOL)
+    doc["name"] = "gui_replay"
+    doc["display"].update(width_px=W, height_px=H, **({"stereo": True} if stereo else {}))
+    doc["presentation"] = {"key_reminder": "off"}
+    doc["scenes"] = ["interior"]
+    dup = {"delta": 2.0, "stereo": "dup", **({} if stereo else {"eye": "right"})}
+    doc["conditions"] = {"LaFR": {"renderer": "lafr", "params": {"delta": 2.0}, "backend": BACKEND},
+                         "LaFR_Dup": {"renderer": "lafr", "params": dup, "backend": BACKEND}}
+    doc["stimulus"].update(duration_s=1.0, fps_check_s=0.2)
+    doc["stimulus"].pop("explore", None)
+    doc["timing"] = {"black_s": 0.2}
+    return yaml.safe_dump(doc)
 
 
 def _attempt_shots(folder: Path, trial: int) -> list[dict[int, Path]]:
@@ -71,8 +65,7 @@ def _session(tmp_path: Path, stereo: bool) -> tuple[Path, dict, Path]:
     """Run the study in a window: the first trial is interrupted by Escape after a few frames and resumed."""
     require_tools()
     proto = tmp_path / "replay.yaml"
-    proto.write_text(PROTOCOL.replace("STEREO", ", stereo: true" if stereo else "")
-                     .replace("EYE", "" if stereo else ", eye: right"))
+    proto.write_text(_protocol(stereo))
     db, shots = tmp_path / "s.db", tmp_path / "shots"
     cmd = [sys.executable, "-m", "studyapp", "run", str(proto), "--participant", "P1", "--db", str(db),
            "--scale", "0.25", "--screenshot-dir", str(shots)]
