@@ -35,6 +35,9 @@ TEX_WIDTH = 4096
 #: Interleaved stripes of workgroups per dispatch (``Device.dispatch``, ``common.glsl`` ``gid()``): any thread
 #: count of llvmpipe up to this many gets an even share of every part of the image.
 STRIPES = 64
+#: Invocations per workgroup of every compute shader: ``expand_source`` declares it in each ``.comp`` file's
+#: ``layout(local_size_x = ...)`` and ``Device.dispatch`` counts workgroups with it (one home for both).
+LOCAL_SIZE = 64
 
 _DEVICE: "Device | None" = None
 
@@ -221,7 +224,7 @@ class Device:
             self._programs[key] = prog
         return prog
 
-    def dispatch(self, prog, n: int, local: int = 64) -> None:
+    def dispatch(self, prog, n: int, local: int = LOCAL_SIZE) -> None:
         """Run ``prog`` over ``n`` invocations of a 1-D problem (2-D grid when the group count exceeds the limit).
 
         The shader reads its index with ``gid()`` from ``common.glsl``, which deals the blocks of ``local``
@@ -273,7 +276,8 @@ _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.M)
 
 
 def expand_source(name: str, defines: dict, source: str | None = None) -> str:
-    """GLSL text of ``name``: ``#include "file"`` expanded (once each) and ``defines`` after ``#version``."""
+    """GLSL text of ``name``: ``#include "file"`` expanded (once each), ``#version`` and ``defines`` first and, for a
+    compute shader (``.comp``), its workgroup size :data:`LOCAL_SIZE`; shader files hold neither."""
     seen: set[str] = set()
 
     def load(fname: str, text: str | None = None) -> str:
@@ -287,8 +291,10 @@ def expand_source(name: str, defines: dict, source: str | None = None) -> str:
     body = load(name, source)
     head, sep, rest = body.partition("\n")
     if not head.startswith("#version"):
-        head, rest = "#version 430", body
+        head, rest = f"#version {REQUIRED_VERSION}", body
     lines = [f"#define {k} {_glsl_value(v)}" for k, v in defines.items()]
+    if name.endswith(".comp") and "local_size_x" not in rest:   # the plumbing every compute shader shares
+        lines.append(f"layout(local_size_x = {LOCAL_SIZE}) in;")
     return "\n".join([head, *lines, rest])
 
 

@@ -13,7 +13,7 @@ import time
 import numpy as np
 
 from ..plugin_types import RenderCancelled
-from .context import WAY_OUT, StageTimer
+from .context import LOCAL_SIZE, WAY_OUT, StageTimer
 
 #: GPU counters (index = position). Those named like a Counters field are added to it at the end of a frame.
 COUNTERS = ("samples", "holes", "rays_primary", "missed_rays", "shading_points", "glossy_evaluations",
@@ -97,7 +97,7 @@ class Frame:
         return {**_COUNTER_DEFINES, **_DEFAULT_DEFINES, **self.ds.defines(), **(extra or {})}
 
     def run(self, name: str, n: int, buffers: dict | None = None, uniforms: dict | None = None,
-            defines: dict | None = None, images: dict | None = None, local: int = 64) -> None:
+            defines: dict | None = None, images: dict | None = None, local: int = LOCAL_SIZE) -> None:
         """Dispatch ``shaders/<name>`` over ``n`` invocations with storage ``buffers`` {binding point: buffer}
         and ``images`` {image unit: texture} bound next to the scene (image units 0-3) and the counters.
         A render that can be cancelled is asked first (:meth:`check_cancel`)."""
