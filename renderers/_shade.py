@@ -33,6 +33,8 @@ from .constants import (INV_PI, KIND_DIFFUSE, KIND_GLOSSY, KIND_METALLIC, LIGHT_
 #: closure in double precision (as on the CPU: lattice lines fall on the same side), the lobes in float.
 GLSL_DOUBLE_ROOTS = ("texture_weight",)
 GLSL_FLOAT_ROOTS = ("material_lobes", "light_direction", "irradiance_factor", "specular_lobe", "luminance")
+#: The per-light kernels that read the light table (``L_*`` bound to the GPU's light image): ``lights_gen.glsl``.
+GLSL_LIGHT_ROOTS = ("light_term", "shadow_direction")
 
 
 @njit(cache=True, inline="always")
@@ -146,6 +148,40 @@ def luminance(r, g, b):
     return LUMA_R * r + LUMA_G * g + LUMA_B * b
 
 
+@njit(cache=True, inline="always")
+def light_term(j, L_kind, L_pos, L_dir, L_int, px, py, pz, nx, ny, nz, vx, vy, vz, kd, ar, ag, ab, glossy, ksr, ksg,
+               ksb, norm, s_exp):
+    """Unshadowed contribution ``(r, g, b, lobe)`` of light ``j`` at ``p`` (normal ``n``, view ``v``): ``f E`` of
+    the module docstring for the material's Lambert weight ``kd``, albedo ``a``, lobe flag ``glossy`` (1.0 or 0.0),
+    specular colour ``ks``, normalisation ``norm`` and exponent ``s``; ``lobe`` is 1.0 when the Blinn-Phong lobe was
+    evaluated (the glossy_evaluations counter). All zero when the light is behind the point or below its horizon."""
+    wx, wy, wz, inv_d2 = light_direction(L_kind[j], L_pos[j, 0], L_pos[j, 1], L_pos[j, 2], L_dir[j, 0], L_dir[j, 1],
+                                         L_dir[j, 2], px, py, pz)
+    e = irradiance_factor(L_kind[j], L_dir[j, 0], L_dir[j, 1], L_dir[j, 2], nx, ny, nz, wx, wy, wz, inv_d2)
+    if e == 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    fr, fg, fb = kd * ar, kd * ag, kd * ab
+    lobe = 0.0
+    if glossy > 0.5:
+        sp = specular_lobe(norm, s_exp, nx, ny, nz, wx, wy, wz, vx, vy, vz)
+        fr += ksr * sp
+        fg += ksg * sp
+        fb += ksb * sp
+        lobe = 1.0
+    return fr * e * L_int[j, 0], fg * e * L_int[j, 1], fb * e * L_int[j, 2], lobe
+
+
+@njit(cache=True, inline="always")
+def shadow_direction(j, L_kind, L_pos, L_dir, ox, oy, oz, offset, far):
+    """Unit direction from a shadow ray's origin ``o`` towards light ``j`` and the ray's length: ``far`` for a
+    directional light, else the distance less ``offset`` at each end (never negative)."""
+    if L_kind[j] == LIGHT_DIRECTIONAL:
+        return -L_dir[j, 0], -L_dir[j, 1], -L_dir[j, 2], far
+    dx, dy, dz = L_pos[j, 0] - ox, L_pos[j, 1] - oy, L_pos[j, 2] - oz
+    d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    return dx / d, dy / d, dz / d, max(d - 2.0 * offset, 0.0)
+
+
 @njit(cache=True, parallel=True)
 def shade_contributions(P, N, V, mid, mat_f, mat_i, L_pos, L_int, L_dir, L_kind, ambient, eps,
                         contrib, base, need, counts):
@@ -175,7 +211,6 @@ def shade_contributions(P, N, V, mid, mat_f, mat_i, L_pos, L_int, L_dir, L_kind,
         s_exp = mat_f[m, 10]
         kd, glossy_w, metal_w, norm = material_lobes(mat_f[m, 12], mat_f[m, 13], s_exp)
         metallic = metal_w > 0.5
-        glossy = glossy_w > 0.5
         if metallic:
             ksr, ksg, ksb = ar, ag, ab
         else:
@@ -187,26 +222,13 @@ def shade_contributions(P, N, V, mid, mat_f, mat_i, L_pos, L_int, L_dir, L_kind,
         total = 0.0
         n_gloss = 0
         for j in range(k):
-            wx, wy, wz, inv_d2 = light_direction(L_kind[j], L_pos[j, 0], L_pos[j, 1], L_pos[j, 2], L_dir[j, 0],
-                                                 L_dir[j, 1], L_dir[j, 2], px, py, pz)
-            e = irradiance_factor(L_kind[j], L_dir[j, 0], L_dir[j, 1], L_dir[j, 2], nx, ny, nz, wx, wy, wz, inv_d2)
-            if e == 0.0:
-                contrib[i, j, 0] = contrib[i, j, 1] = contrib[i, j, 2] = 0.0
-                lum[j] = 0.0
-                continue
-            fr, fg, fb = kd * ar, kd * ag, kd * ab
-            if glossy:
-                sp = specular_lobe(norm, s_exp, nx, ny, nz, wx, wy, wz, vx, vy, vz)
-                fr += ksr * sp
-                fg += ksg * sp
-                fb += ksb * sp
-                n_gloss += 1
-            cr = fr * e * L_int[j, 0]
-            cg = fg * e * L_int[j, 1]
-            cb = fb * e * L_int[j, 2]
+            cr, cg, cb, g = light_term(j, L_kind, L_pos, L_dir, L_int, px, py, pz, nx, ny, nz, vx, vy, vz, kd, ar,
+                                       ag, ab, glossy_w, ksr, ksg, ksb, norm, s_exp)
             contrib[i, j, 0] = cr
             contrib[i, j, 1] = cg
             contrib[i, j, 2] = cb
+            if g > 0.5:
+                n_gloss += 1
             lum[j] = luminance(cr, cg, cb)
             total += lum[j]
         culled = 0
@@ -246,14 +268,7 @@ def shadow_rays(P, N, need, cast, L_pos, L_dir, L_kind, offset, far, orig, dirs,
         for j in range(k):
             if not need[i, j] or not cast[j]:
                 continue
-            if L_kind[j] == LIGHT_DIRECTIONAL:
-                dx, dy, dz = -L_dir[j, 0], -L_dir[j, 1], -L_dir[j, 2]
-                d = far
-            else:
-                dx, dy, dz = L_pos[j, 0] - ox, L_pos[j, 1] - oy, L_pos[j, 2] - oz
-                d = math.sqrt(dx * dx + dy * dy + dz * dz)
-                dx, dy, dz = dx / d, dy / d, dz / d
-                d = max(d - 2.0 * offset, 0.0)
+            dx, dy, dz, d = shadow_direction(j, L_kind, L_pos, L_dir, ox, oy, oz, offset, far)
             orig[r, 0], orig[r, 1], orig[r, 2] = ox, oy, oz
             dirs[r, 0], dirs[r, 1], dirs[r, 2] = dx, dy, dz
             dists[r] = d

@@ -322,6 +322,14 @@ def generated_source(fname: str) -> str | None:
         from .codegen import shade_glsl
 
         return shade_glsl()
+    if fname == "glossy_gen.glsl":
+        from .codegen import glossy_glsl
+
+        return glossy_glsl()
+    if fname == "lights_gen.glsl":
+        from .codegen import lights_glsl
+
+        return lights_glsl()
     if fname == "constants_gen.glsl":
         from .codegen import constants_glsl
 

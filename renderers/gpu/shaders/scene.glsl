@@ -12,6 +12,7 @@ layout(binding = 2, rgba32ui) uniform restrict readonly uimage2D t_mats;    // 4
 layout(binding = 3, rgba32ui) uniform restrict readonly uimage2D t_lights;  // pos|kind, int.|cast, dir|0
 #define fetch(t, k) imageLoad(t, ivec2((k) % TEX_WIDTH, (k) / TEX_WIDTH))
 #define fetchf(t, k) uintBitsToFloat(fetch(t, k))
+#include "lights_gen.glsl"
 
 const float INF = 1.0 / 0.0;
 #define BVH_STACK 66
@@ -137,38 +138,23 @@ Surf surface(int k, vec3 o, vec3 d, float t) {
     return s;
 }
 
-// Unshadowed contribution of light j (zero when it lights the back or is below the horizon); `glossy` tells
-// whether the lobe was evaluated (the glossy_evaluations counter).
+// Unshadowed contribution of light j (_shade.light_term, generated: lights_gen.glsl); `glossy` tells whether the
+// lobe was evaluated (the glossy_evaluations counter).
 vec3 light_contribution(Surf s, int j, out bool glossy) {
-    vec4 l0 = fetchf(t_lights, 3 * j), l1 = fetchf(t_lights, 3 * j + 1), l2 = fetchf(t_lights, 3 * j + 2);
-    int kind = int(l0.w);
-    vec4 w = shade_light_direction(kind, l0.x, l0.y, l0.z, l2.x, l2.y, l2.z, s.p.x, s.p.y, s.p.z);
-    float e = shade_irradiance_factor(kind, l2.x, l2.y, l2.z, s.n.x, s.n.y, s.n.z, w.x, w.y, w.z, w.w);
-    glossy = false;
-    if (e == 0.0) return vec3(0.0);
-    vec3 f = s.kd * s.a;
-    if (s.glossy) {
-        f += s.ks * shade_specular_lobe(s.norm, s.s_exp, s.n.x, s.n.y, s.n.z, w.x, w.y, w.z, s.v.x, s.v.y, s.v.z);
-        glossy = true;
-    }
-    return f * e * l1.xyz;
+    vec4 c = shade_light_term(j, s.p.x, s.p.y, s.p.z, s.n.x, s.n.y, s.n.z, s.v.x, s.v.y, s.v.z, s.kd, s.a.x, s.a.y,
+                              s.a.z, s.glossy ? 1.0 : 0.0, s.ks.x, s.ks.y, s.ks.z, s.norm, s.s_exp);
+    glossy = c.w > 0.5;
+    return c.xyz;
 }
 
 float luminance(vec3 c) { return shade_luminance(c.x, c.y, c.z); }
 bool light_casts(int j) { return fetchf(t_lights, 3 * j + 1).w > 0.5; }
 
 // Shadow ray towards light j from p (normal n): origin offset along n, stops `offset` short of the light
-// (_shade.shadow_rays).
+// (_shade.shadow_rays; the direction and length generated from _shade.shadow_direction).
 void shadow_ray(int j, vec3 p, vec3 n, float offset, float far, out vec3 o, out vec3 d, out float dist) {
-    vec4 l0 = fetchf(t_lights, 3 * j);
     o = p + offset * n;
-    if (int(l0.w) == LIGHT_DIRECTIONAL) {
-        d = -fetchf(t_lights, 3 * j + 2).xyz;
-        dist = far;
-    } else {
-        d = l0.xyz - o;
-        float len = length(d);
-        d /= len;
-        dist = max(len - 2.0 * offset, 0.0);
-    }
+    vec4 r = shade_shadow_direction(j, o.x, o.y, o.z, offset, far);
+    d = r.xyz;
+    dist = r.w;
 }
