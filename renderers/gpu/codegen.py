@@ -682,34 +682,39 @@ def _shade_glsl(module) -> str:
             '#include "constants_gen.glsl"\n' + tr.emit(doubles + floats, helpers=False))
 
 
-def lights_glsl(module=None) -> str:
-    """GLSL of the per-light kernels of :mod:`renderers._shade` (``GLSL_LIGHT_ROOTS``: a light's unshadowed
-    contribution, a shadow ray's direction and length), prefixed ``shade_`` like the kernels of ``shade_gen.glsl``
-    they call. The light table ``L_*`` is the shader's light image (``scene.glsl``: 3 texels per light, position |
-    kind, intensity | cast, direction). ``module``: another module of the same kernels (tests translate a copy)."""
+def lights_glsl(module=None, roots: str = "GLSL_LIGHT_ROOTS") -> str:
+    """GLSL of the kernels of :mod:`renderers._shade` that read the scene's tables (``roots``: the names in
+    ``GLSL_LIGHT_ROOTS``: a hit's material terms, a light's unshadowed contribution, a shadow ray's direction and
+    length; ``GLSL_POINT_ROOTS``: a shading point's light loop), prefixed ``shade_`` like the kernels of
+    ``shade_gen.glsl`` they call. The tables are the shader's images (``scene.glsl``: ``material(m, c)`` is column
+    ``c`` of ``mat_f``; 3 texels per light: position | kind, intensity | cast, direction); the hit's outputs its
+    record ``hit_surf``; a point's per-light outputs shade.comp's arrays ``contrib``, ``lum``.
+    ``module``: another module of the same kernels (tests translate a changed copy)."""
     if module is None:
-        return _lights_glsl_cached()
-    return _lights_glsl(module)
+        return _lights_glsl_cached(roots)
+    return _lights_glsl(module, roots)
 
 
 @functools.lru_cache(maxsize=None)
-def _lights_glsl_cached() -> str:
+def _lights_glsl_cached(roots: str) -> str:
     from .. import _shade
 
-    return _lights_glsl(_shade)
+    return _lights_glsl(_shade, roots)
 
 
-def _lights_glsl(module) -> str:
+def _lights_glsl(module, roots: str) -> str:
     light = "fetchf(t_lights, 3 * ({0})"
-    tr = Translator(module, "shade_", source=inspect.getsource(module),
-                    bindings={"L_kind": f"int({light}).w)", "L_pos": f"{light})[{{1}}]",
-                              "L_int": f"{light} + 1)[{{1}}]", "L_dir": f"{light} + 2)[{{1}}]"})
+    tr = Translator(module, "shade_", source=inspect.getsource(module), bindings={
+        "L_kind": f"int({light}).w)", "L_pos": f"{light})[{{1}}]", "L_int": f"{light} + 1)[{{1}}]",
+        "L_dir": f"{light} + 2)[{{1}}]", "mat_f": "material({0}, {1})", "ambient": "u_ambient[{0}]",
+        "albedo": "hit_surf.a[{1}]", "base": "hit_surf.base[{1}]", "ks": "hit_surf.ks[{1}]",
+        "contrib": "contrib[{1}][{2}]", "lum": "lum[{0}]"})
     tr.binding_types["L_kind"] = "int"
-    names = tr.closure(module.GLSL_LIGHT_ROOTS)
-    tr.infer(names, {r: {"j": "int"} for r in module.GLSL_LIGHT_ROOTS})
-    # the callees are shade_gen.glsl's (included before this file): only the roots are emitted here
+    names = tr.closure(getattr(module, roots))
+    tr.infer(names, {r: {"j": "int", "i": "int", "m": "int", "k": "int"} for r in getattr(module, roots)})
+    # the callees are shade_gen.glsl's and lights_gen.glsl's (included before): only the roots are emitted here
     return (f"// Generated from {module.__name__.replace('.', '/')}.py by renderers/gpu/codegen.py: do not edit.\n"
-            + "\n".join(tr.emit_fn(tr.fns[r]) for r in module.GLSL_LIGHT_ROOTS))
+            + "\n".join(tr.emit_fn(tr.fns[r]) for r in getattr(module, roots)))
 
 
 @functools.lru_cache(maxsize=None)

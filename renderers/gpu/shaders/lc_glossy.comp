@@ -55,7 +55,7 @@ void main() {
                 } else {
                     Surf sf = surface(k, o, dir, th);
                     radiance = sf.base;
-                    vec3 alb = sf.kd == 0.0 ? vec3(0.0) : sf.a, bt, bb;
+                    vec3 bt, bb;
                     lc_frame(sf.n, bt, bb);
                     int m = lc_refine_cut(sf.p, sf.n, bt, bb, u_bounce_lspp);
                     uvec2 id = uvec2((uint(px) << 20) | uint(r), uint(px) >> 12);
@@ -64,7 +64,7 @@ void main() {
                         float pdf;
                         int leaf = descend(sf.p, sf.n, bt, bb, lc_cut[s],
                                            lc_uniform_f(u_bounce_seed, id, uint(2 * s)), pdf);
-                        vec3 v = light_estimate(sf.p, sf.n, alb, leaf, pdf);
+                        vec3 v = light_estimate(sf.p, sf.n, sf.a, leaf, pdf);
                         if (v.x + v.y + v.z > 0.0 && (u_shadows == 0 || !occluded(sf.p, sf.n, leaf, offset)))
                             radiance += v;
                     }

@@ -12,7 +12,6 @@ layout(binding = 2, rgba32ui) uniform restrict readonly uimage2D t_mats;    // 4
 layout(binding = 3, rgba32ui) uniform restrict readonly uimage2D t_lights;  // pos|kind, int.|cast, dir|0
 #define fetch(t, k) imageLoad(t, ivec2((k) % TEX_WIDTH, (k) / TEX_WIDTH))
 #define fetchf(t, k) uintBitsToFloat(fetch(t, k))
-#include "lights_gen.glsl"
 
 const float INF = 1.0 / 0.0;
 #define BVH_STACK 66
@@ -106,36 +105,32 @@ struct Surf {
     float kd, s_exp, norm;
     bool glossy;
 };
+// Column c of the CPU's material table mat_f (renderers/tracer.py pack_scene; then the texture kind, column 14).
+#define material(m, c) fetchf(t_mats, 4 * (m) + (c) / 4)[(c) % 4]
+Surf hit_surf;   // the record surface() fills: shade_hit_material writes its a, ks, base
+#include "lights_gen.glsl"
 
-// Hit point, normal facing the ray and material of triangle k hit at o + t d (_shade.hit_geometry and the head
-// of _shade.shade_contributions). Material k: vec4(albedo, tex scale), vec4(albedo2, exponent),
-// vec4(emission, specular), vec4(metallic, glossy, texture kind, 0).
 // Unit geometric normal of triangle k facing the ray direction d.
 vec3 facing_normal(int k, vec3 d) {
-    vec3 n = cross(fetchf(t_tris, 3 * k + 1).xyz, fetchf(t_tris, 3 * k + 2).xyz);
-    float ln = length(n);
-    if (ln > 0.0) n /= ln;
-    return dot(n, d) > 0.0 ? -n : n;
+    vec3 e1 = fetchf(t_tris, 3 * k + 1).xyz, e2 = fetchf(t_tris, 3 * k + 2).xyz;
+    return shade_facing_normal(e1.x, e1.y, e1.z, e2.x, e2.y, e2.z, d.x, d.y, d.z);
 }
 
+// Hit point, normal facing the ray and material of triangle k hit at o + t d (_shade.hit_geometry and
+// lightcuts/plugin._hit_materials; the albedo is 0 on metallic materials, ks 0 on diffuse ones).
 Surf surface(int k, vec3 o, vec3 d, float t) {
-    Surf s;
-    s.p = o + d * t;
-    s.n = facing_normal(k, d);
-    s.v = -d;
+    hit_surf.p = o + d * t;
+    hit_surf.n = facing_normal(k, d);
+    hit_surf.v = -d;
     int m = int(fetch(t_tris, 3 * k + 1).w);
-    vec4 m0 = fetchf(t_mats, 4 * m), m1 = fetchf(t_mats, 4 * m + 1), m2 = fetchf(t_mats, 4 * m + 2);
-    vec4 m3 = fetchf(t_mats, 4 * m + 3);
-    float w = float(shade_texture_weight(int(m3.z), m0.w, s.p.x, s.p.y, s.p.z, s.n.x, s.n.y, s.n.z));
-    s.a = w * m0.xyz + (1.0 - w) * m1.xyz;
-    s.s_exp = m1.w;
-    vec4 lobes = shade_material_lobes(m3.x, m3.y, s.s_exp);   // kd, glossy, metallic, norm
-    s.kd = lobes.x;
-    s.glossy = lobes.y > 0.5;
-    s.ks = lobes.z > 0.5 ? s.a : vec3(m2.w);
-    s.norm = lobes.w;
-    s.base = m2.xyz + u_ambient * s.a * (1.0 - lobes.z);
-    return s;
+    vec3 p = hit_surf.p, n = hit_surf.n;
+    float w = float(shade_texture_weight(int(material(m, 14)), material(m, 9), p.x, p.y, p.z, n.x, n.y, n.z));
+    hit_surf.glossy = shade_hit_material(0, m, w);
+    hit_surf.s_exp = material(m, 10);
+    vec4 lobes = shade_material_lobes(material(m, 12), material(m, 13), hit_surf.s_exp);   // kd, -, -, norm
+    hit_surf.kd = lobes.x;
+    hit_surf.norm = lobes.w;
+    return hit_surf;
 }
 
 // Unshadowed contribution of light j (_shade.light_term, generated: lights_gen.glsl); `glossy` tells whether the
@@ -147,7 +142,6 @@ vec3 light_contribution(Surf s, int j, out bool glossy) {
     return c.xyz;
 }
 
-float luminance(vec3 c) { return shade_luminance(c.x, c.y, c.z); }
 bool light_casts(int j) { return fetchf(t_lights, 3 * j + 1).w > 0.5; }
 
 // Shadow ray towards light j from p (normal n): origin offset along n, stops `offset` short of the light
