@@ -152,13 +152,7 @@ def test_generated_glossy_lobe_is_the_cpus():
     frames = np.array([np.concatenate(K.frame(*v)) for v in nrm])
     x = np.column_stack([nrm, frames, view, rng.uniform(0.0, 300.0, n), rng.uniform(0.0, 1.0, (n, 2)),
                          rng.integers(1, 9, n)])
-    src = """#version 430
-layout(local_size_x = 64) in;
-#include "glossy_gen.glsl"
-layout(std430, binding = 1) readonly buffer In { double v[]; };
-layout(std430, binding = 2) writeonly buffer Out { double r[]; };
-uniform int u_n;
-void main() {
+    src = _HEAD.replace("shade_gen.glsl", "glossy_gen.glsl") + """void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i < uint(u_n)) {
         float x[18];
