@@ -133,13 +133,10 @@ Surf surface(int k, vec3 o, vec3 d, float t) {
     return hit_surf;
 }
 
-// Unshadowed contribution of light j (_shade.light_term, generated: lights_gen.glsl); `glossy` tells whether the
-// lobe was evaluated (the glossy_evaluations counter).
-vec3 light_contribution(Surf s, int j, out bool glossy) {
-    vec4 c = shade_light_term(j, s.p.x, s.p.y, s.p.z, s.n.x, s.n.y, s.n.z, s.v.x, s.v.y, s.v.z, s.kd, s.a.x, s.a.y,
-                              s.a.z, s.glossy ? 1.0 : 0.0, s.ks.x, s.ks.y, s.ks.z, s.norm, s.s_exp);
-    glossy = c.w > 0.5;
-    return c.xyz;
+// Unshadowed contribution of light j (_shade.light_term, generated: lights_gen.glsl).
+vec3 light_contribution(Surf s, int j) {
+    return shade_light_term(j, s.p.x, s.p.y, s.p.z, s.n.x, s.n.y, s.n.z, s.v.x, s.v.y, s.v.z, s.kd, s.a.x, s.a.y,
+                            s.a.z, s.glossy ? 1.0 : 0.0, s.ks.x, s.ks.y, s.ks.z, s.norm, s.s_exp).xyz;
 }
 
 bool light_casts(int j) { return fetchf(t_lights, 3 * j + 1).w > 0.5; }
