@@ -32,7 +32,14 @@ from .constants import (INV_PI, KIND_DIFFUSE, KIND_GLOSSY, KIND_METALLIC, LIGHT_
 #: The scalar kernels that renderers/gpu/codegen.py translates into GLSL (``shade_gen.glsl``): the texture
 #: closure in double precision (as on the CPU: lattice lines fall on the same side), the lobes in float.
 GLSL_DOUBLE_ROOTS = ("texture_weight",)
-GLSL_FLOAT_ROOTS = ("material_lobes", "light_direction", "irradiance_factor", "specular_lobe", "luminance")
+GLSL_FLOAT_ROOTS = ("material_lobes", "light_direction", "irradiance_factor", "specular_lobe", "luminance",
+                    "facing_normal")
+#: The kernels that read the scene's tables (``L_*``, ``mat_f`` bound to the GPU's light and material images) and
+#: write a hit's record (``albedo``, ``base``, ``ks`` bound to the shader's ``hit_surf``): ``lights_gen.glsl``.
+GLSL_LIGHT_ROOTS = ("hit_material", "light_term", "shadow_direction")
+#: The light loop of a shading point (``contrib``, ``lum`` bound to shade.comp's per-point arrays):
+#: ``light_loop_gen.glsl``.
+GLSL_POINT_ROOTS = ("light_loop",)
 
 
 @njit(cache=True, inline="always")
@@ -146,6 +153,90 @@ def luminance(r, g, b):
     return LUMA_R * r + LUMA_G * g + LUMA_B * b
 
 
+@njit(cache=True, inline="always")
+def hit_material(i, m, w, mat_f, ambient, albedo, base, ks):
+    """Material terms of hit ``i`` on material ``m`` (texture weight ``w``) for the G-buffer: ``albedo[i]`` the
+    textured albedo (0 for metallic: no Lambert lobe), ``base[i]`` emission + ambient albedo, ``ks[i]`` the specular
+    colour (the albedo for metallic, ``specular`` for glossy, 0 for diffuse); returns whether the Blinn-Phong lobe
+    is evaluated (glossy or metallic)."""
+    metallic = mat_f[m, 12] > 0.5
+    gl = mat_f[m, 13] > 0.5 or metallic
+    for c in range(3):
+        a = w * mat_f[m, c] + (1.0 - w) * mat_f[m, 3 + c]
+        albedo[i, c] = 0.0 if metallic else a
+        base[i, c] = mat_f[m, 6 + c] + (0.0 if metallic else ambient[c] * a)
+        ks[i, c] = (a if metallic else mat_f[m, 11]) if gl else 0.0
+    return gl
+
+
+@njit(cache=True, inline="always")
+def facing_normal(e1x, e1y, e1z, e2x, e2y, e2z, dx, dy, dz):
+    """Unit geometric normal ``e1 x e2`` of a triangle with edges ``e1, e2``, turned to face a ray along ``d``."""
+    nx = e1y * e2z - e1z * e2y
+    ny = e1z * e2x - e1x * e2z
+    nz = e1x * e2y - e1y * e2x
+    ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if ln > 0.0:
+        nx, ny, nz = nx / ln, ny / ln, nz / ln
+    if nx * dx + ny * dy + nz * dz > 0.0:
+        return -nx, -ny, -nz
+    return nx, ny, nz
+
+
+@njit(cache=True, inline="always")
+def light_term(j, L_kind, L_pos, L_dir, L_int, px, py, pz, nx, ny, nz, vx, vy, vz, kd, ar, ag, ab, glossy, ksr, ksg,
+               ksb, norm, s_exp):
+    """Unshadowed contribution ``(r, g, b, lobe)`` of light ``j`` at ``p`` (normal ``n``, view ``v``): ``f E`` of
+    the module docstring for the material's Lambert weight ``kd``, albedo ``a``, lobe flag ``glossy`` (1.0 or 0.0),
+    specular colour ``ks``, normalisation ``norm`` and exponent ``s``; ``lobe`` is 1.0 when the Blinn-Phong lobe was
+    evaluated (the glossy_evaluations counter). All zero when the light is behind the point or below its horizon."""
+    wx, wy, wz, inv_d2 = light_direction(L_kind[j], L_pos[j, 0], L_pos[j, 1], L_pos[j, 2], L_dir[j, 0], L_dir[j, 1],
+                                         L_dir[j, 2], px, py, pz)
+    e = irradiance_factor(L_kind[j], L_dir[j, 0], L_dir[j, 1], L_dir[j, 2], nx, ny, nz, wx, wy, wz, inv_d2)
+    if e == 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    fr, fg, fb = kd * ar, kd * ag, kd * ab
+    lobe = 0.0
+    if glossy > 0.5:
+        sp = specular_lobe(norm, s_exp, nx, ny, nz, wx, wy, wz, vx, vy, vz)
+        fr += ksr * sp
+        fg += ksg * sp
+        fb += ksb * sp
+        lobe = 1.0
+    return fr * e * L_int[j, 0], fg * e * L_int[j, 1], fb * e * L_int[j, 2], lobe
+
+
+@njit(cache=True, inline="always")
+def light_loop(i, k, L_kind, L_pos, L_dir, L_int, px, py, pz, nx, ny, nz, vx, vy, vz, kd, ar, ag, ab, glossy, ksr,
+               ksg, ksb, norm, s_exp, contrib, lum):
+    """Unshadowed contributions ``contrib[i, j]`` (:func:`light_term`) of the ``k`` lights at point ``i`` and their
+    luminances ``lum[j]``; returns the total luminance and the number of lobe evaluations."""
+    total = 0.0
+    n_gloss = 0
+    for j in range(k):
+        cr, cg, cb, g = light_term(j, L_kind, L_pos, L_dir, L_int, px, py, pz, nx, ny, nz, vx, vy, vz, kd, ar, ag,
+                                   ab, glossy, ksr, ksg, ksb, norm, s_exp)
+        contrib[i, j, 0] = cr
+        contrib[i, j, 1] = cg
+        contrib[i, j, 2] = cb
+        if g > 0.5:
+            n_gloss += 1
+        lum[j] = luminance(cr, cg, cb)
+        total += lum[j]
+    return total, n_gloss
+
+
+@njit(cache=True, inline="always")
+def shadow_direction(j, L_kind, L_pos, L_dir, ox, oy, oz, offset, far):
+    """Unit direction from a shadow ray's origin ``o`` towards light ``j`` and the ray's length: ``far`` for a
+    directional light, else the distance less ``offset`` at each end (never negative)."""
+    if L_kind[j] == LIGHT_DIRECTIONAL:
+        return -L_dir[j, 0], -L_dir[j, 1], -L_dir[j, 2], far
+    dx, dy, dz = L_pos[j, 0] - ox, L_pos[j, 1] - oy, L_pos[j, 2] - oz
+    d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    return dx / d, dy / d, dz / d, max(d - 2.0 * offset, 0.0)
+
+
 @njit(cache=True, parallel=True)
 def shade_contributions(P, N, V, mid, mat_f, mat_i, L_pos, L_int, L_dir, L_kind, ambient, eps,
                         contrib, base, need, counts):
@@ -175,7 +266,6 @@ def shade_contributions(P, N, V, mid, mat_f, mat_i, L_pos, L_int, L_dir, L_kind,
         s_exp = mat_f[m, 10]
         kd, glossy_w, metal_w, norm = material_lobes(mat_f[m, 12], mat_f[m, 13], s_exp)
         metallic = metal_w > 0.5
-        glossy = glossy_w > 0.5
         if metallic:
             ksr, ksg, ksb = ar, ag, ab
         else:
@@ -184,31 +274,8 @@ def shade_contributions(P, N, V, mid, mat_f, mat_i, L_pos, L_int, L_dir, L_kind,
         base[i, 1] = mat_f[m, 7] + ambient[1] * ag * (1.0 - metal_w)
         base[i, 2] = mat_f[m, 8] + ambient[2] * ab * (1.0 - metal_w)
         lum = np.empty(k)
-        total = 0.0
-        n_gloss = 0
-        for j in range(k):
-            wx, wy, wz, inv_d2 = light_direction(L_kind[j], L_pos[j, 0], L_pos[j, 1], L_pos[j, 2], L_dir[j, 0],
-                                                 L_dir[j, 1], L_dir[j, 2], px, py, pz)
-            e = irradiance_factor(L_kind[j], L_dir[j, 0], L_dir[j, 1], L_dir[j, 2], nx, ny, nz, wx, wy, wz, inv_d2)
-            if e == 0.0:
-                contrib[i, j, 0] = contrib[i, j, 1] = contrib[i, j, 2] = 0.0
-                lum[j] = 0.0
-                continue
-            fr, fg, fb = kd * ar, kd * ag, kd * ab
-            if glossy:
-                sp = specular_lobe(norm, s_exp, nx, ny, nz, wx, wy, wz, vx, vy, vz)
-                fr += ksr * sp
-                fg += ksg * sp
-                fb += ksb * sp
-                n_gloss += 1
-            cr = fr * e * L_int[j, 0]
-            cg = fg * e * L_int[j, 1]
-            cb = fb * e * L_int[j, 2]
-            contrib[i, j, 0] = cr
-            contrib[i, j, 1] = cg
-            contrib[i, j, 2] = cb
-            lum[j] = luminance(cr, cg, cb)
-            total += lum[j]
+        total, n_gloss = light_loop(i, k, L_kind, L_pos, L_dir, L_int, px, py, pz, nx, ny, nz, vx, vy, vz, kd, ar,
+                                    ag, ab, glossy_w, ksr, ksg, ksb, norm, s_exp, contrib, lum)
         culled = 0
         for j in range(k):
             need[i, j] = lum[j] > 0.0
@@ -246,14 +313,7 @@ def shadow_rays(P, N, need, cast, L_pos, L_dir, L_kind, offset, far, orig, dirs,
         for j in range(k):
             if not need[i, j] or not cast[j]:
                 continue
-            if L_kind[j] == LIGHT_DIRECTIONAL:
-                dx, dy, dz = -L_dir[j, 0], -L_dir[j, 1], -L_dir[j, 2]
-                d = far
-            else:
-                dx, dy, dz = L_pos[j, 0] - ox, L_pos[j, 1] - oy, L_pos[j, 2] - oz
-                d = math.sqrt(dx * dx + dy * dy + dz * dz)
-                dx, dy, dz = dx / d, dy / d, dz / d
-                d = max(d - 2.0 * offset, 0.0)
+            dx, dy, dz, d = shadow_direction(j, L_kind, L_pos, L_dir, ox, oy, oz, offset, far)
             orig[r, 0], orig[r, 1], orig[r, 2] = ox, oy, oz
             dirs[r, 0], dirs[r, 1], dirs[r, 2] = dx, dy, dz
             dists[r] = d
@@ -298,15 +358,8 @@ def hit_geometry(origin, d, t, prim, vertices, faces, P, N, V):
         e2x = vertices[c, 0] - vertices[a, 0]
         e2y = vertices[c, 1] - vertices[a, 1]
         e2z = vertices[c, 2] - vertices[a, 2]
-        nx = e1y * e2z - e1z * e2y
-        ny = e1z * e2x - e1x * e2z
-        nz = e1x * e2y - e1y * e2x
-        ln = math.sqrt(nx * nx + ny * ny + nz * nz)
-        if ln > 0:
-            nx, ny, nz = nx / ln, ny / ln, nz / ln
         dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
-        if nx * dx + ny * dy + nz * dz > 0:
-            nx, ny, nz = -nx, -ny, -nz
+        nx, ny, nz = facing_normal(e1x, e1y, e1z, e2x, e2y, e2z, dx, dy, dz)
         ti = t[i]
         P[i, 0] = origin[0] + dx * ti
         P[i, 1] = origin[1] + dy * ti

@@ -135,6 +135,39 @@ def test_generated_shading_kernels_are_the_cpus():
     np.testing.assert_allclose(got, want, rtol=2e-4, atol=1e-6)
 
 
+def test_generated_glossy_lobe_is_the_cpus():
+    """glossy_gen.glsl's lobe_ray (seed 003 Algorithm 1 lines 16-17's per-ray sampling) gives the numba kernel's
+    direction and weight to float32 rounding, rays below the surface included."""
+    from renderers.gpu.context import get_device
+    from renderers.lightcuts import _kernels as K
+    from renderers.lightcuts.glossy import lobe_ray
+
+    rng = np.random.default_rng(17)
+    n = 1024
+    nrm = rng.normal(size=(n, 3))
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    view = rng.normal(size=(n, 3))
+    view /= np.linalg.norm(view, axis=1, keepdims=True)
+    view *= np.sign(np.einsum("ij,ij->i", nrm, view))[:, None]    # the viewer above the surface, as for a hit
+    frames = np.array([np.concatenate(K.frame(*v)) for v in nrm])
+    x = np.column_stack([nrm, frames, view, rng.uniform(0.0, 300.0, n), rng.uniform(0.0, 1.0, (n, 2)),
+                         rng.integers(1, 9, n)])
+    src = _HEAD.replace("shade_gen.glsl", "glossy_gen.glsl") + """void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i < uint(u_n)) {
+        float x[18];
+        for (int k = 0; k < 18; k++) x[k] = float(v[18u * i + uint(k)]);
+        vec4 ray = glossy_lobe_ray(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8], x[9], x[10], x[11], x[12],
+                                   x[13], x[14], int(x[15]));
+        for (int k = 0; k < 4; k++) r[4u * i + uint(k)] = double(ray[k]);
+    }
+}"""
+    got = _run(get_device(), src, np.column_stack([x, np.zeros((n, 2))]), 4)
+    want = np.array([lobe_ray(*t[:15], int(t[15])) for t in x])
+    assert 0.1 < (want[:, 3] == 0).mean() < 0.9   # rays above and below the surface both drawn
+    np.testing.assert_allclose(got, want, rtol=1e-3, atol=1e-4)
+
+
 def _copy_of_shade(tmp_path, name: str, edits: list[tuple[str, str]]):
     """renderers/_shade.py with ``edits`` applied, imported as a package module of its own (relative imports
     resolved against ``renderers``)."""
@@ -187,6 +220,7 @@ def test_a_kernel_change_moves_both_backends_together(tmp_path, monkeypatch):
     try:
         monkeypatch.setattr(tracer, "S", mod)
         monkeypatch.setattr(codegen, "_shade_glsl_cached", lambda: codegen._shade_glsl(mod))
+        monkeypatch.setattr(codegen, "_lights_glsl_cached", lambda roots: codegen._lights_glsl(mod, roots))
         monkeypatch.setattr(get_device(), "_programs", {})   # compile the changed shaders (restored afterwards)
         after = cpu_render("cornell", "gt", {}, w, h)[0], gpu_render("cornell", "gt", {}, w, h)[0]
     finally:

@@ -7,9 +7,13 @@
   uploaded as float32).
 * :func:`shade_glsl` translates the shading kernels of :mod:`renderers._shade` (textures and value noise in
   double precision, BRDF lobes and light terms in float32), prefixed ``shade_``.
+* :func:`lights_glsl` translates the per-light kernels of :mod:`renderers._shade` (a light's contribution, a
+  shadow ray's direction), the light table bound to the shader's light image.
 * :func:`lightcuts_glsl` translates the random numbers (double) and the bounds, cut error, branch probability and
   descent (float32) of :mod:`renderers.lightcuts._kernels`, prefixed ``lc_``; the tree's arrays are bound to the
   shader's tree image (``Translator.bindings``).
+* :func:`glossy_glsl` translates the glossy pass's per-ray lobe sampling of :mod:`renderers.lightcuts.glossy`,
+  prefixed ``glossy_``.
 * :func:`constants_glsl` emits the shared constant table :mod:`renderers.constants`; :func:`int64_glsl` the
   64-bit integer helpers.
 
@@ -678,6 +682,41 @@ def _shade_glsl(module) -> str:
             '#include "constants_gen.glsl"\n' + tr.emit(doubles + floats, helpers=False))
 
 
+def lights_glsl(module=None, roots: str = "GLSL_LIGHT_ROOTS") -> str:
+    """GLSL of the kernels of :mod:`renderers._shade` that read the scene's tables (``roots``: the names in
+    ``GLSL_LIGHT_ROOTS``: a hit's material terms, a light's unshadowed contribution, a shadow ray's direction and
+    length; ``GLSL_POINT_ROOTS``: a shading point's light loop), prefixed ``shade_`` like the kernels of
+    ``shade_gen.glsl`` they call. The tables are the shader's images (``scene.glsl``: ``material(m, c)`` is column
+    ``c`` of ``mat_f``; 3 texels per light: position | kind, intensity | cast, direction); the hit's outputs its
+    record ``hit_surf``; a point's per-light outputs shade.comp's arrays ``contrib``, ``lum``.
+    ``module``: another module of the same kernels (tests translate a changed copy)."""
+    if module is None:
+        return _lights_glsl_cached(roots)
+    return _lights_glsl(module, roots)
+
+
+@functools.lru_cache(maxsize=None)
+def _lights_glsl_cached(roots: str) -> str:
+    from .. import _shade
+
+    return _lights_glsl(_shade, roots)
+
+
+def _lights_glsl(module, roots: str) -> str:
+    light = "fetchf(t_lights, 3 * ({0})"
+    tr = Translator(module, "shade_", source=inspect.getsource(module), bindings={
+        "L_kind": f"int({light}).w)", "L_pos": f"{light})[{{1}}]", "L_int": f"{light} + 1)[{{1}}]",
+        "L_dir": f"{light} + 2)[{{1}}]", "mat_f": "material({0}, {1})", "ambient": "u_ambient[{0}]",
+        "albedo": "hit_surf.a[{1}]", "base": "hit_surf.base[{1}]", "ks": "hit_surf.ks[{1}]",
+        "contrib": "contrib[{1}][{2}]", "lum": "lum[{0}]"})
+    tr.binding_types["L_kind"] = "int"
+    names = tr.closure(getattr(module, roots))
+    tr.infer(names, {r: {"j": "int", "i": "int", "m": "int", "k": "int"} for r in getattr(module, roots)})
+    # the callees are shade_gen.glsl's and lights_gen.glsl's (included before): only the roots are emitted here
+    return (f"// Generated from {module.__name__.replace('.', '/')}.py by renderers/gpu/codegen.py: do not edit.\n"
+            + "\n".join(tr.emit_fn(tr.fns[r]) for r in getattr(module, roots)))
+
+
 @functools.lru_cache(maxsize=None)
 def lightcuts_glsl() -> str:
     """GLSL of the lightcuts kernels translated so far from :mod:`renderers.lightcuts._kernels`: the
@@ -706,6 +745,20 @@ def lightcuts_glsl() -> str:
                                 **{r: point for r in _kernels.GLSL_FLOAT_ROOTS}})
     return "// Generated from renderers/lightcuts/_kernels.py by renderers/gpu/codegen.py: do not edit.\n" \
         + tr.emit(doubles + floats, helpers=False)
+
+
+@functools.lru_cache(maxsize=None)
+def glossy_glsl() -> str:
+    """GLSL of the glossy pass's per-ray kernel of :mod:`renderers.lightcuts.glossy` (the lobe's direction and
+    weight, seed 003 Algorithm 1 lines 16-17), float32, prefixed ``glossy_``; its constants (the random-number
+    slot offset ``GLOSSY_STREAM``) with it."""
+    from ..lightcuts import glossy
+
+    tr = Translator(glossy, "glossy_")
+    names = tr.closure(glossy.GLSL_FLOAT_ROOTS)
+    tr.infer(names, {"lobe_ray": {"count": "int"}})
+    return "// Generated from renderers/lightcuts/glossy.py by renderers/gpu/codegen.py: do not edit.\n" \
+        + tr.emit(names, helpers=False)
 
 
 @functools.lru_cache(maxsize=None)

@@ -328,6 +328,14 @@ def generated_source(fname: str) -> str | None:
         from .codegen import shade_glsl
 
         return shade_glsl()
+    if fname == "glossy_gen.glsl":
+        from .codegen import glossy_glsl
+
+        return glossy_glsl()
+    if fname in ("lights_gen.glsl", "light_loop_gen.glsl"):
+        from .codegen import lights_glsl
+
+        return lights_glsl(roots="GLSL_LIGHT_ROOTS" if fname == "lights_gen.glsl" else "GLSL_POINT_ROOTS")
     if fname == "constants_gen.glsl":
         from .codegen import constants_glsl
 

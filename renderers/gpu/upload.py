@@ -36,13 +36,10 @@ def scene_bvh(scene) -> B.BVH:
 
 
 def _material_table(mat_f: np.ndarray, mat_i: np.ndarray) -> np.ndarray:
-    """4 vec4 per material: (albedo, tex scale), (albedo2, exponent), (emission, specular),
-    (metallic, glossy, texture kind, 0) -- the columns of ``mat_f``/``mat_i`` (renderers.tracer.pack_scene)."""
+    """4 vec4 per material: the 14 columns of ``mat_f`` in order (renderers.tracer.pack_scene; the generated
+    kernels index them as the CPU does, ``scene.glsl``'s ``material(m, c)``), then the texture kind ``mat_i[:, 0]``."""
     m = np.zeros((len(mat_f), 16), dtype=np.float32)
-    m[:, 0:3], m[:, 3] = mat_f[:, 0:3], mat_f[:, 9]
-    m[:, 4:7], m[:, 7] = mat_f[:, 3:6], mat_f[:, 10]
-    m[:, 8:11], m[:, 11] = mat_f[:, 6:9], mat_f[:, 11]
-    m[:, 12], m[:, 13], m[:, 14] = mat_f[:, 12], mat_f[:, 13], mat_i[:, 0]
+    m[:, :14], m[:, 14] = mat_f, mat_i[:, 0]
     return m
 
 

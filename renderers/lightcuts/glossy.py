@@ -31,42 +31,57 @@ from .sampling import stochastic_lightcuts
 _STREAM = 1 << 24  # slot offset: glossy random numbers never reuse the light-sampling slots
 
 
+#: The per-ray kernel that renderers/gpu/codegen.py translates into GLSL (``glossy_gen.glsl``, float32).
+GLSL_FLOAT_ROOTS = ("lobe_ray",)
+
+
+@njit(cache=True, inline="always")
+def lobe_ray(nx, ny, nz, tx, ty, tz, bx, by, bz, vx, vy, vz, s, u1, u2, count):
+    """One ray of the lobe (module docstring) from uniforms ``u1, u2``, for normal ``n`` with tangent frame
+    ``t, b``, view direction ``v``, exponent ``s`` and ``count`` rays: the direction ``w_i = 2 (v.h) h - v`` of the
+    half-vector ``h`` drawn with density ``(s + 1)/(2 pi) (n.h)^s`` and its weight per unit ``k_s``,
+    ``(s + 8) (n.w_i) (v.h) / ((s + 1) count)``; ``(n, 0)`` when ``w_i`` is below the surface or ``v.h <= 0``."""
+    cos_h = u1 ** (1.0 / (s + 1.0))
+    sin_h = math.sqrt(max(0.0, 1.0 - cos_h * cos_h))
+    phi = 2.0 * math.pi * u2
+    ct, st = math.cos(phi) * sin_h, math.sin(phi) * sin_h
+    hx = cos_h * nx + ct * tx + st * bx
+    hy = cos_h * ny + ct * ty + st * by
+    hz = cos_h * nz + ct * tz + st * bz
+    voh = 0.0
+    voh += vx * hx
+    voh += vy * hy
+    voh += vz * hz
+    dx = 2.0 * voh * hx - vx
+    dy = 2.0 * voh * hy - vy
+    dz = 2.0 * voh * hz - vz
+    cos_i = 0.0
+    cos_i += nx * dx
+    cos_i += ny * dy
+    cos_i += nz * dz
+    if voh <= 0.0 or cos_i <= 0.0:
+        return nx, ny, nz, 0.0
+    return dx, dy, dz, (s + 8.0) * cos_i * voh / ((s + 1.0) * count)
+
+
 @njit(cache=True, parallel=True)
 def sample_lobe(P, N, V, ks, s_exp, counts, first, pix_id, seed, offset, orig, dirs, weight):
-    """Fill the rays of every pixel ``i`` at ``first[i] .. first[i] + counts[i]`` (see the module docstring)."""
+    """Fill the rays of every pixel ``i`` at ``first[i] .. first[i] + counts[i]`` (:func:`lobe_ray` each)."""
     for i in prange(P.shape[0]):
         c = counts[i]
         if c == 0:
             continue
         n = N[i]
         t, b = K.frame(n[0], n[1], n[2])
-        s = s_exp[i]
         for r in range(c):
             j = first[i] + r
             u1 = K.uniform(seed, pix_id[i], _STREAM + 2 * r)
             u2 = K.uniform(seed, pix_id[i], _STREAM + 2 * r + 1)
-            cos_h = u1 ** (1.0 / (s + 1.0))
-            sin_h = math.sqrt(max(0.0, 1.0 - cos_h * cos_h))
-            phi = 2.0 * math.pi * u2
-            ct, st = math.cos(phi) * sin_h, math.sin(phi) * sin_h
-            voh = 0.0
-            h = np.empty(3)
+            dirs[j, 0], dirs[j, 1], dirs[j, 2], g = lobe_ray(n[0], n[1], n[2], t[0], t[1], t[2], b[0], b[1], b[2],
+                                                              V[i, 0], V[i, 1], V[i, 2], s_exp[i], u1, u2, c)
             for a in range(3):
-                h[a] = cos_h * n[a] + ct * t[a] + st * b[a]
-                voh += V[i, a] * h[a]
-            cos_i = 0.0
-            for a in range(3):
-                dirs[j, a] = 2.0 * voh * h[a] - V[i, a]
-                cos_i += n[a] * dirs[j, a]
                 orig[j, a] = P[i, a] + offset * n[a]
-            if voh <= 0.0 or cos_i <= 0.0:
-                for a in range(3):
-                    weight[j, a] = 0.0
-                    dirs[j, a] = n[a]
-                continue
-            g = (s + 8.0) * cos_i * voh / ((s + 1.0) * c)
-            for a in range(3):
-                weight[j, a] = ks[i, a] * g
+                weight[j, a] = ks[i, a] * g if g > 0.0 else 0.0
 
 
 #: Rays per pixel below this: a bounce's id ``(pixel << RAY_BITS) + r`` in the random stream is unique.

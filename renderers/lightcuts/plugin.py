@@ -34,7 +34,7 @@ import time
 import numpy as np
 from numba import njit, prange
 
-from renderers._shade import texture_weight
+from renderers._shade import hit_material, texture_weight
 from renderers.plugin_types import Param, RendererPlugin, StrengthSpec
 from renderers.projection import view_projection
 
@@ -128,15 +128,8 @@ def _hit_materials(P, Ng, mid, mat_f, mat_i, ambient, albedo, base, ks, s_exp, g
     for i in prange(P.shape[0]):
         m = mid[i]
         w = texture_weight(mat_i[m, 0], mat_f[m, 9], P[i, 0], P[i, 1], P[i, 2], Ng[i, 0], Ng[i, 1], Ng[i, 2])
-        metallic = mat_f[m, 12] > 0.5
-        gl = mat_f[m, 13] > 0.5 or metallic
-        for c in range(3):
-            a = w * mat_f[m, c] + (1.0 - w) * mat_f[m, 3 + c]
-            albedo[i, c] = 0.0 if metallic else a
-            base[i, c] = mat_f[m, 6 + c] + (0.0 if metallic else ambient[c] * a)
-            ks[i, c] = (a if metallic else mat_f[m, 11]) if gl else 0.0
+        glossy[i] = hit_material(i, m, w, mat_f, ambient, albedo, base, ks)
         s_exp[i] = mat_f[m, 10]
-        glossy[i] = gl
 
 
 class Hits:

@@ -19,8 +19,7 @@ void main() {
                 while (m != 0u) {
                     int b = findLSB(m);
                     m &= m - 1u;
-                    bool g;
-                    c += light_contribution(s, w * 32 + b, g);
+                    c += light_contribution(s, w * 32 + b);
                 }
             }
         }

@@ -39,11 +39,10 @@ void main() {
             cnt_add(C_MISSED_RAYS, 1u);
         } else {
             Surf s = surface(k, u_origin, d, t);
-            bool metallic = s.kd == 0.0;
             g_pos[i] = vec4(s.p, 1.0);
             g_nrm[i] = vec4(s.n, s.glossy ? 1.0 : 0.0);
-            g_alb[i] = vec4(metallic ? vec3(0.0) : s.a, s.s_exp);
-            g_ks[i] = vec4(s.glossy ? s.ks : vec3(0.0), 0.0);
+            g_alb[i] = vec4(s.a, s.s_exp);
+            g_ks[i] = vec4(s.ks, 0.0);
             g_base[i] = vec4(s.base, 0.0);
             if (u_full != 0) {
                 cnt_add(C_SHADING_POINTS, 1u);

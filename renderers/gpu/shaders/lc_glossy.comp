@@ -1,17 +1,18 @@
 #version 430
 // The one-bounce glossy pass (seed 003 Algorithm 1 lines 16-17, FoveatedPT; renderers/lightcuts/glossy.py):
 // for every glossy pixel its rays of slots [u_r0, u_r1) (of u_rspp, or ctl.y per pixel), each a Blinn-Phong
-// half-vector sample weighted k_s (s + 8)(n.w_i)(v.h) / ((s + 1) count), traced to its first hit and shaded there
-// with emission + ambient + stochastic lightcuts of u_bounce_lspp nodes (CUT_MAX) with shadow rays (the hit's own
-// gloss is not followed). Rays below the surface or of zero weight are not traced. Random numbers: slots
-// 2^24 + 2r, 2^24 + 2r + 1 of the pixel for the lobe; the bounce's lightcuts use stream u_bounce_seed and pixel
-// id (pixel << 20) + r, as on the CPU.
+// half-vector sample weighted k_s (s + 8)(n.w_i)(v.h) / ((s + 1) count) (glossy.lobe_ray, generated:
+// glossy_gen.glsl), traced to its first hit and shaded there with emission + ambient + stochastic lightcuts of
+// u_bounce_lspp nodes (CUT_MAX) with shadow rays (the hit's own gloss is not followed). Rays below the surface or
+// of zero weight are not traced. Random numbers: slots 2^24 + 2r, 2^24 + 2r + 1 of the pixel for the lobe; the
+// bounce's lightcuts use stream u_bounce_seed and pixel id (pixel << 20) + r, as on the CPU.
 layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "scene.glsl"
 #include "camera.glsl"
 #include "lightcuts.glsl"
 #include "lc_buffers.glsl"
+#include "glossy_gen.glsl"
 uniform int u_width;
 uniform vec3 u_origin;
 uniform int u_rspp;
@@ -21,7 +22,6 @@ uniform uvec2 u_bounce_seed;
 uniform int u_bounce_lspp;
 uniform int u_shadows;
 uniform float u_glossy_offset;
-const uint STREAM = 1u << 24;
 
 void main() {
     cnt_begin();
@@ -39,17 +39,11 @@ void main() {
             lc_frame(n, t, b);
             float offset = ray_offset(bounds_lo(), bounds_hi());
             for (int r = u_r0; r < min(u_r1, c); r++) {
-                float u1 = lc_uniform_f(u_seed, uvec2(uint(px), 0u), STREAM + uint(2 * r));
-                float u2 = lc_uniform_f(u_seed, uvec2(uint(px), 0u), STREAM + uint(2 * r + 1));
-                float cos_h = pow(u1, 1.0 / (s_exp + 1.0));
-                float sin_h = sqrt(max(0.0, 1.0 - cos_h * cos_h));
-                float phi = 6.283185307179586 * u2;
-                vec3 h = cos_h * n + (cos(phi) * sin_h) * t + (sin(phi) * sin_h) * b;
-                float voh = dot(V, h);
-                vec3 dir = 2.0 * voh * h - V;
-                float cos_i = dot(n, dir);
-                if (voh <= 0.0 || cos_i <= 0.0) continue;
-                vec3 w = ks * ((s_exp + 8.0) * cos_i * voh / ((s_exp + 1.0) * float(c)));
+                float u1 = lc_uniform_f(u_seed, uvec2(uint(px), 0u), uint(GLOSSY_STREAM + 2 * r));
+                float u2 = lc_uniform_f(u_seed, uvec2(uint(px), 0u), uint(GLOSSY_STREAM + 2 * r + 1));
+                vec4 ray = glossy_lobe_ray(n.x, n.y, n.z, t.x, t.y, t.z, b.x, b.y, b.z, V.x, V.y, V.z, s_exp, u1, u2,
+                                           c);
+                vec3 dir = ray.xyz, w = ks * ray.w;
                 if (!any(greaterThan(w, vec3(0.0)))) continue;
                 live++;
                 vec3 o = P + u_glossy_offset * n;
@@ -61,7 +55,7 @@ void main() {
                 } else {
                     Surf sf = surface(k, o, dir, th);
                     radiance = sf.base;
-                    vec3 alb = sf.kd == 0.0 ? vec3(0.0) : sf.a, bt, bb;
+                    vec3 bt, bb;
                     lc_frame(sf.n, bt, bb);
                     int m = lc_refine_cut(sf.p, sf.n, bt, bb, u_bounce_lspp);
                     uvec2 id = uvec2((uint(px) << 20) | uint(r), uint(px) >> 12);
@@ -70,7 +64,7 @@ void main() {
                         float pdf;
                         int leaf = descend(sf.p, sf.n, bt, bb, lc_cut[s],
                                            lc_uniform_f(u_bounce_seed, id, uint(2 * s)), pdf);
-                        vec3 v = light_estimate(sf.p, sf.n, alb, leaf, pdf);
+                        vec3 v = light_estimate(sf.p, sf.n, sf.a, leaf, pdf);
                         if (v.x + v.y + v.z > 0.0 && (u_shadows == 0 || !occluded(sf.p, sf.n, leaf, offset)))
                             radiance += v;
                     }

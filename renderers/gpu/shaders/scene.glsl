@@ -105,70 +105,47 @@ struct Surf {
     float kd, s_exp, norm;
     bool glossy;
 };
+// Column c of the CPU's material table mat_f (renderers/tracer.py pack_scene; then the texture kind, column 14).
+#define material(m, c) fetchf(t_mats, 4 * (m) + (c) / 4)[(c) % 4]
+Surf hit_surf;   // the record surface() fills: shade_hit_material writes its a, ks, base
+#include "lights_gen.glsl"
 
-// Hit point, normal facing the ray and material of triangle k hit at o + t d (_shade.hit_geometry and the head
-// of _shade.shade_contributions). Material k: vec4(albedo, tex scale), vec4(albedo2, exponent),
-// vec4(emission, specular), vec4(metallic, glossy, texture kind, 0).
 // Unit geometric normal of triangle k facing the ray direction d.
 vec3 facing_normal(int k, vec3 d) {
-    vec3 n = cross(fetchf(t_tris, 3 * k + 1).xyz, fetchf(t_tris, 3 * k + 2).xyz);
-    float ln = length(n);
-    if (ln > 0.0) n /= ln;
-    return dot(n, d) > 0.0 ? -n : n;
+    vec3 e1 = fetchf(t_tris, 3 * k + 1).xyz, e2 = fetchf(t_tris, 3 * k + 2).xyz;
+    return shade_facing_normal(e1.x, e1.y, e1.z, e2.x, e2.y, e2.z, d.x, d.y, d.z);
 }
 
+// Hit point, normal facing the ray and material of triangle k hit at o + t d (_shade.hit_geometry and
+// lightcuts/plugin._hit_materials; the albedo is 0 on metallic materials, ks 0 on diffuse ones).
 Surf surface(int k, vec3 o, vec3 d, float t) {
-    Surf s;
-    s.p = o + d * t;
-    s.n = facing_normal(k, d);
-    s.v = -d;
+    hit_surf.p = o + d * t;
+    hit_surf.n = facing_normal(k, d);
+    hit_surf.v = -d;
     int m = int(fetch(t_tris, 3 * k + 1).w);
-    vec4 m0 = fetchf(t_mats, 4 * m), m1 = fetchf(t_mats, 4 * m + 1), m2 = fetchf(t_mats, 4 * m + 2);
-    vec4 m3 = fetchf(t_mats, 4 * m + 3);
-    float w = float(shade_texture_weight(int(m3.z), m0.w, s.p.x, s.p.y, s.p.z, s.n.x, s.n.y, s.n.z));
-    s.a = w * m0.xyz + (1.0 - w) * m1.xyz;
-    s.s_exp = m1.w;
-    vec4 lobes = shade_material_lobes(m3.x, m3.y, s.s_exp);   // kd, glossy, metallic, norm
-    s.kd = lobes.x;
-    s.glossy = lobes.y > 0.5;
-    s.ks = lobes.z > 0.5 ? s.a : vec3(m2.w);
-    s.norm = lobes.w;
-    s.base = m2.xyz + u_ambient * s.a * (1.0 - lobes.z);
-    return s;
+    vec3 p = hit_surf.p, n = hit_surf.n;
+    float w = float(shade_texture_weight(int(material(m, 14)), material(m, 9), p.x, p.y, p.z, n.x, n.y, n.z));
+    hit_surf.glossy = shade_hit_material(0, m, w);
+    hit_surf.s_exp = material(m, 10);
+    vec4 lobes = shade_material_lobes(material(m, 12), material(m, 13), hit_surf.s_exp);   // kd, -, -, norm
+    hit_surf.kd = lobes.x;
+    hit_surf.norm = lobes.w;
+    return hit_surf;
 }
 
-// Unshadowed contribution of light j (zero when it lights the back or is below the horizon); `glossy` tells
-// whether the lobe was evaluated (the glossy_evaluations counter).
-vec3 light_contribution(Surf s, int j, out bool glossy) {
-    vec4 l0 = fetchf(t_lights, 3 * j), l1 = fetchf(t_lights, 3 * j + 1), l2 = fetchf(t_lights, 3 * j + 2);
-    int kind = int(l0.w);
-    vec4 w = shade_light_direction(kind, l0.x, l0.y, l0.z, l2.x, l2.y, l2.z, s.p.x, s.p.y, s.p.z);
-    float e = shade_irradiance_factor(kind, l2.x, l2.y, l2.z, s.n.x, s.n.y, s.n.z, w.x, w.y, w.z, w.w);
-    glossy = false;
-    if (e == 0.0) return vec3(0.0);
-    vec3 f = s.kd * s.a;
-    if (s.glossy) {
-        f += s.ks * shade_specular_lobe(s.norm, s.s_exp, s.n.x, s.n.y, s.n.z, w.x, w.y, w.z, s.v.x, s.v.y, s.v.z);
-        glossy = true;
-    }
-    return f * e * l1.xyz;
+// Unshadowed contribution of light j (_shade.light_term, generated: lights_gen.glsl).
+vec3 light_contribution(Surf s, int j) {
+    return shade_light_term(j, s.p.x, s.p.y, s.p.z, s.n.x, s.n.y, s.n.z, s.v.x, s.v.y, s.v.z, s.kd, s.a.x, s.a.y,
+                            s.a.z, s.glossy ? 1.0 : 0.0, s.ks.x, s.ks.y, s.ks.z, s.norm, s.s_exp).xyz;
 }
 
-float luminance(vec3 c) { return shade_luminance(c.x, c.y, c.z); }
 bool light_casts(int j) { return fetchf(t_lights, 3 * j + 1).w > 0.5; }
 
 // Shadow ray towards light j from p (normal n): origin offset along n, stops `offset` short of the light
-// (_shade.shadow_rays).
+// (_shade.shadow_rays; the direction and length generated from _shade.shadow_direction).
 void shadow_ray(int j, vec3 p, vec3 n, float offset, float far, out vec3 o, out vec3 d, out float dist) {
-    vec4 l0 = fetchf(t_lights, 3 * j);
     o = p + offset * n;
-    if (int(l0.w) == LIGHT_DIRECTIONAL) {
-        d = -fetchf(t_lights, 3 * j + 2).xyz;
-        dist = far;
-    } else {
-        d = l0.xyz - o;
-        float len = length(d);
-        d /= len;
-        dist = max(len - 2.0 * offset, 0.0);
-    }
+    vec4 r = shade_shadow_direction(j, o.x, o.y, o.z, offset, far);
+    d = r.xyz;
+    dist = r.w;
 }

@@ -1,10 +1,14 @@
 #version 430
-// Shading of the hits (renderers/_shade.py shade_contributions): unshadowed contributions, light culling, the
-// lights still to shadow-test (masks) and the radiance of the rest (partial). Misses take the background.
+// Shading of the hits (renderers/_shade.py shade_contributions): unshadowed contributions (its light_loop,
+// generated), light culling, the lights still to shadow-test (masks) and the radiance of the rest (partial).
+// Misses take the background.
 layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "scene.glsl"
 #include "samples.glsl"
+float lum[LIGHT_COUNT];     // the point's unshadowed light luminances and contributions (shade_light_loop)
+vec3 contrib[LIGHT_COUNT];
+#include "light_loop_gen.glsl"
 
 void main() {
     cnt_begin();
@@ -18,15 +22,10 @@ void main() {
         } else {
             vec3 d = samples[i].xyz;
             Surf s = surface(k, u_origin, d, hits[i].y);
-            float lum[LIGHT_COUNT];
-            float total = 0.0;
-            uint n_gloss = 0u;
-            for (int j = 0; j < LIGHT_COUNT; j++) {
-                bool g;
-                lum[j] = luminance(light_contribution(s, j, g));
-                total += lum[j];
-                n_gloss += g ? 1u : 0u;
-            }
+            vec2 tg = shade_light_loop(0, LIGHT_COUNT, s.p.x, s.p.y, s.p.z, s.n.x, s.n.y, s.n.z, s.v.x, s.v.y, s.v.z,
+                                       s.kd, s.a.x, s.a.y, s.a.z, s.glossy ? 1.0 : 0.0, s.ks.x, s.ks.y, s.ks.z, s.norm,
+                                       s.s_exp);
+            float total = tg.x;
             // Culling (documented bound in _shade.py): in ascending order of contribution, the lights whose
             // running sum stays <= eps * total are dropped; light j goes iff the sum up to it (ties by index)
             // does, since the running sums only grow.
@@ -49,15 +48,14 @@ void main() {
                         bits |= 1u << uint(b);
                         n_cast++;
                     } else {
-                        bool g;
-                        c += light_contribution(s, j, g);
+                        c += contrib[j];
                     }
                 }
                 masks[i * uint(MASK_WORDS) + uint(w)] = bits;
             }
             partial[i] = vec4(c, 0.0);
             cnt_add(C_SHADING_POINTS, 1u);
-            cnt_add(C_GLOSSY_EVALUATIONS, n_gloss);
+            cnt_add(C_GLOSSY_EVALUATIONS, uint(tg.y));
             cnt_add(C_LIGHTS_CULLED, culled);
             cnt_add(C_SHADOW_RAYS_SKIPPED, uint(LIGHT_COUNT) - n_cast);
         }
