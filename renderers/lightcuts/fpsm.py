@@ -266,12 +266,20 @@ def bicubic_coefficients(image: np.ndarray) -> np.ndarray:
                                  output=np.float64, mode="nearest")
 
 
+def upsampling(img: np.ndarray, order: int, floor: float = -math.inf) -> tuple[np.ndarray, float, float]:
+    """What :func:`resample_at` reads to resample ``img`` by the B-spline of ``order`` (1 or 3): the
+    coefficients (``img`` itself for order 1) and the range ``[lo, hi]`` of the result: ``img``'s (skimage clips
+    to it), clipped at ``floor`` (the same as clipping the result at ``floor``)."""
+    img = np.asarray(img, dtype=np.float64)
+    coef = bicubic_coefficients(img) if order == 3 else img
+    return coef, max(float(img.min()), floor), max(float(img.max()), floor)
+
+
 def _resize(img: np.ndarray, shape, order: int, floor: float = -math.inf) -> np.ndarray:
     """``img`` resampled to ``shape`` by the B-spline of ``order`` (1 or 3; :func:`resample_at`), clipped to its
     range and at ``floor``."""
     img = np.asarray(img, dtype=np.float64)
-    coef = bicubic_coefficients(img) if order == 3 else img
-    lo, hi = max(float(img.min()), floor), max(float(img.max()), floor)
+    coef, lo, hi = upsampling(img, order, floor)
     return _resample_map(np.ascontiguousarray(coef).reshape(-1), coef.shape[1], coef.shape[0], shape[1], shape[0],
                          img.shape[1] / shape[1], img.shape[0] / shape[0], float(PAD if order == 3 else 0), order,
                          lo, hi)
