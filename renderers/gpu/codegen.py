@@ -10,6 +10,9 @@
 * :func:`lightcuts_glsl` translates the random numbers (double) and the bounds, cut error, branch probability and
   descent (float32) of :mod:`renderers.lightcuts._kernels`, prefixed ``lc_``; the tree's arrays are bound to the
   shader's tree image (``Translator.bindings``).
+* :func:`fpsm_glsl` translates the per-pixel kernels of :mod:`renderers.lightcuts.fpsm` (seed 003 Eq 1-8: acuity,
+  Sobel gradient, binomial blur, B-spline resampling, contrast, rho, map in float32; the budget in double), prefixed
+  ``fpsm_``; the images they read are bound to the FPSM shader's buffers.
 * :func:`constants_glsl` emits the shared constant table :mod:`renderers.constants`; :func:`int64_glsl` the
   64-bit integer helpers.
 
@@ -17,9 +20,9 @@ Types are inferred to a fixed point: a name is ``int`` when every value given to
 ``i64``/``u64`` (numba's ``np.int64``/``np.uint64``, on 32-bit halves) when it holds those, ``vec2``-``vec4`` for
 tuples, otherwise ``float`` (``double`` in a double-precision closure). The translator knows the small Python
 subset these kernels use (assignments, tuple unpacking, ``if``/``elif``/``else``, ``for ... in range``,
-``while``, ``return``, arithmetic, comparisons including chained ones, ``math`` functions) and raises
-``NotImplementedError`` naming the function and the construct otherwise, so a kernel change that it cannot follow
-fails loudly in the tests rather than drifting apart.
+``while``, ``return``, arithmetic, comparisons including chained ones, ``math`` functions, ``math.pi`` and
+``math.inf``) and raises ``NotImplementedError`` naming the function and the construct otherwise, so a kernel
+change that it cannot follow fails loudly in the tests rather than drifting apart.
 """
 
 from __future__ import annotations

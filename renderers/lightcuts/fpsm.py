@@ -18,6 +18,11 @@ Pipeline (Fig 3 of the seed), all maps ``(h, w)`` with values in ``[0, 1]``:
    parameter ``fpsm_reading``; ``fpsm_map``): ``derived`` (Eq 7 with its sign corrected, the default),
    ``blur`` (Eq 6 as a spatial Gaussian's attenuation, ρ = 1/ρ_derived) and ``retained`` (Eq 5's surviving
    feature ``M - α`` without Eq 6–7). docs/lightcuts.md compares them.
+
+The per-pixel formulas are scalar numba kernels (``gradient_at``, ``feature``, ``blur5``, ``resample_at``,
+``contrast_at``, ``rho_at``, ``map_at``, ``budget``; :data:`GLSL_FLOAT_ROOTS`) that these functions evaluate at
+every pixel, summing in scipy's and scikit-image's order (the maps are theirs to the last bit but for ρ's ``log``),
+and that renderers/gpu/codegen.py translates into the GPU's FPSM passes: one source for both backends.
 """
 
 from __future__ import annotations
@@ -215,9 +220,10 @@ def gaussian5(image, step: int = 1) -> np.ndarray:
 
 @njit(cache=True)
 def spline_weights(t, order):
-    """Weights of the ``order + 1`` knots around a point ``t`` past the first knot's successor (order 1: linear,
-    ``0 <= t < 1`` past the first; order 3: the cubic B-spline), as scipy's ``get_spline_interpolation_weights``
-    computes them: the last is 1 minus the others."""
+    """Weights of the ``order + 1`` knots around a point a fraction ``t`` (``0 <= t < 1``) past a knot, for the
+    B-spline of ``order`` 1 (that knot and the next) or 3 (from the knot before to the second after; the cubic
+    weights of Eq 3's bicubic upsampling), as scipy's ``get_spline_interpolation_weights`` computes them: the last
+    weight is 1 minus the others."""
     if order == 1:
         w0 = 1.0 - t
         return (w0, 1.0 - w0, 0.0, 0.0)
