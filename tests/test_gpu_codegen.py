@@ -257,3 +257,58 @@ def test_an_acuity_constant_changed_in_the_table_moves_both_fpsms(monkeypatch):
     np.testing.assert_allclose(after[1], after[0], rtol=0, atol=1e-4)
     for b, a in zip(before, after):
         assert float(np.mean(a - b)) > 0.02   # a wider fovea: the map rises on both backends
+
+
+def test_generated_fpsm_kernels_are_the_cpus():
+    """fpsm_gen.glsl evaluates the CPU's per-pixel FPSM kernels (seed 003 Eq 3's contrast and feature, Eq 4-7's
+    rho under each reading, Eq 8's map, the spline weights of the upsampling) to float32 rounding, and the budget
+    (double precision) exactly. The stencil kernels (Sobel, blur, resampling) are checked on whole maps by
+    tests/test_gpu_lightcuts.py::test_gpu_fpsm_is_the_cpus."""
+    from renderers.gpu.context import get_device
+    from renderers.lightcuts import fpsm
+
+    rng = np.random.default_rng(3)
+    n = 1024
+
+    def f32(a):   # inputs the GPU holds exactly
+        return a.astype(np.float32).astype(np.float64)
+
+    st, lu, alpha = f32(rng.uniform(0, 1, n)), f32(rng.uniform(0, 1, n)), f32(rng.uniform(0.01, 0.9, n))
+    mean_st = f32(st + rng.normal(0, 0.05, n) * (rng.uniform(size=n) < 0.8))   # some flat: D = 0
+    mean_lu = f32(lu + rng.normal(0, 0.05, n) * (rng.uniform(size=n) < 0.8))
+    inp = np.column_stack([st, lu, mean_st, mean_lu, alpha, rng.integers(0, 3, n), f32(rng.normal(0, 0.5, n)),
+                           f32(rng.uniform(-0.01, 1.0, n)), rng.integers(1, 64, n), rng.integers(0, 2, n),
+                           2 * rng.integers(0, 2, n) + 1])
+    src = """#version 430
+layout(local_size_x = 64) in;
+float fp_img(int c, int k) { return 0.0; }
+float fp_gbuf(int k, int c) { return 0.0; }
+float fp_low[1];
+#include "fpsm_gen.glsl"
+layout(std430, binding = 1) readonly buffer In { double v[]; };
+layout(std430, binding = 2) writeonly buffer Out { double r[]; };
+uniform int u_n;
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i < uint(u_n)) {
+        float x[11];
+        for (int k = 0; k < 11; k++) x[k] = float(v[11u * i + uint(k)]);
+        float rho = fpsm_rho_at(x[0], x[1], x[2], x[3], x[4], int(x[5]));
+        vec4 w = fpsm_spline_weights(fract(x[7]), int(x[10]));
+        double res[10] = double[10](rho, fpsm_map_at(rho, 0.1, 2.0), fpsm_contrast_at(x[6], x[7], 0.01),
+                                    fpsm_feature(x[0], x[6]), fpsm_budget(x[7], int(x[8]), int(x[9])), w.x, w.y,
+                                    w.z, w.w, 0.0);
+        for (int k = 0; k < 10; k++) r[10u * i + uint(k)] = res[k];
+    }
+}"""
+    got = _run(get_device(), src, inp, 10)
+    want = []
+    for s, u, ms, mu, a, reading, band, m, most, least, order in inp:
+        rho = fpsm.rho_at(s, u, ms, mu, a, int(reading))
+        want.append([rho, fpsm.map_at(rho, 0.1, 2.0), fpsm.contrast_at(band, m, 0.01), fpsm.feature(s, band),
+                     fpsm.budget(m, int(most), int(least)), *fpsm.spline_weights(m % 1.0, int(order)), 0.0])
+    want = np.array(want)
+    assert np.isinf(want[:, 0]).mean() > 0.1 and (np.isfinite(want[:, 0]) & (want[:, 0] > 0)).mean() > 0.3
+    np.testing.assert_allclose(got[:, :4], want[:, :4], rtol=2e-4, atol=1e-6)
+    np.testing.assert_array_equal(got[:, 4], want[:, 4])
+    np.testing.assert_allclose(got[:, 5:], want[:, 5:], rtol=0, atol=1e-6)

@@ -14,6 +14,9 @@
   shader's tree image (``Translator.bindings``).
 * :func:`glossy_glsl` translates the glossy pass's per-ray lobe sampling of :mod:`renderers.lightcuts.glossy`,
   prefixed ``glossy_``.
+* :func:`fpsm_glsl` translates the per-pixel kernels of :mod:`renderers.lightcuts.fpsm` (seed 003 Eq 1-8: acuity,
+  Sobel gradient, binomial blur, B-spline resampling, contrast, rho, map in float32; the budget in double), prefixed
+  ``fpsm_``; the images they read are bound to the FPSM shader's buffers.
 * :func:`constants_glsl` emits the shared constant table :mod:`renderers.constants`; :func:`int64_glsl` the
   64-bit integer helpers.
 
@@ -21,9 +24,9 @@ Types are inferred to a fixed point: a name is ``int`` when every value given to
 ``i64``/``u64`` (numba's ``np.int64``/``np.uint64``, on 32-bit halves) when it holds those, ``vec2``-``vec4`` for
 tuples, otherwise ``float`` (``double`` in a double-precision closure). The translator knows the small Python
 subset these kernels use (assignments, tuple unpacking, ``if``/``elif``/``else``, ``for ... in range``,
-``while``, ``return``, arithmetic, comparisons including chained ones, ``math`` functions) and raises
-``NotImplementedError`` naming the function and the construct otherwise, so a kernel change that it cannot follow
-fails loudly in the tests rather than drifting apart.
+``while``, ``return``, arithmetic, comparisons including chained ones, ``math`` functions, ``math.pi`` and
+``math.inf``) and raises ``NotImplementedError`` naming the function and the construct otherwise, so a kernel
+change that it cannot follow fails loudly in the tests rather than drifting apart.
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ import math
 #: The kernels translated (and their callees, found automatically).
 FOVEATION_ROOTS = ("point",)
 _MATH = {"atan": "fov_atan", "tan": "tan", "cos": "cos", "sin": "sin", "acos": "fov_acos", "sqrt": "sqrt",
-         "exp": "exp", "log": "log", "floor": "floor", "log1p": "fov_log1p", "expm1": "fov_expm1"}
+         "exp": "exp", "log": "log", "floor": "floor", "ceil": "ceil", "log1p": "fov_log1p", "expm1": "fov_expm1"}
 #: Float-accurate helpers: GPU math libraries may be coarse (Mesa's llvmpipe: acos 1.6e-4 absolute error, log
 #: 3.5e-7 absolute near 1); these keep the mappings within ~1e-6 relative of the CPU's float64.
 _HELPERS = """
@@ -442,8 +445,8 @@ class Translator:
                 return self.const_name(e.id)
             return e.id
         if isinstance(e, ast.Attribute):
-            if isinstance(e.value, ast.Name) and e.value.id == "math" and e.attr == "pi":
-                return self.lit(fn, math.pi)
+            if isinstance(e.value, ast.Name) and e.value.id == "math" and e.attr in ("pi", "inf"):
+                return self.lit(fn, getattr(math, e.attr))
             raise NotImplementedError(f"{fn.name}: attribute {ast.dump(e)}")
         if isinstance(e, ast.Subscript):
             idx = e.slice.elts if isinstance(e.slice, ast.Tuple) else [e.slice]
@@ -763,15 +766,24 @@ def glossy_glsl() -> str:
 
 @functools.lru_cache(maxsize=None)
 def fpsm_glsl() -> str:
-    """GLSL of the FPSM's per-pixel kernels of :mod:`renderers.lightcuts.fpsm` (Eq 2's acuity), prefixed
-    ``fpsm_``."""
+    """GLSL of the FPSM's per-pixel kernels of :mod:`renderers.lightcuts.fpsm` (seed 003 Eq 1-8: the acuity, the
+    Sobel gradient, the binomial blur, the B-spline resampling, the contrast, ρ, the map in float32; the budget in
+    double precision like the CPU's float64), prefixed ``fpsm_``. The images they read are the shader's
+    (``shaders/fpsm.comp``): ``img[c, k]`` is ``fp_img(c, k)``, ``gbuf[k, c]`` ``fp_gbuf(k, c)``, ``coef[k]``
+    ``fp_low[k]``."""
     from ..lightcuts import fpsm
 
-    tr = Translator(fpsm, "fpsm_")
-    names = tr.closure(fpsm.GLSL_FLOAT_ROOTS)
-    tr.infer(names, {r: {} for r in fpsm.GLSL_FLOAT_ROOTS})
+    tr = Translator(fpsm, "fpsm_", bindings={"img": "fp_img({0}, {1})", "gbuf": "fp_gbuf({0}, {1})",
+                                             "coef": "fp_low[{0}]"})
+    doubles = tr.closure(fpsm.GLSL_DOUBLE_ROOTS)
+    floats = [n for n in tr.closure(fpsm.GLSL_FLOAT_ROOTS) if n not in doubles]
+    for n in doubles:
+        tr.fns[n].real = "double"
+    ints = ("c", "x", "y", "w", "h", "at", "cw", "ch", "order", "channels", "reading", "most", "least")
+    tr.infer(doubles + floats, {r: {p: "int" for p in tr.fns[r].params if p in ints}
+                                for r in (*fpsm.GLSL_DOUBLE_ROOTS, *fpsm.GLSL_FLOAT_ROOTS)})
     return "// Generated from renderers/lightcuts/fpsm.py by renderers/gpu/codegen.py: do not edit.\n" \
-        '#include "constants_gen.glsl"\n' + tr.emit(names, helpers=False)
+        '#include "constants_gen.glsl"\n' + tr.emit(doubles + floats, helpers=False)
 
 
 def int64_glsl() -> str:

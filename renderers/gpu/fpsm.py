@@ -2,40 +2,29 @@
 low-resolution render of :mod:`renderers.gpu.lightcuts`: the per-pixel budgets without a round trip through the
 CPU's memory for the full-resolution maps.
 
-The passes follow :mod:`renderers.lightcuts.fpsm` formula by formula, in float32 (``shaders/fpsm_*.comp``):
+The passes of ``shaders/fpsm.comp`` (``PASS``) evaluate, in float32, the per-pixel kernels of
+:mod:`renderers.lightcuts.fpsm` that the CPU evaluates in float64 (GLSL generated from them, ``fpsm_gen.glsl``):
 
-1. ``fpsm_lum`` — Eq 3's input: the luminance of ``fb'`` upsampled bicubically to ``w × h``. The cubic B-spline
-   coefficients of ``fb'`` (``w/8 × h/8``: a few thousand values) are prefiltered on the CPU by scipy's own spline
-   filter (:func:`bicubic_coefficients`), so the GPU evaluates exactly scikit-image's ``resize(order=3)``;
-2. ``fpsm_down`` (twice) — levels 1 and 2 of the Laplacian pyramid (5 × 5 binomial blur, every second pixel);
-3. ``fpsm_features`` — Eq 2 (``fb_f``), Eq 1 (``fb_st``: Sobel of normals, albedo and screen velocity), Eq 3
-   (``fb_l = max(fb_f, |LP_1| / (LP_3 + ε))``);
-4. ``fpsm_rho`` — Eq 4–7 under the reading (``fpsm.rho_map``; ``retained``: the map itself) and the frame's
-   extreme finite ρ;
-5. ``fpsm_budget`` — Eq 8, ``#L = max(1, ceil(map · MAX_lspp))`` and the glossy rays, into the controls ``ctl``.
+1. Eq 3's input: the luminance of ``fb'`` upsampled bicubically to ``w × h`` (``resample_at``). The cubic
+   B-spline coefficients of ``fb'`` (``w/8 × h/8``: a few thousand values) are prefiltered on the CPU by scipy's
+   own spline filter (``fpsm.upsampling``), as the CPU's resampling does;
+2. and 3. levels 1 and 2 of the Laplacian pyramid (``blur5`` at every second pixel);
+4. Eq 2 (``acuity``), Eq 1 (``gradient_at``, ``feature``: Sobel of normals, albedo and screen velocity), Eq 3
+   (``resample_at`` of the levels, ``contrast_at``, ``feature``);
+5. Eq 4–7 under the reading (``rho_at``; ``retained``: the map itself) and the frame's extreme finite ρ;
+6. Eq 8 (``map_at``), ``#L = max(1, ceil(map · MAX_lspp))`` and the glossy rays (``budget``) into the controls
+   ``ctl``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..lightcuts.fpsm import D_TOL, EPSILON, LUMA
+from ..lightcuts.fpsm import BLUR, DERIVED, EPSILON, LUMA, RETAINED, upsampling
 from ..projection import view_projection
 
-#: Edge padding of ``fb'`` before the spline prefilter (scipy pads modes ``nearest`` by 12 for its filter).
-PAD = 12
-#: ``READING`` of the shaders: the readings of Eq 4–8, and the AFSM (``fb_st``, no Eq 3–8).
-READINGS = {"derived": 0, "blur": 1, "retained": 2, "afsm": 3}
-
-
-def bicubic_coefficients(image: np.ndarray) -> np.ndarray:
-    """Cubic B-spline coefficients of ``image`` (h', w') padded by :data:`PAD` replicated pixels: what
-    ``scipy.ndimage.zoom(order=3, mode="nearest", grid_mode=True)`` (skimage's ``resize`` with ``mode="edge"``)
-    interpolates."""
-    from scipy import ndimage
-
-    return ndimage.spline_filter(np.pad(np.asarray(image, dtype=np.float64), PAD, mode="edge"), order=3,
-                                 mode="mirror")
+#: ``READING`` of the shader: the readings of Eq 4–8, and the AFSM (``fb_st``, no Eq 3–8).
+READINGS = {"derived": DERIVED, "blur": BLUR, "retained": RETAINED, "afsm": 3}
 
 
 def _half(n: int) -> int:
@@ -57,27 +46,31 @@ def fpsm_controls(lc, g, low, reading: str, alpha: float, max_lspp: int, max_rsp
         uni["u_vp_prev"] = tuple(view_projection(ctx.previous_camera, w, h).T.reshape(-1))
     px = lc.fr.pool.get("lc_fp_px", 16 * g.n)
     bufs = {**g.buffers, 14: px}
-    defines = {"READING": READINGS[reading], "LUMINANCE": int(low is not None), "PAD": PAD, "D_TOL": D_TOL,
-               "LEVEL": 1}
+    defines = {"READING": READINGS[reading], "LUMINANCE": int(low is not None)}
+
+    def run(n: int, pass_: int) -> None:
+        lc.run("fpsm.comp", n, bufs, uni, defines={**defines, "PASS": pass_})
+
     if low is not None:
         lum = low.read(12)[:, :3].astype(np.float64).reshape(low.height, low.width, 3) @ LUMA
-        coef = bicubic_coefficients(lum).astype(np.float32)
+        coef, lo, hi = upsampling(lum, 3, floor=0.0)
+        coef = coef.astype(np.float32)
         g1, g2 = (_half(w), _half(h)), (_half(_half(w)), _half(_half(h)))
         at1 = coef.size
         at2 = at1 + g1[0] * g1[1]
         bufs[15] = low_buf = lc.fr.pool.get("lc_fp_low", 4 * (at2 + g2[0] * g2[1]))
         low_buf.write(coef.tobytes())
         uni.update(u_coef=(coef.shape[1], coef.shape[0]), u_scale=(low.width / w, low.height / h),
-                   u_range=(float(lum.min()), float(lum.max())), u_g1=g1, u_g2=g2, u_g1_at=at1, u_g2_at=at2)
-        lc.run("fpsm_lum.comp", g.n, bufs, uni, defines=defines)
-        lc.run("fpsm_down.comp", g1[0] * g1[1], bufs, uni, defines=defines)
-        lc.run("fpsm_down.comp", g2[0] * g2[1], bufs, uni, defines={**defines, "LEVEL": 2})
+                   u_range=(lo, hi), u_g1=g1, u_g2=g2, u_g1_at=at1, u_g2_at=at2)
+        run(g.n, 1)
+        run(g1[0] * g1[1], 2)
+        run(g2[0] * g2[1], 3)
     bufs[7] = lc.fr.pool.get("lc_ctl", 16 * g.n)
     lc.common[7] = bufs[7]
-    lc.run("fpsm_features.comp", g.n, bufs, uni, defines=defines)
+    run(g.n, 4)
     if reading != "afsm":
-        lc.run("fpsm_rho.comp", g.n, bufs, uni, defines=defines)
-    lc.run("fpsm_budget.comp", g.n, bufs, uni, defines=defines)
+        run(g.n, 5)
+    run(g.n, 6)
 
 
 def read_map(lc, g) -> np.ndarray:

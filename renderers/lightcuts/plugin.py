@@ -39,7 +39,7 @@ from renderers.plugin_types import Param, RendererPlugin, StrengthSpec
 from renderers.projection import view_projection
 
 from .foveated import foveated_lightcuts
-from .fpsm import (ALPHA, FPSM_READINGS, acuity_map, eccentricity_map, light_budget, screen_velocity,
+from .fpsm import (ALPHA, FPSM_READINGS, acuity_map, budget_map, eccentricity_map, light_budget, screen_velocity,
                    spatiotemporal_feature)
 from .glossy import glossy_pass
 from .sampling import GBuffer, ray_offset_for, stochastic_lightcuts
@@ -191,7 +191,7 @@ def scene_has_glossy(scene) -> bool:
 
 def glossy_budget(fpsm_map, max_rspp: int) -> np.ndarray:
     """``fsl``'s glossy rays per pixel, ``MAX_rspp · map`` (Algorithm 1 line 17) rounded up; 0 where map is 0."""
-    return np.ceil(np.asarray(fpsm_map) * max_rspp - 1e-9).astype(np.int64)
+    return budget_map(fpsm_map, max_rspp, 0)
 
 
 def frame_output(ctx, base, diffuse, glossy, glossy_mask, rays: int) -> np.ndarray:
