@@ -158,7 +158,9 @@ def _copy_of_shade(tmp_path, name: str, edits: list[tuple[str, str]]):
     ("    return LUMA_R * r + LUMA_G * g + LUMA_B * b", "    return [r, g, b][0]", "luminance: subscript of List"),
     ("    return LUMA_R * r + LUMA_G * g + LUMA_B * b", "    return r, g, b, r, g", "luminance: tuple of 5 values"),
     ("    cos_t = nx * wx", "    cos_t = np.dot(nx, wx)\n    cos_t = nx * wx", "irradiance_factor: call of "),
-], ids=["for-over-tuple", "int64-product", "list", "5-tuple", "numpy-call"])
+    ("    cos_t = nx * wx", "    half = nx\n    cos_t = half * wx",
+     "irradiance_factor: name 'half' is reserved in GLSL"),
+], ids=["for-over-tuple", "int64-product", "list", "5-tuple", "numpy-call", "glsl-keyword"])
 def test_generator_names_what_it_cannot_translate(tmp_path, old, new, message):
     mod = _copy_of_shade(tmp_path, "_shade_bad", [(old, new)])
     try:
@@ -223,3 +225,29 @@ def test_an_acuity_constant_changed_in_the_table_moves_both_fpsms(monkeypatch):
     np.testing.assert_allclose(after[1], after[0], rtol=0, atol=1e-4)
     for b, a in zip(before, after):
         assert float(np.mean(a - b)) > 0.02   # a wider fovea: the map rises on both backends
+
+
+def test_generated_fxaa_is_the_cpus_to_the_bit(monkeypatch):
+    """fxaa_gen.glsl is renderers/antialias.py fxaa_pixel in numba's types (float32 sums of the image's values,
+    float64 elsewhere): on the GPU's own LP buffer the GPU's FXAA equals the CPU's bit for bit, edge decisions and
+    all (street_day's daylight edges, where a float32 port differed on 94 LP pixels by up to 0.15)."""
+    from renderers import antialias
+    from renderers.gpu import pipelines, render
+
+    seen = {}
+    finish = pipelines.finish_lp
+
+    def spy(fr, tables, lp, params, *args):
+        img = finish(fr, tables, lp, params, *args)
+
+        def read(tex):
+            return np.frombuffer(tex.read(), np.float32).reshape(tables.h, tables.w, -1)[..., :3]
+        seen.update(lp=read(lp), out=read(fr.pool.image("lp2", (tables.w, tables.h))), n=tables.layout.n.copy())
+        return img
+
+    monkeypatch.setattr(pipelines, "finish_lp", spy)
+    render("street_day", "vafr", {"preset": "auto"}, 96, 54)
+    cpu = antialias.lp_filter(seen["lp"].copy(), seen["n"], "fxaa")
+    filtered = np.arange(cpu.shape[0])[:, None] < seen["n"][None, :]   # the rows the inverse mapping reads
+    assert filtered.sum() > 10000 and (cpu != seen["lp"]).any(axis=-1)[filtered].sum() > 1000
+    assert np.array_equal(cpu[filtered], seen["out"][filtered])

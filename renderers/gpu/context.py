@@ -310,6 +310,10 @@ def generated_source(fname: str) -> str | None:
         from .codegen import fpsm_glsl
 
         return fpsm_glsl()
+    if fname == "fxaa_gen.glsl":
+        from .codegen import fxaa_glsl
+
+        return fxaa_glsl()
     if fname == "int64_gen.glsl":
         from .codegen import int64_glsl
 
