@@ -251,3 +251,32 @@ def test_generated_fxaa_is_the_cpus_to_the_bit(monkeypatch):
     filtered = np.arange(cpu.shape[0])[:, None] < seen["n"][None, :]   # the rows the inverse mapping reads
     assert filtered.sum() > 10000 and (cpu != seen["lp"]).any(axis=-1)[filtered].sum() > 1000
     assert np.array_equal(cpu[filtered], seen["out"][filtered])
+
+
+def test_generated_camera_rays_are_the_cpus_to_the_bit():
+    """camera.glsl's rays are renderers/projection.py plane_offsets and ray_direction, generated in double
+    precision (precise): the CPU's float64 rays rounded to float32, bit for bit, at pixel centres and at
+    arbitrary positions of a large and a small display."""
+    from renderers.catalog import resolve
+    from renderers.gpu.context import get_device
+    from renderers.gpu.upload import camera_uniforms
+    from renderers.projection import camera_rays
+
+    dev = get_device()
+    rng = np.random.default_rng(27)
+    src = _HEAD.replace('"shade_gen.glsl"', '"camera.glsl"') + """void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i < uint(u_n)) {
+        vec3 d = camera_ray_d(dvec2(v[2u * i], v[2u * i + 1u]));
+        r[3u * i] = double(d.x); r[3u * i + 1u] = double(d.y); r[3u * i + 2u] = double(d.z);
+    }
+}"""
+    for scene, (w, h) in (("temple", (2468, 2740)), ("street_day", (96, 54))):
+        cam = resolve(scene).camera
+        xy = np.concatenate([rng.uniform(0, 1, (4000, 2)) * (w, h), rng.integers(0, (w, h), (4000, 2)) + 0.5])
+        prog = dev.program("codegen_test.comp", {}, source=src)   # the cached program that _run dispatches
+        for k, v in camera_uniforms(cam, w, h).items():
+            prog[k] = v
+        got = _run(dev, src, xy, 3)
+        want = camera_rays(cam, w, h, xy[:, 0], xy[:, 1]).astype(np.float32)
+        assert np.array_equal(got.astype(np.float32), want)

@@ -40,7 +40,7 @@ import math
 #: The kernels translated (and their callees, found automatically).
 FOVEATION_ROOTS = ("point",)
 _MATH = {"atan": "fov_atan", "tan": "tan", "cos": "cos", "sin": "sin", "acos": "fov_acos", "sqrt": "sqrt",
-         "exp": "exp", "log": "log", "floor": "floor", "log1p": "fov_log1p", "expm1": "fov_expm1"}
+         "exp": "exp", "log": "log", "floor": "floor", "ceil": "ceil", "log1p": "fov_log1p", "expm1": "fov_expm1"}
 #: Float-accurate helpers: GPU math libraries may be coarse (Mesa's llvmpipe: acos 1.6e-4 absolute error, log
 #: 3.5e-7 absolute near 1); these keep the mappings within ~1e-6 relative of the CPU's float64.
 _HELPERS = """
@@ -110,6 +110,9 @@ class Translator:
         self.binding_types: dict[str, str] = {}
         #: functions whose float locals are ``precise`` (no fused multiply-add: the rounding of the CPU's sums)
         self.precise: set[str] = set()
+        #: functions of the module that the shader writes itself (Python name -> GLSL name): called, not translated
+        #: (the GPU's fragment of the warped-grid rasteriser is a phase of atomics where the CPU depth-tests)
+        self.externals: dict[str, str] = {}
         self.prefix = prefix
         tree = ast.parse(source if source is not None else inspect.getsource(module))
         self.fns = {n.name: _Fn(n) for n in tree.body if isinstance(n, ast.FunctionDef)}
@@ -134,7 +137,8 @@ class Translator:
             seen.add(name)
             fn = self.fns[name]
             for call in ast.walk(fn.node):
-                if isinstance(call, ast.Call) and isinstance(call.func, ast.Name) and call.func.id in self.fns:
+                if isinstance(call, ast.Call) and isinstance(call.func, ast.Name) and call.func.id in self.fns \
+                        and call.func.id not in self.externals:
                     fn.calls.add(call.func.id)
                     visit(call.func.id)
             order.append(name)   # callees first: GLSL needs declarations before use
@@ -177,7 +181,8 @@ class Translator:
                     if fn.var_types.get(var) != t:
                         fn.var_types[var] = t
                         changed = True
-                rets = {self._ret_type(fn, r.value) for r in ast.walk(fn.node) if isinstance(r, ast.Return)}
+                rets = {self._ret_type(fn, r.value) for r in ast.walk(fn.node) if isinstance(r, ast.Return)} \
+                    or {"void"}
                 ret = _join(fn.name, "return value", rets)
                 if fn.ret != ret:
                     fn.ret = ret
@@ -214,6 +219,8 @@ class Translator:
             raise NotImplementedError(f"{fn.name}: assignment to {ast.dump(target)}")
 
     def _ret_type(self, fn, value):
+        if value is None:
+            return "void"
         if isinstance(value, ast.Tuple):
             if not 2 <= len(value.elts) <= 4:
                 raise NotImplementedError(f"{fn.name}: tuple of {len(value.elts)} values (GLSL vectors hold 2-4)")
@@ -281,6 +288,8 @@ class Translator:
                 if f.id in ("min", "max", "abs"):
                     ts = {self.etype(fn, a) for a in e.args}
                     return ts.pop() if ts in ({"int"}, {"f32"}) else "float"
+                if f.id in self.externals:
+                    return "void"
                 if f.id in self.fns:
                     return self.fns[f.id].ret
             return "float"
@@ -307,7 +316,7 @@ class Translator:
         return "\n".join(out) + "\n"
 
     def emit_fn(self, fn: _Fn) -> str:
-        for name in [*fn.params, *fn.var_types]:
+        for name in [*(p for p in fn.params if p not in self.bindings), *fn.var_types]:
             if name in _GLSL_RESERVED:
                 raise NotImplementedError(f"{fn.name}: name '{name}' is reserved in GLSL")
         params = ", ".join(f"{self.tname(fn, fn.param_types[p])} {p}" for p in fn.params if p not in self.bindings)
@@ -362,6 +371,8 @@ class Translator:
             op = _BINOPS[type(st.op)]
             return [f"{pad}{st.target.id} {op}= {self.expr(fn, st.value)};"]
         if isinstance(st, ast.Return):
+            if st.value is None:
+                return [f"{pad}return;"]
             if isinstance(st.value, ast.Tuple):
                 vals = ", ".join(self.cast(fn, v, "float") for v in st.value.elts)
                 value, t = f"{self.tname(fn, self._ret_type(fn, st.value))}({vals})", self._ret_type(fn, st.value)
@@ -399,8 +410,10 @@ class Translator:
                 lines += self.stmt(fn, s, depth + 1)
             lines.append(f"{pad}}}")
             return lines
-        if isinstance(st, ast.Break):
-            return [f"{pad}break;"]
+        if isinstance(st, (ast.Break, ast.Continue)):
+            return [f"{pad}{'break' if isinstance(st, ast.Break) else 'continue'};"]
+        if isinstance(st, ast.Expr) and isinstance(st.value, ast.Call):   # a call for its effect (an external)
+            return [f"{pad}{self.expr(fn, st.value)};"]
         if isinstance(st, ast.Expr) and isinstance(st.value, ast.Constant):
             return []
         raise NotImplementedError(f"{fn.name}: statement {type(st).__name__}")
@@ -479,8 +492,8 @@ class Translator:
                 raise NotImplementedError(f"{fn.name}: {key} of an array without a '{key}' binding")
             return self.bindings[key].format(*([self.expr(fn, e.slice)] if isinstance(e, ast.Subscript) else []))
         if isinstance(e, ast.Attribute):
-            if isinstance(e.value, ast.Name) and e.value.id == "math" and e.attr == "pi":
-                return self.lit(fn, math.pi)
+            if isinstance(e.value, ast.Name) and e.value.id == "math" and e.attr in ("pi", "inf"):
+                return self.lit(fn, getattr(math, e.attr))
             raise NotImplementedError(f"{fn.name}: attribute {ast.dump(e)}")
         if isinstance(e, ast.Subscript):
             idx = e.slice.elts if isinstance(e.slice, ast.Tuple) else [e.slice]
@@ -596,6 +609,9 @@ class Translator:
                 and f.attr == "clip" and len(e.args) == 3:   # numpy on arrays, GLSL clamp on scalars
             a, lo, hi = (self.cast(fn, x, "float") for x in e.args)
             return f"clamp({a}, {lo}, {hi})"
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
+                and f.attr == "sqrt" and len(e.args) == 1:   # likewise (renderers/projection.py on arrays)
+            return f"sqrt({self.cast(fn, e.args[0], 'float')})"
         if isinstance(f, ast.Name):
             if f.id == "int":
                 return f"int({self.expr(fn, e.args[0])})"
@@ -605,6 +621,9 @@ class Translator:
                 return f"{f.id}({a}, {b})"
             if f.id == "abs":
                 return f"abs({self.expr(fn, e.args[0])})"
+            if f.id in self.externals:
+                args = [self.expr(fn, a) for a in e.args if not self._is_array(a)]
+                return f"{self.externals[f.id]}({', '.join(args)})"
             if f.id in self.fns:
                 callee = self.fns[f.id]
                 if callee.real != fn.real:
@@ -622,7 +641,7 @@ def _join_types(conflicts: list, fn: str, what: str, types: set[str]) -> str:
     otherwise ``float`` for now, the conflict noted in ``conflicts`` (an error if it remains at the fixed point)."""
     if len(types) == 1:
         return next(iter(types))
-    if types <= {"int", "float", "f32"}:
+    if types and types <= {"int", "float", "f32"}:
         return "float"
     conflicts.append(f"{fn}: {what} takes values of types {sorted(types)}")
     other = sorted(types - {"int", "float", "bool"})   # e.g. h = h ^ (h >> 13): h's own float guess yields
@@ -794,6 +813,46 @@ def fxaa_glsl() -> str:
     return ("// Generated from renderers/antialias.py by renderers/gpu/codegen.py: do not edit.\n"
             f"const float AA_STEPS[{len(steps)}] = float[{len(steps)}]({table});\n"
             + tr.emit(names, helpers=False))
+
+
+@functools.lru_cache(maxsize=None)
+def warp_glsl() -> str:
+    """GLSL of the forward grid warping of :mod:`renderers._warp` (float32, prefixed ``rep_``): a quad of left
+    samples ``rep_warp_quad(a, b, cc, d, w_eff, w, max_ratio, max_extent)`` (the depth-discontinuity test, the
+    rasteriser of its two warped triangles), whose fragments go to the shader's own
+    ``rep_fragment(idx, z, b0, b1, b2, ka, kb, kc)`` (rep_warp.comp); the LP columns' ``L[c]`` and ``n[c]`` are
+    the shader's column table (lp_cols.glsl)."""
+    from .. import _warp
+
+    # the left samples' warped coordinates and depths are the shader's buffer warp (rep.glsl); the colours and the
+    # depth buffer are the GPU fragment's own business (no binding text: never read by the generated code)
+    tr = Translator(_warp, "rep_", bindings={"u": "warp[{0}].x", "phi": "warp[{0}].y", "z": "warp[{0}].z",
+                                             "L": "cols({0}).w", "n": "int(cols({0}).z)", "col": "", "zbuf": "",
+                                             "out": "", "covered": ""})
+    tr.binding_types["n"] = "int"
+    tr.externals = {"fragment": "rep_fragment"}
+    names = tr.closure(_warp.GLSL_FLOAT_ROOTS)
+    tr.infer(names, {"warp_quad": {k: "int" for k in ("a", "b", "cc", "d", "w_eff", "w")}})
+    return "// Generated from renderers/_warp.py by renderers/gpu/codegen.py: do not edit.\n" \
+        + tr.emit(names, helpers=False)
+
+
+@functools.lru_cache(maxsize=None)
+def projection_glsl() -> str:
+    """GLSL of the pinhole camera's formulas of :mod:`renderers.projection`, prefixed ``proj_``: a screen position's
+    image-plane offsets ``proj_plane_offsets`` and its ray ``proj_ray_direction`` in double precision, ``precise``
+    (camera.glsl: the CPU's float64 rays to the bit), and ``proj_plane_to_screen`` in float (the reprojection)."""
+    from .. import projection
+
+    tr = Translator(projection, "proj_")
+    doubles = tr.closure(projection.GLSL_DOUBLE_ROOTS)
+    floats = [n for n in tr.closure(projection.GLSL_FLOAT_ROOTS) if n not in doubles]
+    for n in doubles:
+        tr.fns[n].real = "double"
+    tr.precise = set(doubles)
+    tr.infer(doubles + floats, {r: {} for r in (*projection.GLSL_DOUBLE_ROOTS, *projection.GLSL_FLOAT_ROOTS)})
+    return "// Generated from renderers/projection.py by renderers/gpu/codegen.py: do not edit.\n" \
+        + tr.emit(doubles + floats, helpers=False)
 
 
 def int64_glsl() -> str:
