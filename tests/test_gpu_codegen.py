@@ -170,6 +170,27 @@ def test_generator_names_what_it_cannot_translate(tmp_path, old, new, message):
         sys.modules.pop("renderers._shade_bad", None)
 
 
+def test_generator_names_a_missing_binding_and_a_value_of_nothing():
+    """An array's shape without a binding for it, and the value of an external (the GPU's own fragment), which
+    returns nothing: both named, not translated into GLSL that fails to compile."""
+    import inspect
+
+    from renderers import _warp, antialias
+
+    tr = codegen.Translator(antialias, "aa_", bindings={"img": "img({0}, {1}, {2})", "steps": "S[{0}]",
+                                                        "steps.size": "5"})
+    names = tr.closure(antialias.GLSL_DOUBLE_ROOTS)
+    tr.infer(names, {"fxaa_pixel": {"x": "int", "y": "int"}})
+    with pytest.raises(NotImplementedError, match=re.escape("img.shape of an array without a 'img.shape' binding")):
+        tr.emit(names)
+    source = inspect.getsource(_warp).replace("            fragment((j % n[c])", "            zz = fragment((j % n[c])")
+    tr = codegen.Translator(_warp, "rep_", source=source, bindings={k: "" for k in ("u", "phi", "z", "L", "n", "col",
+                                                                                     "zbuf", "out", "covered")})
+    tr.externals = {"fragment": "rep_fragment"}
+    with pytest.raises(NotImplementedError, match="raster_triangle: zz takes the value of a call that returns nothing"):
+        tr.infer(tr.closure(_warp.GLSL_FLOAT_ROOTS), {"warp_quad": {}})
+
+
 def test_a_kernel_change_moves_both_backends_together(tmp_path, monkeypatch):
     """Change BRDF terms (the Blinn-Phong normalisation (s + 8) / 8 pi -> (s + 2) / 2 pi, the Lambert weight 1 / pi
     -> 0.6 / pi) and a texture constant (brick mortar 0.05 -> 0.2 of a brick) in a temporary copy of renderers/_shade.py: the CPU (numba) and the GPU

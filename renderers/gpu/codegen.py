@@ -14,6 +14,11 @@
   and clamped fetches), prefixed ``aa_``, in numba's own types: float32 (``f32``) where the CPU adds values of its
   float32 image, float64 elsewhere, all ``precise``, so that both backends take the same edge decisions bit for
   bit. The image is the shader's accessor ``aa_img(y, x, ch)`` (``Translator.bindings``, with ``img.shape``).
+* :func:`warp_glsl` translates the forward grid warping of :mod:`renderers._warp` (a quad's depth-discontinuity
+  test and the rasteriser of its two warped triangles), prefixed ``rep_``; the fragment is the shader's own
+  (``Translator.externals``: a module function called by its GLSL name, not translated).
+* :func:`projection_glsl` translates the pinhole camera of :mod:`renderers.projection` (a screen position's
+  image-plane offsets and ray in precise double, the inverse in float), prefixed ``proj_``.
 * :func:`constants_glsl` emits the shared constant table :mod:`renderers.constants`; :func:`int64_glsl` the
   64-bit integer helpers.
 
@@ -21,7 +26,9 @@ Types are inferred to a fixed point: a name is ``int`` when every value given to
 ``i64``/``u64`` (numba's ``np.int64``/``np.uint64``, on 32-bit halves) when it holds those, ``vec2``-``vec4`` for
 tuples, otherwise ``float`` (``double`` in a double-precision closure). The translator knows the small Python
 subset these kernels use (assignments, tuple unpacking, ``if``/``elif``/``else``, ``for ... in range``,
-``while``, ``return``, arithmetic, comparisons including chained ones, ``math`` functions, ``a.shape[k]`` and
+``while``, ``break``, ``continue``, ``return`` (also without a value: a ``void`` function), a call as a
+statement, arithmetic, comparisons including chained ones, ``math`` functions and ``math.pi``/``math.inf``,
+``np.clip``/``np.sqrt`` (numpy on the CPU's arrays, GLSL on scalars), ``a.shape[k]`` and
 ``a.size`` of a bound array ``a`` through bindings named ``"a.shape"``, ``"a.size"``; ``f32``: numba's float32, the
 element type of a bound float32 array (``binding_types``), kept by ``+ - * /`` between two ``f32`` values,
 ``min``/``max``/``abs`` and conditionals, float64 with anything else) and raises ``NotImplementedError`` naming the
@@ -214,6 +221,8 @@ class Translator:
                     if isinstance(t, ast.Name):
                         assigned.setdefault(t.id, set()).add("float")
         elif isinstance(target, ast.Name):
+            if self.etype(fn, value) == "void":
+                raise NotImplementedError(f"{fn.name}: {target.id} takes the value of a call that returns nothing")
             assigned.setdefault(target.id, set()).add(self.etype(fn, value))
         elif not (isinstance(target, ast.Subscript) and self._is_array(target.value)):
             raise NotImplementedError(f"{fn.name}: assignment to {ast.dump(target)}")
