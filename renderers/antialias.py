@@ -27,6 +27,14 @@ FOVEAL_SIGMAS = (0.0, 0.8, 1.2, 2.5)
 FOVEAL_RADII = (0, 1, 2, 5)
 
 
+#: FXAA's image: channels 0-2 the colour, channel ``LUMA_CHANNEL`` the luma (one array, so that one bilinear fetch
+#: serves both and the GPU's generated kernel reads them through one accessor).
+LUMA_CHANNEL = 3
+#: The functions translated into GLSL (renderers/gpu/codegen.py fxaa_glsl) and their callees: in numba's types
+#: (float32 sums of the image's values, float64 elsewhere), so that both backends take the same edge decisions.
+GLSL_DOUBLE_ROOTS = ("fxaa_pixel",)
+
+
 @njit(cache=True, inline="always")
 def _bil(img, x, y, ch):
     """Bilinear fetch at continuous pixel position (x, y) (pixel centres at i + 0.5), clamped to the edge."""
@@ -44,123 +52,128 @@ def _bil(img, x, y, ch):
 
 
 @njit(cache=True, inline="always")
-def _lu(luma, x, y):
-    H, W = luma.shape[0], luma.shape[1]
-    return luma[min(max(y, 0), H - 1), min(max(x, 0), W - 1), 0]
+def _lu(img, x, y):
+    """The luma of pixel (x, y), clamped to the edge."""
+    H, W = img.shape[0], img.shape[1]
+    return img[min(max(y, 0), H - 1), min(max(x, 0), W - 1), LUMA_CHANNEL]
+
+
+@njit(cache=True)
+def fxaa_pixel(img, steps, subpix, edge_threshold, edge_threshold_min, x, y):
+    """FXAA 3.11 of pixel (x, y) of ``img`` (colour and luma, see ``LUMA_CHANNEL``): its colour ``(r, g, b)``."""
+    lumaM = img[y, x, LUMA_CHANNEL]
+    lumaS = _lu(img, x, y + 1)
+    lumaE = _lu(img, x + 1, y)
+    lumaN = _lu(img, x, y - 1)
+    lumaW = _lu(img, x - 1, y)
+    rangeMax = max(max(lumaN, lumaW), max(lumaE, max(lumaS, lumaM)))
+    rangeMin = min(min(lumaN, lumaW), min(lumaE, min(lumaS, lumaM)))
+    rng = rangeMax - rangeMin
+    if rng < max(edge_threshold_min, rangeMax * edge_threshold):
+        return img[y, x, 0], img[y, x, 1], img[y, x, 2]
+    lumaNW = _lu(img, x - 1, y - 1)
+    lumaSE = _lu(img, x + 1, y + 1)
+    lumaNE = _lu(img, x + 1, y - 1)
+    lumaSW = _lu(img, x - 1, y + 1)
+    lumaNS = lumaN + lumaS
+    lumaWE = lumaW + lumaE
+    subpixNSWE = lumaNS + lumaWE
+    edgeHorz1 = -2.0 * lumaM + lumaNS
+    edgeVert1 = -2.0 * lumaM + lumaWE
+    lumaNESE = lumaNE + lumaSE
+    lumaNWNE = lumaNW + lumaNE
+    edgeHorz2 = -2.0 * lumaE + lumaNESE
+    edgeVert2 = -2.0 * lumaN + lumaNWNE
+    lumaNWSW = lumaNW + lumaSW
+    lumaSWSE = lumaSW + lumaSE
+    edgeHorz4 = abs(edgeHorz1) * 2.0 + abs(edgeHorz2)
+    edgeVert4 = abs(edgeVert1) * 2.0 + abs(edgeVert2)
+    edgeHorz3 = -2.0 * lumaW + lumaNWSW
+    edgeVert3 = -2.0 * lumaS + lumaSWSE
+    edgeHorz = abs(edgeHorz3) + edgeHorz4
+    edgeVert = abs(edgeVert3) + edgeVert4
+    subpixNWSWNESE = lumaNWSW + lumaNESE
+    horzSpan = edgeHorz >= edgeVert
+    subpixA = subpixNSWE * 2.0 + subpixNWSWNESE
+    if not horzSpan:
+        lumaN = lumaW
+        lumaS = lumaE
+    lengthSign = 1.0
+    subpixB = subpixA / 12.0 - lumaM
+    gradientN = lumaN - lumaM
+    gradientS = lumaS - lumaM
+    lumaNN = lumaN + lumaM
+    lumaSS = lumaS + lumaM
+    pairN = abs(gradientN) >= abs(gradientS)
+    gradient = max(abs(gradientN), abs(gradientS))
+    if pairN:
+        lengthSign = -lengthSign
+    subpixC = min(max(abs(subpixB) / rng, 0.0), 1.0)
+    px, py = x + 0.5, y + 0.5
+    bx, by = px, py
+    ox = 1.0 if horzSpan else 0.0
+    oy = 0.0 if horzSpan else 1.0
+    if horzSpan:
+        by += lengthSign * 0.5
+    else:
+        bx += lengthSign * 0.5
+    nx, ny = bx - ox * steps[0], by - oy * steps[0]
+    qx, qy = bx + ox * steps[0], by + oy * steps[0]
+    subpixD = -2.0 * subpixC + 3.0
+    if not pairN:
+        lumaNN = lumaSS
+    lumaHalf = lumaNN * 0.5
+    lumaEndN = _bil(img, nx, ny, LUMA_CHANNEL) - lumaHalf
+    lumaEndP = _bil(img, qx, qy, LUMA_CHANNEL) - lumaHalf
+    subpixE = subpixC * subpixC
+    gradientScaled = gradient * 0.25
+    lumaMLTZero = lumaM - lumaHalf < 0.0
+    subpixF = subpixD * subpixE
+    doneN = abs(lumaEndN) >= gradientScaled
+    doneP = abs(lumaEndP) >= gradientScaled
+    for s in range(1, steps.size):
+        if doneN and doneP:
+            break
+        if not doneN:
+            nx -= ox * steps[s]
+            ny -= oy * steps[s]
+            lumaEndN = _bil(img, nx, ny, LUMA_CHANNEL) - lumaHalf
+            doneN = abs(lumaEndN) >= gradientScaled
+        if not doneP:
+            qx += ox * steps[s]
+            qy += oy * steps[s]
+            lumaEndP = _bil(img, qx, qy, LUMA_CHANNEL) - lumaHalf
+            doneP = abs(lumaEndP) >= gradientScaled
+    if horzSpan:
+        dstN = px - nx
+        dstP = qx - px
+    else:
+        dstN = py - ny
+        dstP = qy - py
+    goodSpanN = (lumaEndN < 0.0) != lumaMLTZero
+    goodSpanP = (lumaEndP < 0.0) != lumaMLTZero
+    spanLength = dstP + dstN
+    directionN = dstN < dstP
+    dst = min(dstN, dstP)
+    goodSpan = goodSpanN if directionN else goodSpanP
+    subpixG = subpixF * subpixF
+    pixelOffset = -dst / spanLength + 0.5
+    subpixH = subpixG * subpix
+    pixelOffsetGood = pixelOffset if goodSpan else 0.0
+    off = max(pixelOffsetGood, subpixH)
+    if horzSpan:
+        py += off * lengthSign
+    else:
+        px += off * lengthSign
+    return _bil(img, px, py, 0), _bil(img, px, py, 1), _bil(img, px, py, 2)
 
 
 @njit(cache=True, parallel=True)
-def _fxaa(rgb, luma, steps, subpix, edge_threshold, edge_threshold_min, row0, row1, out):
-    W = rgb.shape[1]
+def _fxaa(img, steps, subpix, edge_threshold, edge_threshold_min, row0, row1, out):
     for y in prange(row0, row1):
-        for x in range(W):
-            lumaM = luma[y, x, 0]
-            lumaS = _lu(luma, x, y + 1)
-            lumaE = _lu(luma, x + 1, y)
-            lumaN = _lu(luma, x, y - 1)
-            lumaW = _lu(luma, x - 1, y)
-            rangeMax = max(max(lumaN, lumaW), max(lumaE, max(lumaS, lumaM)))
-            rangeMin = min(min(lumaN, lumaW), min(lumaE, min(lumaS, lumaM)))
-            rng = rangeMax - rangeMin
-            if rng < max(edge_threshold_min, rangeMax * edge_threshold):
-                for ch in range(3):
-                    out[y - row0, x, ch] = rgb[y, x, ch]
-                continue
-            lumaNW = _lu(luma, x - 1, y - 1)
-            lumaSE = _lu(luma, x + 1, y + 1)
-            lumaNE = _lu(luma, x + 1, y - 1)
-            lumaSW = _lu(luma, x - 1, y + 1)
-            lumaNS = lumaN + lumaS
-            lumaWE = lumaW + lumaE
-            subpixNSWE = lumaNS + lumaWE
-            edgeHorz1 = -2.0 * lumaM + lumaNS
-            edgeVert1 = -2.0 * lumaM + lumaWE
-            lumaNESE = lumaNE + lumaSE
-            lumaNWNE = lumaNW + lumaNE
-            edgeHorz2 = -2.0 * lumaE + lumaNESE
-            edgeVert2 = -2.0 * lumaN + lumaNWNE
-            lumaNWSW = lumaNW + lumaSW
-            lumaSWSE = lumaSW + lumaSE
-            edgeHorz4 = abs(edgeHorz1) * 2.0 + abs(edgeHorz2)
-            edgeVert4 = abs(edgeVert1) * 2.0 + abs(edgeVert2)
-            edgeHorz3 = -2.0 * lumaW + lumaNWSW
-            edgeVert3 = -2.0 * lumaS + lumaSWSE
-            edgeHorz = abs(edgeHorz3) + edgeHorz4
-            edgeVert = abs(edgeVert3) + edgeVert4
-            subpixNWSWNESE = lumaNWSW + lumaNESE
-            horzSpan = edgeHorz >= edgeVert
-            subpixA = subpixNSWE * 2.0 + subpixNWSWNESE
-            if not horzSpan:
-                lumaN = lumaW
-                lumaS = lumaE
-            lengthSign = 1.0
-            subpixB = subpixA / 12.0 - lumaM
-            gradientN = lumaN - lumaM
-            gradientS = lumaS - lumaM
-            lumaNN = lumaN + lumaM
-            lumaSS = lumaS + lumaM
-            pairN = abs(gradientN) >= abs(gradientS)
-            gradient = max(abs(gradientN), abs(gradientS))
-            if pairN:
-                lengthSign = -lengthSign
-            subpixC = min(max(abs(subpixB) / rng, 0.0), 1.0)
-            px, py = x + 0.5, y + 0.5
-            bx, by = px, py
-            ox, oy = (1.0, 0.0) if horzSpan else (0.0, 1.0)
-            if horzSpan:
-                by += lengthSign * 0.5
-            else:
-                bx += lengthSign * 0.5
-            nx, ny = bx - ox * steps[0], by - oy * steps[0]
-            qx, qy = bx + ox * steps[0], by + oy * steps[0]
-            subpixD = -2.0 * subpixC + 3.0
-            if not pairN:
-                lumaNN = lumaSS
-            half = lumaNN * 0.5
-            lumaEndN = _bil(luma, nx, ny, 0) - half
-            lumaEndP = _bil(luma, qx, qy, 0) - half
-            subpixE = subpixC * subpixC
-            gradientScaled = gradient * 0.25
-            lumaMLTZero = lumaM - half < 0.0
-            subpixF = subpixD * subpixE
-            doneN = abs(lumaEndN) >= gradientScaled
-            doneP = abs(lumaEndP) >= gradientScaled
-            for s in range(1, steps.size):
-                if doneN and doneP:
-                    break
-                if not doneN:
-                    nx -= ox * steps[s]
-                    ny -= oy * steps[s]
-                    lumaEndN = _bil(luma, nx, ny, 0) - half
-                    doneN = abs(lumaEndN) >= gradientScaled
-                if not doneP:
-                    qx += ox * steps[s]
-                    qy += oy * steps[s]
-                    lumaEndP = _bil(luma, qx, qy, 0) - half
-                    doneP = abs(lumaEndP) >= gradientScaled
-            if horzSpan:
-                dstN = px - nx
-                dstP = qx - px
-            else:
-                dstN = py - ny
-                dstP = qy - py
-            goodSpanN = (lumaEndN < 0.0) != lumaMLTZero
-            goodSpanP = (lumaEndP < 0.0) != lumaMLTZero
-            spanLength = dstP + dstN
-            directionN = dstN < dstP
-            dst = min(dstN, dstP)
-            goodSpan = goodSpanN if directionN else goodSpanP
-            subpixG = subpixF * subpixF
-            pixelOffset = -dst / spanLength + 0.5
-            subpixH = subpixG * subpix
-            pixelOffsetGood = pixelOffset if goodSpan else 0.0
-            off = max(pixelOffsetGood, subpixH)
-            if horzSpan:
-                py += off * lengthSign
-            else:
-                px += off * lengthSign
-            for ch in range(3):
-                out[y - row0, x, ch] = _bil(rgb, px, py, ch)
+        for x in range(img.shape[1]):
+            out[y - row0, x, 0], out[y - row0, x, 1], out[y - row0, x, 2] = fxaa_pixel(
+                img, steps, subpix, edge_threshold, edge_threshold_min, x, y)
 
 
 def fxaa_luma(rgb: np.ndarray, exposure: float = 1.0) -> np.ndarray:
@@ -174,8 +187,11 @@ def fxaa(rgb: np.ndarray, exposure: float = 1.0, *, subpix: float = 0.75, edge_t
     """FXAA 3.11 quality preset 12 of an (h, w, 3) float32 image; ``rows`` limits the output rows."""
     rgb = np.ascontiguousarray(rgb, dtype=np.float32)
     r0, r1 = rows if rows is not None else (0, rgb.shape[0])
+    img = np.empty((*rgb.shape[:2], 4), dtype=np.float32)
+    img[..., :3] = rgb
+    img[..., LUMA_CHANNEL:] = fxaa_luma(rgb, exposure)
     out = np.empty((r1 - r0, rgb.shape[1], 3), dtype=np.float32)
-    _fxaa(rgb, fxaa_luma(rgb, exposure), FXAA_STEPS_12, subpix, edge_threshold, edge_threshold_min, r0, r1, out)
+    _fxaa(img, FXAA_STEPS_12, subpix, edge_threshold, edge_threshold_min, r0, r1, out)
     return out
 
 

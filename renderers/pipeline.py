@@ -28,7 +28,7 @@ import numpy as np
 
 from data_schema.errors import UserError
 
-from . import _lp
+from . import _lp, _warp
 from .antialias import FOVEAL_RADII, foveal_gaussian, lp_filter
 from .projection import camera_rays, plane_to_screen, tan_half_fov
 from .scene import Camera
@@ -382,7 +382,7 @@ def reproject(tracer: Tracer, layout: LPLayout, lp_left, jj, ii, xs, ys, prim, t
         z_all[front] = depth
         grid = np.full((layout.h, layout.w), -1, dtype=np.int64)
         grid[jj, ii] = np.arange(len(jj))
-        _lp.grid_warp(grid, u_all, phi_all, z_all, np.ascontiguousarray(lp_left[jj, ii], dtype=np.float64),
+        _warp.grid_warp(grid, u_all, phi_all, z_all, np.ascontiguousarray(lp_left[jj, ii], dtype=np.float64),
                       layout.L, layout.n, layout.w_eff, layout.w, zbuf, flat, covered, GRID_WARP_MAX_DEPTH_RATIO,
                       GRID_WARP_MAX_EXTENT)
     need = np.zeros(layout.h * layout.w, dtype=np.bool_)

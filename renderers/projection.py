@@ -7,9 +7,11 @@ A camera (:class:`~renderers.scene.Camera`) with vertical field of view ``fov_y`
 
 through the screen position ``(x, y)`` (pixels, y down) of a ``W x H`` image; the c_r of seed 001 Eq 3 is
 ``2 t / H``. The CPU tracer, the pipelines (reprojection), the lightcuts renderers (velocity buffer, FPSM) and the
-GPU backend (the uniforms of ``gpu/shaders/camera.glsl``, which evaluates the same expressions in float64 in the
-same order) all take it from here. The expressions keep their order of operations: the backends' rays must agree
-bit for bit.
+GPU backend all take it from here. :func:`plane_offsets` and :func:`ray_direction` (the ray of a screen position)
+and :func:`plane_to_screen` are written for scalars as well as arrays, so that ``renderers/gpu/codegen.py``
+translates them for the GPU (``projection_gen.glsl``: the camera rays of ``camera.glsl`` in float64, the
+reprojection's screen positions in float32). The expressions keep their order of operations: the backends' rays
+must agree bit for bit.
 """
 
 from __future__ import annotations
@@ -18,7 +20,11 @@ import math
 
 import numpy as np
 
-__all__ = ["camera_rays", "plane_to_screen", "screen_to_plane", "tan_half_fov", "view_projection"]
+__all__ = ["camera_rays", "plane_offsets", "plane_to_screen", "ray_direction", "screen_to_plane", "tan_half_fov",
+           "view_projection"]
+#: The functions translated into GLSL (renderers/gpu/codegen.py projection_glsl), by precision.
+GLSL_DOUBLE_ROOTS = ("plane_offsets", "ray_direction")
+GLSL_FLOAT_ROOTS = ("plane_to_screen",)
 
 
 def tan_half_fov(camera) -> float:
@@ -29,10 +35,23 @@ def tan_half_fov(camera) -> float:
 
 def screen_to_plane(x, y, width: int, height: int, t: float) -> tuple[np.ndarray, np.ndarray]:
     """The image-plane offsets ``(sx, sy)`` (along ``r`` and ``u``, at distance 1) of screen positions ``(x, y)``:
-    ``sx = (2x/H - W/H) t``, ``sy = (1 - 2y/H) t``."""
-    sx = (2.0 * np.asarray(x, dtype=np.float64) / height - width / height) * t
-    sy = (1.0 - 2.0 * np.asarray(y, dtype=np.float64) / height) * t
-    return sx, sy
+    ``sx = (2x/H - W/H) t``, ``sy = (1 - 2y/H) t``, in float64."""
+    return plane_offsets(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64), width, height, t)
+
+
+def plane_offsets(x, y, width, height, t):
+    """:func:`screen_to_plane` of float64 scalars or arrays ``x``, ``y``."""
+    return (2.0 * x / height - width / height) * t, (1.0 - 2.0 * y / height) * t
+
+
+def ray_direction(fx, fy, fz, rx, ry, rz, ux, uy, uz, sx, sy):
+    """The unit direction of ``d = f + sx r + sy u`` (camera basis ``f, r, u``), scalars or arrays ``sx, sy``:
+    ``d / sqrt((dx^2 + dy^2) + dz^2)``, the rounding of ``np.linalg.norm``."""
+    dx = fx + sx * rx + sy * ux
+    dy = fy + sx * ry + sy * uy
+    dz = fz + sx * rz + sy * uz
+    norm = np.sqrt(dx * dx + dy * dy + dz * dz)
+    return dx / norm, dy / norm, dz / norm
 
 
 def plane_to_screen(sx, sy, width: int, height: int, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -49,9 +68,7 @@ def camera_rays(camera, width: int, height: int, x, y) -> np.ndarray:
     """
     f, r, u = camera.basis()
     sx, sy = screen_to_plane(x, y, width, height, tan_half_fov(camera))
-    d = f[None, :] + sx.reshape(-1, 1) * r[None, :] + sy.reshape(-1, 1) * u[None, :]
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    return d
+    return np.stack(ray_direction(*f, *r, *u, sx.reshape(-1), sy.reshape(-1)), axis=1)
 
 
 def view_projection(camera, width: int, height: int) -> np.ndarray:

@@ -191,7 +191,9 @@ def _copy_of_shade(tmp_path, name: str, edits: list[tuple[str, str]]):
     ("    return LUMA_R * r + LUMA_G * g + LUMA_B * b", "    return [r, g, b][0]", "luminance: subscript of List"),
     ("    return LUMA_R * r + LUMA_G * g + LUMA_B * b", "    return r, g, b, r, g", "luminance: tuple of 5 values"),
     ("    cos_t = nx * wx", "    cos_t = np.dot(nx, wx)\n    cos_t = nx * wx", "irradiance_factor: call of "),
-], ids=["for-over-tuple", "int64-product", "list", "5-tuple", "numpy-call"])
+    ("    cos_t = nx * wx", "    half = nx\n    cos_t = half * wx",
+     "irradiance_factor: name 'half' is reserved in GLSL"),
+], ids=["for-over-tuple", "int64-product", "list", "5-tuple", "numpy-call", "glsl-keyword"])
 def test_generator_names_what_it_cannot_translate(tmp_path, old, new, message):
     mod = _copy_of_shade(tmp_path, "_shade_bad", [(old, new)])
     try:
@@ -199,6 +201,27 @@ def test_generator_names_what_it_cannot_translate(tmp_path, old, new, message):
             codegen.shade_glsl(mod)
     finally:
         sys.modules.pop("renderers._shade_bad", None)
+
+
+def test_generator_names_a_missing_binding_and_a_value_of_nothing():
+    """An array's shape without a binding for it, and the value of an external (the GPU's own fragment), which
+    returns nothing: both named, not translated into GLSL that fails to compile."""
+    import inspect
+
+    from renderers import _warp, antialias
+
+    tr = codegen.Translator(antialias, "aa_", bindings={"img": "img({0}, {1}, {2})", "steps": "S[{0}]",
+                                                        "steps.size": "5"})
+    names = tr.closure(antialias.GLSL_DOUBLE_ROOTS)
+    tr.infer(names, {"fxaa_pixel": {"x": "int", "y": "int"}})
+    with pytest.raises(NotImplementedError, match=re.escape("img.shape of an array without a 'img.shape' binding")):
+        tr.emit(names)
+    source = inspect.getsource(_warp).replace("            fragment((j % n[c])", "            zz = fragment((j % n[c])")
+    tr = codegen.Translator(_warp, "rep_", source=source, bindings={k: "" for k in ("u", "phi", "z", "L", "n", "col",
+                                                                                     "zbuf", "out", "covered")})
+    tr.externals = {"fragment": "rep_fragment"}
+    with pytest.raises(NotImplementedError, match="raster_triangle: zz takes the value of a call that returns nothing"):
+        tr.infer(tr.closure(_warp.GLSL_FLOAT_ROOTS), {"warp_quad": {}})
 
 
 def test_a_kernel_change_moves_both_backends_together(tmp_path, monkeypatch):
@@ -312,3 +335,56 @@ void main() {
     np.testing.assert_allclose(got[:, :4], want[:, :4], rtol=2e-4, atol=1e-6)
     np.testing.assert_array_equal(got[:, 4], want[:, 4])
     np.testing.assert_allclose(got[:, 5:], want[:, 5:], rtol=0, atol=1e-6)
+def test_generated_fxaa_is_the_cpus_to_the_bit(monkeypatch):
+    """fxaa_gen.glsl is renderers/antialias.py fxaa_pixel in numba's types (float32 sums of the image's values,
+    float64 elsewhere): on the GPU's own LP buffer the GPU's FXAA equals the CPU's bit for bit, edge decisions and
+    all (street_day's daylight edges, where a float32 port differed on 94 LP pixels by up to 0.15)."""
+    from renderers import antialias
+    from renderers.gpu import pipelines, render
+
+    seen = {}
+    finish = pipelines.finish_lp
+
+    def spy(fr, tables, lp, params, *args):
+        img = finish(fr, tables, lp, params, *args)
+
+        def read(tex):
+            return np.frombuffer(tex.read(), np.float32).reshape(tables.h, tables.w, -1)[..., :3]
+        seen.update(lp=read(lp), out=read(fr.pool.image("lp2", (tables.w, tables.h))), n=tables.layout.n.copy())
+        return img
+
+    monkeypatch.setattr(pipelines, "finish_lp", spy)
+    render("street_day", "vafr", {"preset": "auto"}, 96, 54)
+    cpu = antialias.lp_filter(seen["lp"].copy(), seen["n"], "fxaa")
+    filtered = np.arange(cpu.shape[0])[:, None] < seen["n"][None, :]   # the rows the inverse mapping reads
+    assert filtered.sum() > 10000 and (cpu != seen["lp"]).any(axis=-1)[filtered].sum() > 1000
+    assert np.array_equal(cpu[filtered], seen["out"][filtered])
+
+
+def test_generated_camera_rays_are_the_cpus_to_the_bit():
+    """camera.glsl's rays are renderers/projection.py plane_offsets and ray_direction, generated in double
+    precision (precise): the CPU's float64 rays rounded to float32, bit for bit, at pixel centres and at
+    arbitrary positions of a large and a small display."""
+    from renderers.catalog import resolve
+    from renderers.gpu.context import get_device
+    from renderers.gpu.upload import camera_uniforms
+    from renderers.projection import camera_rays
+
+    dev = get_device()
+    rng = np.random.default_rng(27)
+    src = _HEAD.replace('"shade_gen.glsl"', '"camera.glsl"') + """void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i < uint(u_n)) {
+        vec3 d = camera_ray_d(dvec2(v[2u * i], v[2u * i + 1u]));
+        r[3u * i] = double(d.x); r[3u * i + 1u] = double(d.y); r[3u * i + 2u] = double(d.z);
+    }
+}"""
+    for scene, (w, h) in (("temple", (2468, 2740)), ("street_day", (96, 54))):
+        cam = resolve(scene).camera
+        xy = np.concatenate([rng.uniform(0, 1, (4000, 2)) * (w, h), rng.integers(0, (w, h), (4000, 2)) + 0.5])
+        prog = dev.program("codegen_test.comp", {}, source=src)   # the cached program that _run dispatches
+        for k, v in camera_uniforms(cam, w, h).items():
+            prog[k] = v
+        got = _run(dev, src, xy, 3)
+        want = camera_rays(cam, w, h, xy[:, 0], xy[:, 1]).astype(np.float32)
+        assert np.array_equal(got.astype(np.float32), want)

@@ -17,6 +17,15 @@
 * :func:`fpsm_glsl` translates the per-pixel kernels of :mod:`renderers.lightcuts.fpsm` (seed 003 Eq 1-8: acuity,
   Sobel gradient, binomial blur, B-spline resampling, contrast, rho, map in float32; the budget in double), prefixed
   ``fpsm_``; the images they read are bound to the FPSM shader's buffers.
+* :func:`fxaa_glsl` translates FXAA's per-pixel kernel :func:`renderers.antialias.fxaa_pixel` (and its bilinear
+  and clamped fetches), prefixed ``aa_``, in numba's own types: float32 (``f32``) where the CPU adds values of its
+  float32 image, float64 elsewhere, all ``precise``, so that both backends take the same edge decisions bit for
+  bit. The image is the shader's accessor ``aa_img(y, x, ch)`` (``Translator.bindings``, with ``img.shape``).
+* :func:`warp_glsl` translates the forward grid warping of :mod:`renderers._warp` (a quad's depth-discontinuity
+  test and the rasteriser of its two warped triangles), prefixed ``rep_``; the fragment is the shader's own
+  (``Translator.externals``: a module function called by its GLSL name, not translated).
+* :func:`projection_glsl` translates the pinhole camera of :mod:`renderers.projection` (a screen position's
+  image-plane offsets and ray in precise double, the inverse in float), prefixed ``proj_``.
 * :func:`constants_glsl` emits the shared constant table :mod:`renderers.constants`; :func:`int64_glsl` the
   64-bit integer helpers.
 
@@ -24,9 +33,15 @@ Types are inferred to a fixed point: a name is ``int`` when every value given to
 ``i64``/``u64`` (numba's ``np.int64``/``np.uint64``, on 32-bit halves) when it holds those, ``vec2``-``vec4`` for
 tuples, otherwise ``float`` (``double`` in a double-precision closure). The translator knows the small Python
 subset these kernels use (assignments, tuple unpacking, ``if``/``elif``/``else``, ``for ... in range``,
-``while``, ``return``, arithmetic, comparisons including chained ones, ``math`` functions, ``math.pi`` and
-``math.inf``) and raises ``NotImplementedError`` naming the function and the construct otherwise, so a kernel
-change that it cannot follow fails loudly in the tests rather than drifting apart.
+``while``, ``break``, ``continue``, ``return`` (also without a value: a ``void`` function), a call as a
+statement, arithmetic, comparisons including chained ones, ``math`` functions and ``math.pi``/``math.inf``,
+``np.clip``/``np.sqrt`` (numpy on the CPU's arrays, GLSL on scalars), ``a.shape[k]`` and
+``a.size`` of a bound array ``a`` through bindings named ``"a.shape"``, ``"a.size"``; ``f32``: numba's float32, the
+element type of a bound float32 array (``binding_types``), kept by ``+ - * /`` between two ``f32`` values,
+``min``/``max``/``abs`` and conditionals, float64 with anything else) and raises ``NotImplementedError`` naming the
+function and the construct otherwise (also for a name GLSL reserves, such as ``half``), so a kernel change that it
+cannot follow fails loudly in the tests rather than drifting apart. In a function of ``Translator.precise`` every
+float local, tuple temporary and returned value is ``precise`` (no fused multiply-add: the CPU's rounding).
 """
 
 from __future__ import annotations
@@ -109,6 +124,9 @@ class Translator:
         self.binding_types: dict[str, str] = {}
         #: functions whose float locals are ``precise`` (no fused multiply-add: the rounding of the CPU's sums)
         self.precise: set[str] = set()
+        #: functions of the module that the shader writes itself (Python name -> GLSL name): called, not translated
+        #: (the GPU's fragment of the warped-grid rasteriser is a phase of atomics where the CPU depth-tests)
+        self.externals: dict[str, str] = {}
         self.prefix = prefix
         tree = ast.parse(source if source is not None else inspect.getsource(module))
         self.fns = {n.name: _Fn(n) for n in tree.body if isinstance(n, ast.FunctionDef)}
@@ -133,7 +151,8 @@ class Translator:
             seen.add(name)
             fn = self.fns[name]
             for call in ast.walk(fn.node):
-                if isinstance(call, ast.Call) and isinstance(call.func, ast.Name) and call.func.id in self.fns:
+                if isinstance(call, ast.Call) and isinstance(call.func, ast.Name) and call.func.id in self.fns \
+                        and call.func.id not in self.externals:
                     fn.calls.add(call.func.id)
                     visit(call.func.id)
             order.append(name)   # callees first: GLSL needs declarations before use
@@ -176,7 +195,8 @@ class Translator:
                     if fn.var_types.get(var) != t:
                         fn.var_types[var] = t
                         changed = True
-                rets = {self._ret_type(fn, r.value) for r in ast.walk(fn.node) if isinstance(r, ast.Return)}
+                rets = {self._ret_type(fn, r.value) for r in ast.walk(fn.node) if isinstance(r, ast.Return)} \
+                    or {"void"}
                 ret = _join(fn.name, "return value", rets)
                 if fn.ret != ret:
                     fn.ret = ret
@@ -208,11 +228,15 @@ class Translator:
                     if isinstance(t, ast.Name):
                         assigned.setdefault(t.id, set()).add("float")
         elif isinstance(target, ast.Name):
+            if self.etype(fn, value) == "void":
+                raise NotImplementedError(f"{fn.name}: {target.id} takes the value of a call that returns nothing")
             assigned.setdefault(target.id, set()).add(self.etype(fn, value))
         elif not (isinstance(target, ast.Subscript) and self._is_array(target.value)):
             raise NotImplementedError(f"{fn.name}: assignment to {ast.dump(target)}")
 
     def _ret_type(self, fn, value):
+        if value is None:
+            return "void"
         if isinstance(value, ast.Tuple):
             if not 2 <= len(value.elts) <= 4:
                 raise NotImplementedError(f"{fn.name}: tuple of {len(value.elts)} values (GLSL vectors hold 2-4)")
@@ -221,6 +245,14 @@ class Translator:
 
     def _is_array(self, node) -> bool:
         return isinstance(node, ast.Name) and node.id in self.bindings
+
+    def _shape_key(self, e) -> str | None:
+        """``"img.shape"`` for ``img.shape[k]``, ``"steps.size"`` for ``steps.size``, of a bound array; else None."""
+        if isinstance(e, ast.Subscript) and isinstance(e.value, ast.Attribute) and e.value.attr == "shape":
+            e = e.value
+        elif not (isinstance(e, ast.Attribute) and e.attr == "size"):
+            return None
+        return f"{e.value.id}.{e.attr}" if self._is_array(e.value) else None
 
     def vtype(self, fn, name: str) -> str:
         if name in fn.param_types:
@@ -240,23 +272,27 @@ class Translator:
         if isinstance(e, ast.Name):
             return self.vtype(fn, e.id)
         if isinstance(e, ast.BinOp):
-            if isinstance(e.op, (ast.Div, ast.Pow)):
-                return "float"
             a, b = self.etype(fn, e.left), self.etype(fn, e.right)
+            if isinstance(e.op, (ast.Div, ast.Pow)):
+                return "f32" if a == b == "f32" and isinstance(e.op, ast.Div) else "float"
             if "i64" in (a, b):
                 return "int" if isinstance(e.op, ast.BitAnd) else "i64"
             if "u64" in (a, b):
                 return "u64"
+            if a == b == "f32" and isinstance(e.op, (ast.Add, ast.Sub, ast.Mult)):
+                return "f32"   # numba: float32 op float32 stays float32; with a float64 or an int it is float64
             return "int" if a == b == "int" else "float"
         if isinstance(e, (ast.Compare, ast.BoolOp)) or (isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.Not)):
             return "bool"
         if isinstance(e, ast.Subscript) and self._is_array(e.value):
             return self.binding_types.get(e.value.id, "float")
+        if self._shape_key(e) is not None:
+            return "int"
         if isinstance(e, ast.UnaryOp):
             return self.etype(fn, e.operand)
         if isinstance(e, ast.IfExp):
             a, b = self.etype(fn, e.body), self.etype(fn, e.orelse)
-            return "int" if a == b == "int" else "float"
+            return a if a == b and a in ("int", "bool", "f32") else "float"
         if isinstance(e, ast.Call):
             f = e.func
             if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
@@ -267,7 +303,9 @@ class Translator:
                     return "int"
                 if f.id in ("min", "max", "abs"):
                     ts = {self.etype(fn, a) for a in e.args}
-                    return "int" if ts == {"int"} else "float"
+                    return ts.pop() if ts in ({"int"}, {"f32"}) else "float"
+                if f.id in self.externals:
+                    return "void"
                 if f.id in self.fns:
                     return self.fns[f.id].ret
             return "float"
@@ -294,13 +332,16 @@ class Translator:
         return "\n".join(out) + "\n"
 
     def emit_fn(self, fn: _Fn) -> str:
+        for name in [*(p for p in fn.params if p not in self.bindings), *fn.var_types]:
+            if name in _GLSL_RESERVED:
+                raise NotImplementedError(f"{fn.name}: name '{name}' is reserved in GLSL")
         params = ", ".join(f"{self.tname(fn, fn.param_types[p])} {p}" for p in fn.params if p not in self.bindings)
         lines = [f"{self.tname(fn, fn.ret)} {self.glsl_name(fn.name)}({params}) {{"]
         loop_vars = {n.target.id for n in ast.walk(fn.node) if isinstance(n, ast.For)}
         precise = "precise " if fn.name in self.precise else ""
         for var, t in sorted(fn.var_types.items()):
             if var not in loop_vars and var != "_":
-                lines.append(f"    {precise if t == 'float' else ''}{self.tname(fn, t)} {var};")
+                lines.append(f"    {precise if t in ('float', 'f32') else ''}{self.tname(fn, t)} {var};")
         self._tmp = 0
         body = fn.node.body
         if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
@@ -321,7 +362,8 @@ class Translator:
                         self._tmp += 1
                         tmp = f"_v{self._tmp}"
                         tmps.append(tmp)
-                        lines.append(f"{pad}{self.tname(fn, self.etype(fn, v))} {tmp} = {self.expr(fn, v)};")
+                        t = self.etype(fn, v)
+                        lines.append(f"{pad}{self._precise(fn, t)}{self.tname(fn, t)} {tmp} = {self.expr(fn, v)};")
                     for t, tmp in zip(target.elts, tmps):
                         lines.append(f"{pad}{t.id} = {tmp};")
                     return lines
@@ -345,10 +387,17 @@ class Translator:
             op = _BINOPS[type(st.op)]
             return [f"{pad}{st.target.id} {op}= {self.expr(fn, st.value)};"]
         if isinstance(st, ast.Return):
+            if st.value is None:
+                return [f"{pad}return;"]
             if isinstance(st.value, ast.Tuple):
                 vals = ", ".join(self.cast(fn, v, "float") for v in st.value.elts)
-                return [f"{pad}return {self.tname(fn, self._ret_type(fn, st.value))}({vals});"]
-            return [f"{pad}return {self.cast(fn, st.value, fn.ret)};"]
+                value, t = f"{self.tname(fn, self._ret_type(fn, st.value))}({vals})", self._ret_type(fn, st.value)
+            else:
+                value, t = self.cast(fn, st.value, fn.ret), fn.ret
+            if not self._precise(fn, t):
+                return [f"{pad}return {value};"]
+            self._tmp += 1   # through a precise temporary: no fused multiply-add in the returned expression either
+            return [f"{pad}precise {self.tname(fn, t)} _r{self._tmp} = {value};", f"{pad}return _r{self._tmp};"]
         if isinstance(st, ast.If):
             lines = [f"{pad}if ({self.cond(fn, st.test)}) {{"]
             for s in st.body:
@@ -377,8 +426,10 @@ class Translator:
                 lines += self.stmt(fn, s, depth + 1)
             lines.append(f"{pad}}}")
             return lines
-        if isinstance(st, ast.Break):
-            return [f"{pad}break;"]
+        if isinstance(st, (ast.Break, ast.Continue)):
+            return [f"{pad}{'break' if isinstance(st, ast.Break) else 'continue'};"]
+        if isinstance(st, ast.Expr) and isinstance(st.value, ast.Call):   # a call for its effect (an external)
+            return [f"{pad}{self.expr(fn, st.value)};"]
         if isinstance(st, ast.Expr) and isinstance(st.value, ast.Constant):
             return []
         raise NotImplementedError(f"{fn.name}: statement {type(st).__name__}")
@@ -391,8 +442,15 @@ class Translator:
         (GLSL reserves names containing ``__``)."""
         return self.prefix + name.lstrip("_")
 
+    def _precise(self, fn, t: str) -> str:
+        """``precise `` for a float value of a function in ``self.precise``."""
+        return "precise " if fn.name in self.precise and (t in ("float", "f32") or t.startswith("vec")) else ""
+
     def tname(self, fn, t: str) -> str:
-        """The GLSL type of an inferred type in ``fn`` (``float`` is ``fn``'s precision)."""
+        """The GLSL type of an inferred type in ``fn`` (``float`` is ``fn``'s precision; ``f32`` is numba's float32
+        in a double-precision function: a value read from a float32 array, and sums of such values)."""
+        if t == "f32":
+            return "float"
         if t in ("i64", "u64"):
             return "uvec2"
         if fn.real == "double" and (t == "float" or t.startswith("vec")):
@@ -402,7 +460,7 @@ class Translator:
     def cast(self, fn, e, want: str) -> str:
         text = self.expr(fn, e)
         have = self.etype(fn, e)
-        if want == "float" and have == "int":
+        if want == "float" and have in ("int", "f32"):
             return f"{fn.real}({text})"
         if want == "i64" and have == "int":
             return f"i64_from({text})"
@@ -444,6 +502,11 @@ class Translator:
                     return self.lit(fn, self.float32_values[e.id])
                 return self.const_name(e.id)
             return e.id
+        key = self._shape_key(e)
+        if key is not None:   # img.shape[k], steps.size of a bound array: its own binding ("img.shape": "..{0}..")
+            if key not in self.bindings:
+                raise NotImplementedError(f"{fn.name}: {key} of an array without a '{key}' binding")
+            return self.bindings[key].format(*([self.expr(fn, e.slice)] if isinstance(e, ast.Subscript) else []))
         if isinstance(e, ast.Attribute):
             if isinstance(e.value, ast.Name) and e.value.id == "math" and e.attr in ("pi", "inf"):
                 return self.lit(fn, getattr(math, e.attr))
@@ -466,13 +529,15 @@ class Translator:
             if isinstance(e.op, ast.Pow):
                 return f"pow({self.cast(fn, e.left, 'float')}, {self.cast(fn, e.right, 'float')})"
             if isinstance(e.op, ast.Div):
+                if self.etype(fn, e) == "f32":
+                    return f"({a} / {b})"
                 return f"({self.cast(fn, e.left, 'float')} / {self.cast(fn, e.right, 'float')})"
             if type(e.op) not in _BINOPS:
                 raise NotImplementedError(f"{fn.name}: operator {type(e.op).__name__}")
             ta, tb = self.etype(fn, e.left), self.etype(fn, e.right)
             if ta != tb:  # GLSL converts implicitly, but say it (and keep int/float mixing visible)
-                a = f"{fn.real}({a})" if ta == "int" else a
-                b = f"{fn.real}({b})" if tb == "int" else b
+                a = f"{fn.real}({a})" if ta in ("int", "f32") else a
+                b = f"{fn.real}({b})" if tb in ("int", "f32") else b
             return f"({a} {_BINOPS[type(e.op)]} {b})"
         if isinstance(e, ast.UnaryOp):
             if isinstance(e.op, ast.USub):
@@ -560,6 +625,9 @@ class Translator:
                 and f.attr == "clip" and len(e.args) == 3:   # numpy on arrays, GLSL clamp on scalars
             a, lo, hi = (self.cast(fn, x, "float") for x in e.args)
             return f"clamp({a}, {lo}, {hi})"
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
+                and f.attr == "sqrt" and len(e.args) == 1:   # likewise (renderers/projection.py on arrays)
+            return f"sqrt({self.cast(fn, e.args[0], 'float')})"
         if isinstance(f, ast.Name):
             if f.id == "int":
                 return f"int({self.expr(fn, e.args[0])})"
@@ -569,6 +637,9 @@ class Translator:
                 return f"{f.id}({a}, {b})"
             if f.id == "abs":
                 return f"abs({self.expr(fn, e.args[0])})"
+            if f.id in self.externals:
+                args = [self.expr(fn, a) for a in e.args if not self._is_array(a)]
+                return f"{self.externals[f.id]}({', '.join(args)})"
             if f.id in self.fns:
                 callee = self.fns[f.id]
                 if callee.real != fn.real:
@@ -586,7 +657,7 @@ def _join_types(conflicts: list, fn: str, what: str, types: set[str]) -> str:
     otherwise ``float`` for now, the conflict noted in ``conflicts`` (an error if it remains at the fixed point)."""
     if len(types) == 1:
         return next(iter(types))
-    if types == {"int", "float"}:
+    if types and types <= {"int", "float", "f32"}:
         return "float"
     conflicts.append(f"{fn}: {what} takes values of types {sorted(types)}")
     other = sorted(types - {"int", "float", "bool"})   # e.g. h = h ^ (h >> 13): h's own float guess yields
@@ -629,6 +700,14 @@ def _const_int(e) -> int | None:
         return _const_int(e.args[0])
     return None
 
+
+#: GLSL keywords and reserved words that are valid Python names (GLSL 4.30 §3.6); a kernel must not use them.
+_GLSL_RESERVED = frozenset(
+    "attribute const uniform varying buffer shared coherent volatile restrict readonly writeonly layout centroid "
+    "flat smooth noperspective patch sample subroutine in out inout invariant precise discard lowp mediump highp "
+    "precision common partition active asm class union enum typedef template this resource goto inline noinline "
+    "public static extern external interface long short half fixed unsigned superp input output filter sizeof cast "
+    "namespace using bool int uint float double true false switch case default do struct void".split())
 
 _BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Mod: "%", ast.BitAnd: "&", ast.BitOr: "|",
            ast.BitXor: "^"}
@@ -784,6 +863,70 @@ def fpsm_glsl() -> str:
                                 for r in (*fpsm.GLSL_DOUBLE_ROOTS, *fpsm.GLSL_FLOAT_ROOTS)})
     return "// Generated from renderers/lightcuts/fpsm.py by renderers/gpu/codegen.py: do not edit.\n" \
         '#include "constants_gen.glsl"\n' + tr.emit(doubles + floats, helpers=False)
+
+
+@functools.lru_cache(maxsize=None)
+def fxaa_glsl() -> str:
+    """GLSL of FXAA's per-pixel kernel :func:`renderers.antialias.fxaa_pixel` (FXAA 3.11, quality preset 12),
+    ``aa_fxaa_pixel(subpix, edge_threshold, edge_threshold_min, x, y)`` returning the pixel's colour, and its
+    callees (``aa_bil``, ``aa_lu``). The CPU's image (colour and luma channels) is the shader's accessor
+    ``aa_img(y, x, ch)`` and ``aa_dim(k)`` (fxaa.comp: the wrapped, padded LP buffer); the search steps
+    ``FXAA_STEPS_12`` a constant array ``AA_STEPS``."""
+    from .. import antialias
+
+    steps = antialias.FXAA_STEPS_12
+    tr = Translator(antialias, "aa_", bindings={"img": "aa_img({0}, {1}, {2})", "img.shape": "aa_dim({0})",
+                                                "steps": "AA_STEPS[{0}]", "steps.size": str(len(steps))})
+    tr.binding_types["img"] = "f32"
+    names = tr.closure(antialias.GLSL_DOUBLE_ROOTS)
+    for n in names:   # numba's types: float32 where the CPU adds image values, float64 elsewhere; no fused mul-add
+        tr.fns[n].real = "double"
+    tr.precise = set(names)
+    tr.infer(names, {"fxaa_pixel": {"x": "int", "y": "int"}})
+    table = ", ".join(_flt(v) for v in steps)
+    return ("// Generated from renderers/antialias.py by renderers/gpu/codegen.py: do not edit.\n"
+            f"const float AA_STEPS[{len(steps)}] = float[{len(steps)}]({table});\n"
+            + tr.emit(names, helpers=False))
+
+
+@functools.lru_cache(maxsize=None)
+def warp_glsl() -> str:
+    """GLSL of the forward grid warping of :mod:`renderers._warp` (float32, prefixed ``rep_``): a quad of left
+    samples ``rep_warp_quad(a, b, cc, d, w_eff, w, max_ratio, max_extent)`` (the depth-discontinuity test, the
+    rasteriser of its two warped triangles), whose fragments go to the shader's own
+    ``rep_fragment(idx, z, b0, b1, b2, ka, kb, kc)`` (rep_warp.comp); the LP columns' ``L[c]`` and ``n[c]`` are
+    the shader's column table (lp_cols.glsl)."""
+    from .. import _warp
+
+    # the left samples' warped coordinates and depths are the shader's buffer warp (rep.glsl); the colours and the
+    # depth buffer are the GPU fragment's own business (no binding text: never read by the generated code)
+    tr = Translator(_warp, "rep_", bindings={"u": "warp[{0}].x", "phi": "warp[{0}].y", "z": "warp[{0}].z",
+                                             "L": "cols({0}).w", "n": "int(cols({0}).z)", "col": "", "zbuf": "",
+                                             "out": "", "covered": ""})
+    tr.binding_types["n"] = "int"
+    tr.externals = {"fragment": "rep_fragment"}
+    names = tr.closure(_warp.GLSL_FLOAT_ROOTS)
+    tr.infer(names, {"warp_quad": {k: "int" for k in ("a", "b", "cc", "d", "w_eff", "w")}})
+    return "// Generated from renderers/_warp.py by renderers/gpu/codegen.py: do not edit.\n" \
+        + tr.emit(names, helpers=False)
+
+
+@functools.lru_cache(maxsize=None)
+def projection_glsl() -> str:
+    """GLSL of the pinhole camera's formulas of :mod:`renderers.projection`, prefixed ``proj_``: a screen position's
+    image-plane offsets ``proj_plane_offsets`` and its ray ``proj_ray_direction`` in double precision, ``precise``
+    (camera.glsl: the CPU's float64 rays to the bit), and ``proj_plane_to_screen`` in float (the reprojection)."""
+    from .. import projection
+
+    tr = Translator(projection, "proj_")
+    doubles = tr.closure(projection.GLSL_DOUBLE_ROOTS)
+    floats = [n for n in tr.closure(projection.GLSL_FLOAT_ROOTS) if n not in doubles]
+    for n in doubles:
+        tr.fns[n].real = "double"
+    tr.precise = set(doubles)
+    tr.infer(doubles + floats, {r: {} for r in (*projection.GLSL_DOUBLE_ROOTS, *projection.GLSL_FLOAT_ROOTS)})
+    return "// Generated from renderers/projection.py by renderers/gpu/codegen.py: do not edit.\n" \
+        + tr.emit(doubles + floats, helpers=False)
 
 
 def int64_glsl() -> str:

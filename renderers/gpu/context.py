@@ -316,6 +316,18 @@ def generated_source(fname: str) -> str | None:
         from .codegen import fpsm_glsl
 
         return fpsm_glsl()
+    if fname == "fxaa_gen.glsl":
+        from .codegen import fxaa_glsl
+
+        return fxaa_glsl()
+    if fname == "warp_gen.glsl":
+        from .codegen import warp_glsl
+
+        return warp_glsl()
+    if fname == "projection_gen.glsl":
+        from .codegen import projection_glsl
+
+        return projection_glsl()
     if fname == "int64_gen.glsl":
         from .codegen import int64_glsl
 

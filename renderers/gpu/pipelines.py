@@ -264,10 +264,9 @@ def reproject(fr: Frame, tables: LPTables, left_lp, left, right, width: int, hei
     winner.clear()
     rep = {0: fr.pool.get("warp", 16 * w * h), 1: zbuf, 2: covered, 3: ztri, 14: fr.pool.get("flags", 4 * w * h),
            15: winner, **tables.buffers}
-    f, r, u = right.basis()
     cam = camera_uniforms(right, width, height)
     uni = {**tables.uniforms(gaze), **cam, "u_left_pos": tuple(left.position), "u_right_pos": tuple(right.position),
-           "u_right_f": tuple(f), "u_right_r": tuple(r), "u_right_u": tuple(u), "u_out_w": w,
+           "u_out_w": w,
            "u_max_ratio": cpu.GRID_WARP_MAX_DEPTH_RATIO, "u_max_extent": cpu.GRID_WARP_MAX_EXTENT,
            "u_splat_margin": cpu.GRID_WARP_SPLAT_MARGIN}
     images = {**tables.images, 5: left_lp, 4: right_lp}

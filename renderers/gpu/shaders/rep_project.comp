@@ -1,20 +1,17 @@
 #version 430
 // Project each left sample's hit point (a miss: its direction at infinity) into the right view, map it into
 // the LP buffer (u by the forward mapping, phi the polar angle) and splat its depth into the LP pixel holding
-// it (renderers/pipeline.py LPLayout.lp_coords).
+// it (renderers/pipeline.py LPLayout.lp_coords; camera.glsl is the right camera, the screen position
+// renderers/projection.py plane_to_screen).
 layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "samples.glsl"
 #include "lp_cols.glsl"
 #include "lp_map.glsl"
 #include "rep.glsl"
+#include "camera.glsl"
 uniform vec3 u_left_pos;
 uniform vec3 u_right_pos;
-uniform vec3 u_right_f;
-uniform vec3 u_right_r;
-uniform vec3 u_right_u;
-uniform float u_tan;
-uniform vec2 u_screen;
 
 void main() {
     cnt_begin();
@@ -24,14 +21,12 @@ void main() {
         int idx = floatBitsToInt(samples[i].w);
         bool hit = floatBitsToInt(hits[i].x) >= 0;
         vec3 rel = hit ? u_left_pos + d * hits[i].y - u_right_pos : d;
-        float zf = dot(rel, u_right_f);
+        float zf = dot(rel, vec3(u_cam_f));
         vec4 wv = vec4(0.0, 0.0, REP_INF, intBitsToFloat(-1));
         if (zf > 0.0) {
-            float sx = dot(rel, u_right_r) / zf, sy = dot(rel, u_right_u) / zf;
-            float xr = (sx / u_tan + u_screen.x / u_screen.y) * u_screen.y / 2.0;
-            float yr = (1.0 - sy / u_tan) * u_screen.y / 2.0;
-            float dx = xr - u_gaze.x, dy = yr - u_gaze.y;
-            float u = lp_u(dx, dy), phi = lp_angle(dx, dy);
+            float sx = dot(rel, vec3(u_cam_r)) / zf, sy = dot(rel, vec3(u_cam_u)) / zf;
+            vec2 off = proj_plane_to_screen(sx, sy, u_screen.x, u_screen.y, float(u_tan)) - u_gaze;
+            float u = lp_u(off.x, off.y), phi = lp_angle(off.x, off.y);
             int c = clamp(int(floor(u)), 0, u_w_eff - 1);
             vec4 col = cols(c);
             int r = wrap_row(int(floor(phi * col.y)), max(int(col.z), 1));
