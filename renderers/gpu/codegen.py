@@ -80,6 +80,8 @@ class _Fn:
         self.name = node.name
         self.params = [a.arg for a in node.args.args]
         self.ret = "float"
+        #: the element types (``int`` or ``float``) of a tuple return, for typed unpacking at the call sites
+        self.ret_elts: list[str] | None = None
         self.param_types = {p: "float" for p in self.params}
         self.var_types: dict[str, str] = {}
         self.calls: set[str] = set()
@@ -171,8 +173,9 @@ class Translator:
                         changed = True
                 rets = {self._ret_type(fn, r.value) for r in ast.walk(fn.node) if isinstance(r, ast.Return)}
                 ret = _join(fn.name, "return value", rets)
-                if fn.ret != ret:
-                    fn.ret = ret
+                elts = self._ret_elts(fn)
+                if fn.ret != ret or fn.ret_elts != elts:
+                    fn.ret, fn.ret_elts = ret, elts
                     changed = True
             for name in names:
                 if name in roots:
@@ -196,14 +199,29 @@ class Translator:
             if isinstance(value, ast.Tuple):
                 for t, v in zip(target.elts, value.elts):
                     self._collect_assign(fn, t, v, assigned)
-            else:
-                for t in target.elts:
+            else:   # a call's tuple: its elements' types (ints travel in a float vector, exact below 2^24)
+                elts = self._callee(value).ret_elts if self._callee(value) else None
+                for k, t in enumerate(target.elts):
                     if isinstance(t, ast.Name):
-                        assigned.setdefault(t.id, set()).add("float")
+                        want = elts[k] if elts and len(elts) == len(target.elts) else "float"
+                        assigned.setdefault(t.id, set()).add(want)
         elif isinstance(target, ast.Name):
             assigned.setdefault(target.id, set()).add(self.etype(fn, value))
         elif not (isinstance(target, ast.Subscript) and self._is_array(target.value)):
             raise NotImplementedError(f"{fn.name}: assignment to {ast.dump(target)}")
+
+    def _callee(self, value) -> _Fn | None:
+        """The translated function ``value`` calls, if it is such a call."""
+        if isinstance(value, ast.Call) and isinstance(value.func, ast.Name):
+            return self.fns.get(value.func.id)
+        return None
+
+    def _ret_elts(self, fn) -> list[str] | None:
+        """Element types of ``fn``'s tuple returns (``int`` where every return gives an int there)."""
+        tuples = [r.value.elts for r in ast.walk(fn.node) if isinstance(r, ast.Return) and isinstance(r.value, ast.Tuple)]
+        if not tuples or len({len(t) for t in tuples}) != 1:
+            return None
+        return ["int" if {self.etype(fn, t[k]) for t in tuples} == {"int"} else "float" for k in range(len(tuples[0]))]
 
     def _ret_type(self, fn, value):
         if isinstance(value, ast.Tuple):
@@ -326,7 +344,8 @@ class Translator:
                 lines = [f"{pad}{self.tname(fn, have)} {tmp} = {self.expr(fn, value)};"]
                 for comp, t in zip("xyzw", target.elts):
                     if t.id != "_":
-                        lines.append(f"{pad}{t.id} = {tmp}.{comp};")
+                        v = f"{tmp}.{comp}"
+                        lines.append(f"{pad}{t.id} = {f'int({v})' if self.vtype(fn, t.id) == 'int' else v};")
                 return lines
             if isinstance(target, ast.Subscript):   # an element of a bound array
                 return [f"{pad}{self.expr(fn, target)} = {self.cast(fn, value, self.etype(fn, target))};"]
@@ -399,6 +418,8 @@ class Translator:
             return f"{fn.real}({text})"
         if want == "i64" and have == "int":
             return f"i64_from({text})"
+        if want == "u64" and have == "int":   # a non-negative int (a sample slot) as a uint64 counter
+            return f"uvec2(uint({text}), 0u)"
         if want != have and "i64" in (want, have):
             raise NotImplementedError(f"{fn.name}: {have} used as {want}")
         return text
@@ -526,6 +547,14 @@ class Translator:
             return f"u64_shr({a}, {shift})"
         raise NotImplementedError(f"{fn.name}: uint64 operation {ta} {type(e.op).__name__} {tb}")
 
+    def _arg(self, fn, callee, a, p: str) -> str:
+        """Argument ``a`` of ``fn``'s call of ``callee`` for parameter ``p`` (an int given to a float parameter of a
+        double-precision kernel becomes a double)."""
+        want = callee.param_types[p]
+        if callee.real != fn.real and want == "float" and self.etype(fn, a) == "int":
+            return f"{callee.real}({self.expr(fn, a)})"
+        return self.cast(fn, a, want)
+
     def call(self, fn, e) -> str:
         f = e.func
         if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
@@ -564,12 +593,15 @@ class Translator:
                 return f"abs({self.expr(fn, e.args[0])})"
             if f.id in self.fns:
                 callee = self.fns[f.id]
-                if callee.real != fn.real:
+                narrow = callee.real == "double" and fn.real == "float"   # a double kernel's result as a float
+                if callee.real != fn.real and not (narrow and callee.ret in ("float", "int")):
                     raise NotImplementedError(f"{fn.name}: call of {f.id} across precisions ({fn.real} -> "
                                               f"{callee.real})")
                 params = [p for p in callee.params if p not in self.bindings]
                 args = [a for a in e.args if not self._is_array(a)]
-                text = ", ".join(self.cast(fn, a, callee.param_types[p]) for p, a in zip(params, args))
+                text = ", ".join(self._arg(fn, callee, a, p) for p, a in zip(params, args))
+                if narrow and callee.ret == "float":
+                    return f"float({self.glsl_name(f.id)}({text}))"
                 return f"{self.glsl_name(f.id)}({text})"
         raise NotImplementedError(f"{fn.name}: call of {ast.dump(f)}")
 
@@ -624,7 +656,7 @@ def _const_int(e) -> int | None:
 
 
 _BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Mod: "%", ast.BitAnd: "&", ast.BitOr: "|",
-           ast.BitXor: "^"}
+           ast.BitXor: "^", ast.LShift: "<<", ast.RShift: ">>"}
 _CMPOPS = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!="}
 
 

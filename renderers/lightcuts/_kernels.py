@@ -30,7 +30,7 @@ ONE_MINUS = 1.0 - 2.0 ** -53
 #: The kernels renderers/gpu/codegen.py translates into GLSL (``lightcuts_gen.glsl``), in double precision ...
 GLSL_DOUBLE_ROOTS = ("uniform",)
 #: ... and in float32 (the tree's arrays become the shader's tree image, codegen.lightcuts_glsl).
-GLSL_FLOAT_ROOTS = ("refine_cut", "prob_left", "descend", "sample_weight")
+GLSL_FLOAT_ROOTS = ("refine_cut", "prob_left", "descend", "sample_weight", "node_live", "sample_pixel")
 
 
 @njit(cache=True)
@@ -46,12 +46,25 @@ def uniform(seed, pixel, slot):
 
 
 @njit(cache=True)
-def frame(n0, n1, n2):
-    """Orthonormal tangents (T, B) of a unit normal (Duff et al. 2017)."""
+def tangent(n0, n1, n2):
+    """Tangent T of a unit normal's orthonormal frame (T, B, N) (Duff et al. 2017)."""
     sign = 1.0 if n2 >= 0.0 else -1.0
     a = -1.0 / (sign + n2)
-    b = n0 * n1 * a
-    return (1.0 + sign * n0 * n0 * a, sign * b, -sign * n0), (b, sign + n1 * n1 * a, -n1)
+    return 1.0 + sign * n0 * n0 * a, sign * (n0 * n1 * a), -sign * n0
+
+
+@njit(cache=True)
+def bitangent(n0, n1, n2):
+    """Bitangent B of the frame of ``tangent``."""
+    sign = 1.0 if n2 >= 0.0 else -1.0
+    a = -1.0 / (sign + n2)
+    return n0 * n1 * a, sign + n1 * n1 * a, -n1
+
+
+@njit(cache=True)
+def frame(n0, n1, n2):
+    """Orthonormal tangents (T, B) of a unit normal (Duff et al. 2017)."""
+    return tangent(n0, n1, n2), bitangent(n0, n1, n2)
 
 
 @njit(cache=True)
@@ -293,23 +306,31 @@ def node_live(p, n, t, b, bmin, bmax, inten, k):
     return inten[k] > 0.0 and geom_bound(p, n, t, b, bmin, bmax, k) > 0.0
 
 
+@njit(cache=True)
+def sample_pixel(i, seed, pos, nrm, pix_id, cuts, sizes, bmin, bmax, inten, n_leaves, clamp2, leaves, pdfs):
+    """Pixel ``i`` of ``sample_cuts``: a light ``leaves[i, s]`` drawn with probability ``pdfs[i, s]`` for each of
+    its cut nodes ``cuts[i, s]`` (random slot ``2 s``), -1 and 0 where the node cannot contribute. The minimum
+    with ``ONE_MINUS`` changes no float64 uniform; it keeps the GPU's float32 one below 1."""
+    p = pos[i]
+    nn = nrm[i]
+    t = tangent(nn[0], nn[1], nn[2])
+    b = bitangent(nn[0], nn[1], nn[2])
+    for s in range(sizes[i]):
+        k = cuts[i, s]
+        leaves[i, s] = -1
+        pdfs[i, s] = 0.0
+        if node_live(p, nn, t, b, bmin, bmax, inten, k):
+            u = min(uniform(seed, pix_id[i], 2 * s), ONE_MINUS)
+            lf, pr = descend(p, nn, t, b, bmin, bmax, inten, n_leaves, k, u, clamp2)
+            leaves[i, s] = lf
+            pdfs[i, s] = pr
+
+
 @njit(cache=True, parallel=True)
 def sample_cuts(pos, nrm, pix_id, cut, size, bmin, bmax, inten, n_leaves, clamp2, seed, leaf, pdf):
     """One light per cut node by hierarchical importance sampling; ``leaf = -1`` where a node cannot contribute."""
     for i in prange(pos.shape[0]):
-        p = pos[i]
-        nn = nrm[i]
-        t, b = frame(nn[0], nn[1], nn[2])
-        for s in range(size[i]):
-            k = cut[i, s]
-            if not node_live(p, nn, t, b, bmin, bmax, inten, k):
-                leaf[i, s] = -1
-                pdf[i, s] = 0.0
-                continue
-            u = uniform(seed, pix_id[i], 2 * s)
-            lf, pr = descend(p, nn, t, b, bmin, bmax, inten, n_leaves, k, u, clamp2)
-            leaf[i, s] = lf
-            pdf[i, s] = pr
+        sample_pixel(i, seed, pos, nrm, pix_id, cut, size, bmin, bmax, inten, n_leaves, clamp2, leaf, pdf)
         for s in range(size[i], leaf.shape[1]):
             leaf[i, s] = -1
             pdf[i, s] = 0.0
