@@ -7,9 +7,10 @@
   uploaded as float32).
 * :func:`shade_glsl` translates the shading kernels of :mod:`renderers._shade` (textures and value noise in
   double precision, BRDF lobes and light terms in float32), prefixed ``shade_``.
-* :func:`lightcuts_glsl` translates the random numbers (double) and the bounds, cut error, branch probability and
-  descent (float32) of :mod:`renderers.lightcuts._kernels`, prefixed ``lc_``; the tree's arrays are bound to the
-  shader's tree image (``Translator.bindings``).
+* :func:`lightcuts_glsl` translates the random numbers (double) and the bounds, cut error, branch probability,
+  descent, Lambertian estimate and the per-pixel bodies of the sampling passes (float32) of
+  :mod:`renderers.lightcuts._kernels` and :mod:`~renderers.lightcuts.multires`, prefixed ``lc_``; the tree's arrays
+  are bound to the shader's tree image, the pixel arrays to its storage buffers (``Translator.bindings``).
 * :func:`constants_glsl` emits the shared constant table :mod:`renderers.constants`; :func:`int64_glsl` the
   64-bit integer helpers.
 
@@ -28,6 +29,8 @@ import ast
 import functools
 import inspect
 import math
+
+from ..constants import LC_ONE_MINUS_F32
 
 #: The kernels translated (and their callees, found automatically).
 FOVEATION_ROOTS = ("point",)
@@ -171,8 +174,9 @@ class Translator:
                     if fn.var_types.get(var) != t:
                         fn.var_types[var] = t
                         changed = True
-                rets = {self._ret_type(fn, r.value) for r in ast.walk(fn.node) if isinstance(r, ast.Return)}
-                ret = _join(fn.name, "return value", rets)
+                rets = {self._ret_type(fn, r.value) for r in ast.walk(fn.node)
+                        if isinstance(r, ast.Return) and r.value is not None}
+                ret = _join(fn.name, "return value", rets) if rets else "void"   # a kernel that only writes arrays
                 elts = self._ret_elts(fn)
                 if fn.ret != ret or fn.ret_elts != elts:
                     fn.ret, fn.ret_elts = ret, elts
@@ -234,6 +238,8 @@ class Translator:
         return isinstance(node, ast.Name) and node.id in self.bindings
 
     def vtype(self, fn, name: str) -> str:
+        if name in self.bindings and name in self.binding_types:   # a bound scalar (``n_leaves`` -> int)
+            return self.binding_types[name]
         if name in fn.param_types:
             return fn.param_types[name]
         if name in fn.var_types:
@@ -258,6 +264,8 @@ class Translator:
                 return "int" if isinstance(e.op, ast.BitAnd) else "i64"
             if "u64" in (a, b):
                 return "u64"
+            if type(e.op) in (ast.LShift, ast.RShift, ast.BitAnd, ast.BitOr, ast.BitXor):
+                return "int"   # Python has no float bit operations
             return "int" if a == b == "int" else "float"
         if isinstance(e, (ast.Compare, ast.BoolOp)) or (isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.Not)):
             return "bool"
@@ -357,6 +365,8 @@ class Translator:
             op = _BINOPS[type(st.op)]
             return [f"{pad}{st.target.id} {op}= {self.expr(fn, st.value)};"]
         if isinstance(st, ast.Return):
+            if st.value is None:
+                return [f"{pad}return;"]
             if isinstance(st.value, ast.Tuple):
                 vals = ", ".join(self.cast(fn, v, "float") for v in st.value.elts)
                 return [f"{pad}return {self.tname(fn, self._ret_type(fn, st.value))}({vals});"]
@@ -712,32 +722,48 @@ def _shade_glsl(module) -> str:
 
 @functools.lru_cache(maxsize=None)
 def lightcuts_glsl() -> str:
-    """GLSL of the lightcuts kernels translated so far from :mod:`renderers.lightcuts._kernels`: the
-    counter-based random numbers ``lc_uniform(seed, pixel, slot)`` (splitmix64 in uint64 on 32-bit halves, the
-    result in double precision, equal to the CPU's) and, in float32, the bounds of a node's box
-    (``lc_box_terms``), the cut-refinement error (``lc_error_bound``), the branch probability (``lc_prob_left``)
-    and the hierarchical importance sampling (``lc_descend``, returning ``vec2(leaf, pdf)``)."""
-    from ..lightcuts import _kernels
+    """GLSL of the lightcuts kernels of :mod:`renderers.lightcuts._kernels` and :mod:`~renderers.lightcuts.multires`,
+    prefixed ``lc_``: the counter-based random numbers ``lc_uniform(seed, pixel, slot)`` (splitmix64 in uint64 on
+    32-bit halves, the result in double precision, equal to the CPU's) and, in float32, the bounds of a node's box,
+    the cut-refinement error, hierarchical importance sampling, the Lambertian estimate and the per-pixel bodies of
+    the passes: ``lc_sample_pixel`` / ``lc_select_pixel`` (one light per cut node; Algorithm 2's reuse) and
+    ``lc_sort_pixel`` (LS'). The tree's arrays are the shader's tree image, the pixel arrays its storage buffers
+    (``lc_buffers_gen.glsl``): pixel ``i`` of a tile is entry ``u_first + i``, its samples ``i * CUT_MAX + s``."""
+    from ..lightcuts import _kernels, multires
 
-    # the tree's arrays and the scalars every call passes are the shader's tree image and uniforms (lightcuts.glsl)
-    tr = Translator(_kernels, "lc_", bindings={"bmin": "node_min({0})[{1}]", "bmax": "node_max({0})[{1}]",
-                                               "inten": "node_inten({0})", "n_leaves": "u_n_leaves",
-                                               "clamp2": "u_clamp2", "light_pos": "light_pos({0})[{1}]",
-                                               "light_nrm": "light_nrm({0})[{1}]", "one_sided": "(u_one_sided != 0)",
-                                               "cut": "lc_cut[{0}]", "err": "lc_err[{0}]"})
-    tr.binding_types["cut"] = "int"
-    tr.float32_values["ONE_MINUS"] = 1.0 - 2.0 ** -24   # the largest float32 below 1, as 1 - 2^-53 in float64
-    tr.precise = {"box_terms", "sample_weight"}   # a parent's bound never below a leaf's cosine: the CPU's rounding
+    tile, lr, ls = "smp[{0} * CUT_MAX + {1}].", "lr_ls[{0} * CUT_MAX + {1}].", "lr_ls[(u_first + {0}) * CUT_MAX + {1}]."
+    tr = Translator(_kernels, "lc_", source=inspect.getsource(_kernels) + "\n" + inspect.getsource(multires),
+                    bindings={"bmin": "node_min({0})[{1}]", "bmax": "node_max({0})[{1}]", "inten": "node_inten({0})",
+                              "n_leaves": "u_n_leaves", "levels": "u_levels", "clamp2": "u_clamp2",
+                              "light_pos": "light_pos({0})[{1}]", "light_rgb": "light_rgb({0})[{1}]",
+                              "light_nrm": "light_nrm({0})[{1}]", "one_sided": "(u_one_sided != 0)",
+                              "cut": "lc_cut[{0}]", "err": "lc_err[{0}]",
+                              "pos": "g_pos[u_first + {0}].xyz", "nrm": "g_nrm[u_first + {0}].xyz",
+                              "pix_id": "uvec2(u_id_base + uint(u_first + {0}), 0u)",
+                              "fmap": "intBitsToFloat(ctl[u_first + {0}].z)", "sizes": "pix[u_first + {0}].x",
+                              "cuts": tile + "node", "leaves": tile + "leaf", "pdfs": tile + "pdf",
+                              "lr_leaves": lr + "leaf", "lr_nodes": lr + "node", "lr_pdfs": lr + "pdf",
+                              "lr_depths": lr + "depth", "lr_counts": "lr_pix[{0}].w", "ls_leaves": ls + "leaf",
+                              "ls_nodes": ls + "node", "ls_pdfs": ls + "pdf", "ls_depths": ls + "depth"})
+    tr.binding_types.update({"pos": "vec3", "nrm": "vec3", "pix_id": "u64", "n_leaves": "int", "levels": "int",
+                             **{k: "int" for k in ("cut", "sizes", "cuts", "leaves", "lr_leaves", "lr_nodes",
+                                                   "lr_depths", "lr_counts", "ls_leaves", "ls_nodes", "ls_depths")}})
+    tr.float32_values["ONE_MINUS"] = LC_ONE_MINUS_F32   # the largest float32 below 1, as 1 - 2^-53 in float64
+    # a parent's bound never below a leaf's cosine: the CPU's rounding of the sums
+    tr.precise = {"box_terms", "dot_interval", "geom_bound", "sample_weight"}
+    roots = (*_kernels.GLSL_FLOAT_ROOTS, *multires.GLSL_FLOAT_ROOTS)
     doubles = tr.closure(_kernels.GLSL_DOUBLE_ROOTS)
-    floats = [n for n in tr.closure(_kernels.GLSL_FLOAT_ROOTS) if n not in doubles]
+    floats = [n for n in tr.closure(roots) if n not in doubles]
     for n in doubles:
         tr.fns[n].real = "double"
     point = {"p": "vec3", "n": "vec3", "t": "vec3", "b": "vec3", "k": "int", "node": "int", "j": "int",
-             "one_sided": "bool", "budget": "int"}
+             "one_sided": "bool", "budget": "int", "alb": "vec3", "lf": "int"}
+    pixel = {"i": "int", "q": "int", "seed": "u64"}
     tr.infer(doubles + floats, {"uniform": {"seed": "u64", "pixel": "u64", "slot": "u64"},
-                                **{r: point for r in _kernels.GLSL_FLOAT_ROOTS}})
-    return "// Generated from renderers/lightcuts/_kernels.py by renderers/gpu/codegen.py: do not edit.\n" \
-        + tr.emit(doubles + floats, helpers=False)
+                                **{r: point for r in _kernels.GLSL_FLOAT_ROOTS if "pixel" not in r},
+                                **{r: pixel for r in roots if "pixel" in r}})
+    return "// Generated from renderers/lightcuts/_kernels.py and multires.py by renderers/gpu/codegen.py: " \
+        "do not edit.\n" + tr.emit(doubles + floats, helpers=False)
 
 
 @functools.lru_cache(maxsize=None)

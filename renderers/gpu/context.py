@@ -318,6 +318,10 @@ def generated_source(fname: str) -> str | None:
         from .codegen import lightcuts_glsl
 
         return lightcuts_glsl()
+    if fname == "lc_buffers_gen.glsl":
+        from .lightcuts import buffers_glsl
+
+        return buffers_glsl()
     if fname == "shade_gen.glsl":
         from .codegen import shade_glsl
 

@@ -30,7 +30,8 @@ ONE_MINUS = 1.0 - 2.0 ** -53
 #: The kernels renderers/gpu/codegen.py translates into GLSL (``lightcuts_gen.glsl``), in double precision ...
 GLSL_DOUBLE_ROOTS = ("uniform",)
 #: ... and in float32 (the tree's arrays become the shader's tree image, codegen.lightcuts_glsl).
-GLSL_FLOAT_ROOTS = ("refine_cut", "prob_left", "descend", "sample_weight", "node_live", "sample_pixel")
+GLSL_FLOAT_ROOTS = ("refine_cut", "prob_left", "descend", "sample_weight", "node_live", "sample_pixel",
+                    "sample_estimate")
 
 
 @njit(cache=True)
@@ -48,17 +49,17 @@ def uniform(seed, pixel, slot):
 @njit(cache=True)
 def tangent(n0, n1, n2):
     """Tangent T of a unit normal's orthonormal frame (T, B, N) (Duff et al. 2017)."""
-    sign = 1.0 if n2 >= 0.0 else -1.0
-    a = -1.0 / (sign + n2)
-    return 1.0 + sign * n0 * n0 * a, sign * (n0 * n1 * a), -sign * n0
+    sgn = 1.0 if n2 >= 0.0 else -1.0
+    a = -1.0 / (sgn + n2)
+    return 1.0 + sgn * n0 * n0 * a, sgn * (n0 * n1 * a), -sgn * n0
 
 
 @njit(cache=True)
 def bitangent(n0, n1, n2):
     """Bitangent B of the frame of ``tangent``."""
-    sign = 1.0 if n2 >= 0.0 else -1.0
-    a = -1.0 / (sign + n2)
-    return n0 * n1 * a, sign + n1 * n1 * a, -n1
+    sgn = 1.0 if n2 >= 0.0 else -1.0
+    a = -1.0 / (sgn + n2)
+    return n0 * n1 * a, sgn + n1 * n1 * a, -n1
 
 
 @njit(cache=True)
@@ -360,6 +361,17 @@ def sample_weight(p, n, light_pos, light_nrm, one_sided, j, pdf, clamp2):
     return g
 
 
+@njit(cache=True)
+def sample_estimate(p, n, alb, lf, pr, light_pos, light_rgb, light_nrm, one_sided, n_leaves, clamp2):
+    """Unshadowed Lambertian estimate (RGB) of light ``lf`` (a heap node, -1: none) drawn with probability ``pr``
+    at ``p`` (normal ``n``, diffuse albedo ``alb``): ``albedo * I_rgb * sample_weight``."""
+    if lf < 0 or pr <= 0.0:
+        return 0.0, 0.0, 0.0
+    j = lf - n_leaves
+    g = sample_weight(p, n, light_pos, light_nrm, one_sided, j, pr, clamp2)
+    return alb[0] * light_rgb[j, 0] * g, alb[1] * light_rgb[j, 1] * g, alb[2] * light_rgb[j, 2] * g
+
+
 @njit(cache=True, parallel=True)
 def shade_samples(pos, nrm, alb, leaf, pdf, light_pos, light_rgb, light_nrm, one_sided, n_leaves, clamp2,
                   contrib):
@@ -371,23 +383,12 @@ def shade_samples(pos, nrm, alb, leaf, pdf, light_pos, light_rgb, light_nrm, one
     n_pix, n_s = leaf.shape
     need = np.zeros((n_pix, n_s), dtype=np.bool_)
     for i in prange(n_pix):
-        p = pos[i]
-        nn = nrm[i]
         for s in range(n_s):
-            contrib[i, s, 0] = 0.0
-            contrib[i, s, 1] = 0.0
-            contrib[i, s, 2] = 0.0
-            lf = leaf[i, s]
-            if lf < 0 or pdf[i, s] <= 0.0:
-                continue
-            j = lf - n_leaves
-            g = sample_weight(p, nn, light_pos, light_nrm, one_sided, j, pdf[i, s], clamp2)
-            if g == 0.0:
-                continue
+            v = sample_estimate(pos[i], nrm[i], alb[i], leaf[i, s], pdf[i, s], light_pos, light_rgb, light_nrm,
+                                one_sided, n_leaves, clamp2)
             tot = 0.0
             for c in range(3):
-                v = alb[i, c] * light_rgb[j, c] * g
-                contrib[i, s, c] = v
-                tot += v
+                contrib[i, s, c] = v[c]
+                tot += v[c]
             need[i, s] = tot > 0.0
     return need

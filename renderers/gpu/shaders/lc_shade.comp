@@ -8,7 +8,6 @@ layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "scene.glsl"
 #include "lightcuts.glsl"
-#include "lc_buffers.glsl"
 uniform int u_shadows;
 uniform int u_accumulate;
 uniform int u_s0;
@@ -26,14 +25,13 @@ void main() {
         uint rays = 0u;
         int drawn = 0;
         for (int s = u_s0; s < min(m, u_s1); s++) {
-            uvec4 e = smp[i * uint(CUT_MAX) + uint(s)];
-            int leaf = int(e.y);
-            if (leaf < 0) continue;
+            LcSample e = smp[i * uint(CUT_MAX) + uint(s)];
+            if (e.leaf < 0) continue;
             drawn++;
-            vec3 v = light_estimate(p, n, alb, leaf, uintBitsToFloat(e.z));
+            vec3 v = lc_sample_estimate(p, n, alb, e.leaf, e.pdf);
             if (v.x + v.y + v.z > 0.0) {
                 rays++;
-                if (u_shadows == 0 || !occluded(p, n, leaf, offset)) c += v;
+                if (u_shadows == 0 || !occluded(p, n, e.leaf, offset)) c += v;
             }
         }
         if (any(isnan(c)) || any(isinf(c))) cnt_add(C_NONFINITE, 1u);
