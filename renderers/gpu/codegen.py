@@ -20,7 +20,15 @@ tuples, otherwise ``float`` (``double`` in a double-precision closure). The tran
 subset these kernels use (assignments, tuple unpacking, ``if``/``elif``/``else``, ``for ... in range``,
 ``while``, ``return``, arithmetic, comparisons including chained ones, ``math`` functions) and raises
 ``NotImplementedError`` naming the function and the construct otherwise, so a kernel change that it cannot follow
-fails loudly in the tests rather than drifting apart.
+fails loudly in the tests rather than drifting apart. Further:
+
+* a tuple returned by a call is unpacked with its elements' types (``leaf, pdf = descend(...)``: an int element
+  travels in the float vector, exact below 2^24, and is converted back);
+* a function without a return value (a pixel kernel that only writes bound arrays) is ``void``;
+* a float kernel may call a double-precision one that returns a scalar (``min(uniform(...), ONE_MINUS)``: its
+  result converted to float, an int argument given as a uint64 counter ``uvec2(uint(x), 0u)``); other calls across
+  precisions are refused;
+* ``<<``, ``>>`` on ints; ``Translator.binding_types`` also types bound scalars (``n_leaves`` -> ``int``).
 """
 
 from __future__ import annotations
