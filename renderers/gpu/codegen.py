@@ -749,12 +749,15 @@ def lightcuts_glsl() -> str:
                               "pos": "g_pos[u_first + {0}].xyz", "nrm": "g_nrm[u_first + {0}].xyz",
                               "pix_id": "uvec2(u_id_base + uint(u_first + {0}), 0u)",
                               "fmap": "intBitsToFloat(ctl[u_first + {0}].z)", "sizes": "pix[u_first + {0}].x",
+                              # a cut's budget: 0 for an invalid pixel, else u_budget for all (>= 0) or ctl.x
+                              "budgets": "(g_pos[u_first + {0}].w > 0.0 ? (u_budget >= 0 ? u_budget : "
+                                         "ctl[u_first + {0}].x) : 0)",
                               "cuts": tile + "node", "leaves": tile + "leaf", "pdfs": tile + "pdf",
                               "lr_leaves": lr + "leaf", "lr_nodes": lr + "node", "lr_pdfs": lr + "pdf",
                               "lr_depths": lr + "depth", "lr_counts": "lr_pix[{0}].w", "ls_leaves": ls + "leaf",
                               "ls_nodes": ls + "node", "ls_pdfs": ls + "pdf", "ls_depths": ls + "depth"})
     tr.binding_types.update({"pos": "vec3", "nrm": "vec3", "pix_id": "u64", "n_leaves": "int", "levels": "int",
-                             **{k: "int" for k in ("cut", "sizes", "cuts", "leaves", "lr_leaves", "lr_nodes",
+                             **{k: "int" for k in ("cut", "sizes", "budgets", "cuts", "leaves", "lr_leaves", "lr_nodes",
                                                    "lr_depths", "lr_counts", "ls_leaves", "ls_nodes", "ls_depths")}})
     tr.float32_values["ONE_MINUS"] = LC_ONE_MINUS_F32   # the largest float32 below 1, as 1 - 2^-53 in float64
     # a parent's bound never below a leaf's cosine: the CPU's rounding of the sums

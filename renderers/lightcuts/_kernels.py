@@ -30,8 +30,8 @@ ONE_MINUS = 1.0 - 2.0 ** -53
 #: The kernels renderers/gpu/codegen.py translates into GLSL (``lightcuts_gen.glsl``), in double precision ...
 GLSL_DOUBLE_ROOTS = ("uniform",)
 #: ... and in float32 (the tree's arrays become the shader's tree image, codegen.lightcuts_glsl).
-GLSL_FLOAT_ROOTS = ("refine_cut", "prob_left", "descend", "sample_weight", "node_live", "sample_pixel",
-                    "sample_estimate")
+GLSL_FLOAT_ROOTS = ("refine_cut", "prob_left", "descend", "sample_weight", "node_live", "cut_pixel",
+                    "sample_pixel", "sample_estimate")
 
 
 @njit(cache=True)
@@ -280,6 +280,20 @@ def refine_cut(p, n, t, b, bmin, bmax, inten, n_leaves, clamp2, budget, cut, err
     return m
 
 
+@njit(cache=True)
+def cut_pixel(i, pos, nrm, budgets, bmin, bmax, inten, n_leaves, clamp2, cut, err):
+    """Pixel ``i`` of ``build_cuts``: its cut refined to ``budgets[i]`` nodes into ``cut`` (scratch ``err``, both
+    of length >= the budget); returns its size (0 for a budget <= 0)."""
+    nb = budgets[i]
+    if nb <= 0:
+        return 0
+    p = pos[i]
+    nn = nrm[i]
+    t = tangent(nn[0], nn[1], nn[2])
+    b = bitangent(nn[0], nn[1], nn[2])
+    return refine_cut(p, nn, t, b, bmin, bmax, inten, n_leaves, clamp2, nb, cut, err)
+
+
 @njit(cache=True, parallel=True)
 def build_cuts(pos, nrm, budget, bmin, bmax, inten, n_leaves, clamp2, cut, err):
     """Refine each pixel's cut from the root to ``budget[i]`` nodes by the largest error bound.
@@ -291,13 +305,7 @@ def build_cuts(pos, nrm, budget, bmin, bmax, inten, n_leaves, clamp2, cut, err):
     n_pix = pos.shape[0]
     size = np.zeros(n_pix, dtype=np.int32)
     for i in prange(n_pix):
-        nb = budget[i]
-        if nb <= 0:
-            continue
-        p = pos[i]
-        nn = nrm[i]
-        t, b = frame(nn[0], nn[1], nn[2])
-        size[i] = refine_cut(p, nn, t, b, bmin, bmax, inten, n_leaves, clamp2, nb, cut[i], err[i])
+        size[i] = cut_pixel(i, pos, nrm, budget, bmin, bmax, inten, n_leaves, clamp2, cut[i], err[i])
     return size
 
 

@@ -12,6 +12,7 @@ uniform int u_n_leaves;    // N
 uniform int u_levels;      // log2 N + 1 (the n of seed 003 Eq 9)
 uniform float u_clamp2;    // (0.001 scene light radius)^2 (sampling.clamp2)
 uniform int u_one_sided;   // the tree has emitter normals
+uniform int u_budget;      // lc_cut.comp: the cut size of every pixel, or -1: each pixel's ctl.x
 
 vec3 node_min(int k) { return fetchf(t_tree, 2 * k).xyz; }
 vec3 node_max(int k) { return fetchf(t_tree, 2 * k + 1).xyz; }
