@@ -87,17 +87,45 @@ def buffers_glsl() -> str:
 _INF_KEYS = np.array([0xFF800000] * 3 + [0x007FFFFF] * 3 + [0xFF800000, 0x007FFFFF], dtype=np.uint32)
 
 
+#: The light tree in an RGBA32UI image (image unit ``TREE_UNIT``, ``6 N`` texels for ``N`` leaves), read by the
+#: shaders' accessors (``lc_tree_gen.glsl``, :func:`tree_glsl`) and filled by :func:`tree_table`: accessor ->
+#: (first texel / N, texels per entry, texel in the entry, components). Node k (1 <= k < 2N): (bmin, intensity),
+#: (bmax, 0); leaf j (0 <= j < N): (RGB intensity, 0), (emitter normal, 0); a leaf's light sits at its node's box
+#: (``light_pos(j)``: bmin = bmax of node N + j).
+TREE_TEXELS = {"node_min": (0, 2, 0, "xyz"), "node_inten": (0, 2, 0, "w"), "node_max": (0, 2, 1, "xyz"),
+               "light_pos": (2, 2, 0, "xyz"), "light_rgb": (4, 2, 0, "xyz"), "light_nrm": (4, 2, 1, "xyz")}
+TREE_UNIT = 4
+#: The tree's uniforms (:class:`DeviceTree`): name -> (GLSL type, meaning).
+TREE_UNIFORMS = {"u_n_leaves": ("int", "N"), "u_levels": ("int", "log2 N + 1 (the n of seed 003 Eq 9)"),
+                 "u_clamp2": ("float", "(0.001 scene light radius)^2 (sampling.clamp2)"),
+                 "u_one_sided": ("int", "the tree has emitter normals")}
+
+
 def tree_table(tree) -> np.ndarray:
-    """The light tree as ``(6 N, 4)`` float32 texels (layout in ``shaders/lightcuts.glsl``)."""
+    """The light tree as ``(6 N, 4)`` float32 texels (layout :data:`TREE_TEXELS`)."""
     n = tree.n_leaves
     t = np.zeros((6 * n, 4), dtype=np.float32)
-    t[0:4 * n:2, :3] = tree.bmin
-    t[0:4 * n:2, 3] = tree.intensity
-    t[1:4 * n:2, :3] = tree.bmax
-    t[4 * n::2, :3] = tree.light_rgb
-    if tree.light_nrm is not None:
-        t[4 * n + 1::2, :3] = tree.light_nrm
+    data = {"node_min": tree.bmin, "node_inten": tree.intensity, "node_max": tree.bmax, "light_rgb": tree.light_rgb,
+            "light_nrm": tree.light_nrm}
+    for name, arr in data.items():
+        if arr is not None:
+            first, step, texel, comps = TREE_TEXELS[name]
+            c0 = "xyzw".index(comps[0])
+            rows = slice(first * n + texel, first * n + texel + step * len(arr), step)
+            t[rows, c0:c0 + len(comps)] = np.reshape(arr, (len(arr), len(comps)))
     return t
+
+
+def tree_glsl() -> str:
+    """The tree image, its uniforms and accessors of :data:`TREE_TEXELS` (``lc_tree_gen.glsl``)."""
+    out = ["// Generated from renderers/gpu/lightcuts.py (TREE_TEXELS) by renderers/gpu/lightcuts.py: do not edit.",
+           f"layout(binding = {TREE_UNIT}, rgba32ui) uniform restrict readonly uimage2D t_tree;"]
+    out += [f"uniform {t} {name};  // {what}" for name, (t, what) in TREE_UNIFORMS.items()]
+    for name, (first, step, texel, comps) in TREE_TEXELS.items():
+        index = "".join([f"{first} * u_n_leaves + " if first else "", f"{step} * k", f" + {texel}" if texel else ""])
+        out.append(f"{'float' if len(comps) == 1 else f'vec{len(comps)}'} {name}(int k) "
+                   f"{{ return fetchf(t_tree, {index}).{comps}; }}")
+    return "\n".join(out) + "\n"
 
 
 class DeviceTree:
@@ -109,8 +137,8 @@ class DeviceTree:
         self.device = device
         self.tree = tree
         self.texture = device.table_texture(f"the light tree of scene {scene_name!r}", table)
-        self.uniforms = {"u_n_leaves": int(tree.n_leaves), "u_levels": int(tree.levels),
-                         "u_clamp2": float(clamp2(tree)), "u_one_sided": int(tree.light_nrm is not None)}
+        values = (int(tree.n_leaves), int(tree.levels), float(clamp2(tree)), int(tree.light_nrm is not None))
+        self.uniforms = dict(zip(TREE_UNIFORMS, values))
 
     def release(self) -> None:
         self.device.release(self.texture)
@@ -179,7 +207,7 @@ class LightcutsFrame:
     def run(self, shader: str, n: int, buffers: dict, uniforms: dict, cut_max: int = 1,
             defines: dict | None = None) -> None:
         self.fr.run(shader, n, {**self.common, **buffers}, {**self.tree.uniforms, **uniforms},
-                    {"CUT_MAX": cut_max, "MULTIRES": 0, **(defines or {})}, {4: self.tree.texture})
+                    {"CUT_MAX": cut_max, "MULTIRES": 0, **(defines or {})}, {TREE_UNIT: self.tree.texture})
 
     def gbuffer(self, prefix: str, width: int, height: int, full: bool) -> GBuffer:
         """Trace the G-buffer of ``width × height`` rays spread over the screen (the frame's when ``full``)."""

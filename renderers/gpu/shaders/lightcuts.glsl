@@ -1,25 +1,9 @@
-// Stochastic lightcuts on the GPU (renderers/gpu/lightcuts.py): the light tree of renderers/lightcuts/tree.py and
-// the kernels generated from renderers/lightcuts/_kernels.py and multires.py (lightcuts_gen.glsl), with the CPU's
-// random numbers, so that both backends draw the same samples up to the float32 rounding of the probabilities.
-// Needs scene.glsl (fetchf, trace).
+// Stochastic lightcuts on the GPU (renderers/gpu/lightcuts.py): the light tree of renderers/lightcuts/tree.py in an
+// image (lc_tree_gen.glsl, from TREE_TEXELS there) and the kernels generated from renderers/lightcuts/_kernels.py
+// and multires.py (lightcuts_gen.glsl), with the CPU's random numbers. Needs scene.glsl (fetchf, trace).
 #include "lc_buffers.glsl"
-
-// The tree in an RGBA32UI image (image unit 4; 6 N texels): node k (1 <= k < 2N) at texels 2k, 2k + 1:
-// (bmin, intensity), (bmax, 0); leaf j (0 <= j < N) at 4N + 2j, 4N + 2j + 1: (RGB intensity, 0), (emitter
-// normal, 0). A leaf's light sits at its node's box (bmin = bmax = position).
-layout(binding = 4, rgba32ui) uniform restrict readonly uimage2D t_tree;
-uniform int u_n_leaves;    // N
-uniform int u_levels;      // log2 N + 1 (the n of seed 003 Eq 9)
-uniform float u_clamp2;    // (0.001 scene light radius)^2 (sampling.clamp2)
-uniform int u_one_sided;   // the tree has emitter normals
+#include "lc_tree_gen.glsl"
 uniform int u_budget;      // lc_cut.comp: the cut size of every pixel, or -1: each pixel's ctl.x
-
-vec3 node_min(int k) { return fetchf(t_tree, 2 * k).xyz; }
-vec3 node_max(int k) { return fetchf(t_tree, 2 * k + 1).xyz; }
-float node_inten(int k) { return fetchf(t_tree, 2 * k).w; }
-vec3 light_pos(int j) { return node_min(u_n_leaves + j); }
-vec3 light_rgb(int j) { return fetchf(t_tree, 4 * u_n_leaves + 2 * j).xyz; }
-vec3 light_nrm(int j) { return fetchf(t_tree, 4 * u_n_leaves + 2 * j + 1).xyz; }
 
 // lc_refine_cut's cut (CUT_MAX node ids, sorted by heap offset) and scratch.
 int lc_cut[CUT_MAX];
