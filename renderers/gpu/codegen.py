@@ -182,9 +182,8 @@ class Translator:
                     if fn.var_types.get(var) != t:
                         fn.var_types[var] = t
                         changed = True
-                rets = {self._ret_type(fn, r.value) for r in ast.walk(fn.node)
-                        if isinstance(r, ast.Return) and r.value is not None}
-                ret = _join(fn.name, "return value", rets) if rets else "void"   # a kernel that only writes arrays
+                rets = {self._ret_type(fn, r.value) for r in ast.walk(fn.node) if isinstance(r, ast.Return)}
+                ret = _join(fn.name, "return value", rets) if rets else "void"   # a kernel that stores
                 elts = self._ret_elts(fn)
                 if fn.ret != ret or fn.ret_elts != elts:
                     fn.ret, fn.ret_elts = ret, elts
@@ -246,7 +245,7 @@ class Translator:
         return isinstance(node, ast.Name) and node.id in self.bindings
 
     def vtype(self, fn, name: str) -> str:
-        if name in self.bindings and name in self.binding_types:   # a bound scalar (``n_leaves`` -> int)
+        if name in self.bindings and name in self.binding_types:   # a bound scalar (``kmax`` -> ``u_kmax``)
             return self.binding_types[name]
         if name in fn.param_types:
             return fn.param_types[name]
@@ -373,8 +372,6 @@ class Translator:
             op = _BINOPS[type(st.op)]
             return [f"{pad}{st.target.id} {op}= {self.expr(fn, st.value)};"]
         if isinstance(st, ast.Return):
-            if st.value is None:
-                return [f"{pad}return;"]
             if isinstance(st.value, ast.Tuple):
                 vals = ", ".join(self.cast(fn, v, "float") for v in st.value.elts)
                 return [f"{pad}return {self.tname(fn, self._ret_type(fn, st.value))}({vals});"]
@@ -673,8 +670,8 @@ def _const_int(e) -> int | None:
     return None
 
 
-_BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Mod: "%", ast.BitAnd: "&", ast.BitOr: "|",
-           ast.BitXor: "^", ast.LShift: "<<", ast.RShift: ">>"}
+_BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Mod: "%", ast.BitAnd: "&", ast.BitOr: "|", ast.RShift: ">>",
+           ast.BitXor: "^", ast.LShift: "<<"}
 _CMPOPS = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!="}
 
 
@@ -745,7 +742,8 @@ def lightcuts_glsl() -> str:
                               "n_leaves": "u_n_leaves", "levels": "u_levels", "clamp2": "u_clamp2",
                               "light_pos": "light_pos({0})[{1}]", "light_rgb": "light_rgb({0})[{1}]",
                               "light_nrm": "light_nrm({0})[{1}]", "one_sided": "(u_one_sided != 0)",
-                              "cut": "lc_cut[{0}]", "err": "lc_err[{0}]",
+                              "cut": "lc_cut[{0}]", "err": "lc_err[{0}]", "scale_x": "u_lr_scale.x",
+                              "scale_y": "u_lr_scale.y", "lr_width": "u_lr_width", "lr_height": "u_lr_height",
                               "pos": "g_pos[u_first + {0}].xyz", "nrm": "g_nrm[u_first + {0}].xyz",
                               "pix_id": "uvec2(u_id_base + uint(u_first + {0}), 0u)",
                               "fmap": "intBitsToFloat(ctl[u_first + {0}].z)", "sizes": "pix[u_first + {0}].x",
@@ -757,13 +755,14 @@ def lightcuts_glsl() -> str:
                               "lr_depths": lr + "depth", "lr_counts": "lr_pix[{0}].w", "ls_leaves": ls + "leaf",
                               "ls_nodes": ls + "node", "ls_pdfs": ls + "pdf", "ls_depths": ls + "depth"})
     tr.binding_types.update({"pos": "vec3", "nrm": "vec3", "pix_id": "u64", "n_leaves": "int", "levels": "int",
+                             "lr_width": "int", "lr_height": "int",
                              **{k: "int" for k in ("cut", "sizes", "budgets", "cuts", "leaves", "lr_leaves", "lr_nodes",
                                                    "lr_depths", "lr_counts", "ls_leaves", "ls_nodes", "ls_depths")}})
     tr.float32_values["ONE_MINUS"] = LC_ONE_MINUS_F32   # the largest float32 below 1, as 1 - 2^-53 in float64
     # a parent's bound never below a leaf's cosine: the CPU's rounding of the sums
     tr.precise = {"box_terms", "dot_interval", "geom_bound", "sample_weight"}
     roots = (*_kernels.GLSL_FLOAT_ROOTS, *multires.GLSL_FLOAT_ROOTS)
-    doubles = tr.closure(_kernels.GLSL_DOUBLE_ROOTS)
+    doubles = tr.closure((*_kernels.GLSL_DOUBLE_ROOTS, *multires.GLSL_DOUBLE_ROOTS))
     floats = [n for n in tr.closure(roots) if n not in doubles]
     for n in doubles:
         tr.fns[n].real = "double"
@@ -771,6 +770,7 @@ def lightcuts_glsl() -> str:
              "one_sided": "bool", "budget": "int", "alb": "vec3", "lf": "int"}
     pixel = {"i": "int", "q": "int", "seed": "u64"}
     tr.infer(doubles + floats, {"uniform": {"seed": "u64", "pixel": "u64", "slot": "u64"},
+                                "low_res_pixel": {"x": "int", "y": "int"},
                                 **{r: point for r in _kernels.GLSL_FLOAT_ROOTS if "pixel" not in r},
                                 **{r: pixel for r in roots if "pixel" in r}})
     return "// Generated from renderers/lightcuts/_kernels.py and multires.py by renderers/gpu/codegen.py: " \

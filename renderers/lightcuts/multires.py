@@ -41,8 +41,10 @@ from numba import njit, prange
 from . import _kernels as K
 from ._kernels import ONE_MINUS, bitangent, descend, node_live, tangent, uniform
 
-#: The per-pixel kernels renderers/gpu/codegen.py translates (float32) with those of ``_kernels``.
+#: The per-pixel kernels renderers/gpu/codegen.py translates with those of ``_kernels``, in float32 ...
 GLSL_FLOAT_ROOTS = ("select_pixel", "sort_pixel")
+#: ... and in double precision (as the CPU's float64: a pixel's low-resolution pixel must be the same)
+GLSL_DOUBLE_ROOTS = ("low_res_pixel",)
 
 
 @njit(cache=True)
@@ -236,6 +238,12 @@ def sort_low_res_samples(cut, size, leaf, pdf):
 
 
 @njit(cache=True)
+def low_res_pixel(x, y, scale_x, scale_y, lr_width, lr_height):
+    """Algorithm 2's low-resolution pixel ``p'`` under pixel ``(x, y)`` (``scale``: w' / w, h' / h), row-major."""
+    return min(int(y * scale_y), lr_height - 1) * lr_width + min(int(x * scale_x), lr_width - 1)
+
+
+@njit(cache=True)
 def select_pixel(i, q, seed, pos, nrm, pix_id, fmap, cuts, sizes, bmin, bmax, inten, n_leaves, levels, clamp2,
                  lr_leaves, lr_nodes, lr_pdfs, lr_counts, lr_depths, leaves, pdfs):
     """Algorithm 2 for pixel ``i`` over low-resolution pixel ``q``: for each cut node, with probability
@@ -281,9 +289,8 @@ def select_lights(pos, nrm, pix_id, pix_x, pix_y, fmap, cut, size, bmin, bmax, i
     n_pix = pos.shape[0]
     reused = np.zeros(n_pix, dtype=np.int64)
     for i in prange(n_pix):
-        qx = min(int(pix_x[i] * scale_x), lr_width - 1)
-        qy = min(int(pix_y[i] * scale_y), lr_height - 1)
-        reused[i] = select_pixel(i, qy * lr_width + qx, seed, pos, nrm, pix_id, fmap, cut, size, bmin, bmax, inten,
+        q = low_res_pixel(pix_x[i], pix_y[i], scale_x, scale_y, lr_width, lr_height)
+        reused[i] = select_pixel(i, q, seed, pos, nrm, pix_id, fmap, cut, size, bmin, bmax, inten,
                                  n_leaves, levels, clamp2, lr_leaves, lr_nodes, lr_pdfs, lr_counts, lr_depths, leaf,
                                  pdf)
         for s in range(size[i], leaf.shape[1]):
