@@ -239,3 +239,22 @@ def test_reuse_sample_draws_partitioning_cut_nodes_by_intensity():
                             np.array([[0]], np.int64), 0, 1, 0, 23,
                             np.r_[16.0, 16.0, np.zeros(3), 4.0, np.zeros(26)], 0.3)
     assert j == 0 and pj == pytest.approx(0.1 * 16.0 / 4.0)
+
+
+def test_low_res_samples_sorted_per_row_as_a_stable_argsort():
+    """``sort_low_res_samples`` (the pixel kernel ``sort_pixel`` per row, generated for the GPU's LS') gives the
+    arrays of a stable argsort by leaf with the empty entries last in slot order, and ``depth`` of every node."""
+    rng = np.random.default_rng(1)
+    n, width = 60, 12
+    size = rng.integers(0, width + 1, n)
+    cut = np.where(np.arange(width) < size[:, None], rng.integers(1, 64, (n, width)), 0)
+    live = (np.arange(width) < size[:, None]) & (rng.random((n, width)) < 0.8)
+    leaf = np.where(live, rng.integers(64, 72, (n, width)), -1)   # repeated leaves: ties keep the slot order
+    pdf = np.where(live, rng.random((n, width)), 0.0)
+    order = np.argsort(np.where(leaf >= 0, leaf, np.iinfo(np.int64).max), axis=1, kind="stable")
+    leaves, nodes, pdfs, counts, depths = MR.sort_low_res_samples(cut, size.astype(np.int32), leaf, pdf)
+    np.testing.assert_array_equal(leaves, np.take_along_axis(leaf, order, axis=1))
+    np.testing.assert_array_equal(nodes, np.take_along_axis(cut, order, axis=1))
+    np.testing.assert_array_equal(pdfs, np.take_along_axis(pdf, order, axis=1))
+    np.testing.assert_array_equal(counts, live.sum(axis=1))
+    np.testing.assert_array_equal(depths, np.floor(np.log2(np.maximum(nodes, 1))).astype(np.int64))

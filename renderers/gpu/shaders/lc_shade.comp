@@ -1,9 +1,8 @@
 #version 430
 // Shading of the selected lights (seed 003 Algorithm 1 line 15; sampling.shade_tile): the Lambertian estimate of
-// every sample, a shadow ray through the BVH for those that contribute (all of them counted as shadow rays, as
-// on the CPU), the sum into the pixel's diffuse radiance (added to it with u_accumulate: the passes of sl_gt).
-// One dispatch shades the samples [u_s0, u_s1) of each cut, later ones add theirs: a shadow ray can take hundreds
-// of loop iterations, and llvmpipe cuts an invocation's loops short past 65,535 (common.glsl).
+// every sample (generated: _kernels.sample_estimate), a shadow ray for those that contribute (all counted, as on
+// the CPU), the sum into the pixel's diffuse radiance (added to it with u_accumulate: sl_gt's passes). A dispatch
+// shades the samples [u_s0, u_s1) of each cut (llvmpipe cuts loops short past 65,535 iterations: common.glsl).
 layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "scene.glsl"
@@ -15,17 +14,14 @@ uniform int u_s1;
 
 void main() {
     cnt_begin();
-    uint i = gid();
-    if (i < uint(u_n)) {
-        int px = u_first + int(i);
-        int m = pix[px].x;
-        vec3 p = g_pos[px].xyz, n = g_nrm[px].xyz, alb = g_alb[px].xyz;
+    int i = int(gid()), px = u_first + i;
+    if (i < u_n) {
+        vec3 p = g_pos[px].xyz, n = g_nrm[px].xyz, alb = g_alb[px].xyz, c = vec3(0.0);
         float offset = ray_offset(bounds_lo(), bounds_hi());
-        vec3 c = vec3(0.0);
         uint rays = 0u;
         int drawn = 0;
-        for (int s = u_s0; s < min(m, u_s1); s++) {
-            LcSample e = smp[i * uint(CUT_MAX) + uint(s)];
+        for (int s = u_s0; s < min(pix[px].x, u_s1); s++) {
+            LcSample e = smp[i * CUT_MAX + s];
             if (e.leaf < 0) continue;
             drawn++;
             vec3 v = lc_sample_estimate(p, n, alb, e.leaf, e.pdf);
