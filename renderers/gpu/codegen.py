@@ -725,14 +725,36 @@ def _shade_glsl(module) -> str:
             '#include "constants_gen.glsl"\n' + tr.emit(doubles + floats, helpers=False))
 
 
+#: Lightcuts kernels emitted on their own (``lc_shade_gen.glsl``): they call functions the including shader defines
+#: (``shade_pixel``'s ``blocked``: lc_shade.comp's shadow rays).
+LC_OWN_FILE = ("shade_pixel",)
+
+
 @functools.lru_cache(maxsize=None)
 def lightcuts_glsl() -> str:
-    """GLSL of the lightcuts kernels of :mod:`renderers.lightcuts._kernels` and :mod:`~renderers.lightcuts.multires`,
-    prefixed ``lc_``: the counter-based random numbers ``lc_uniform(seed, pixel, slot)`` (splitmix64 in uint64 on
-    32-bit halves, the result in double precision, equal to the CPU's) and, in float32, the bounds of a node's box,
+    """``lightcuts_gen.glsl``: every kernel of :func:`_lightcuts` but those of :data:`LC_OWN_FILE`."""
+    tr, names = _lightcuts()
+    return "// Generated from renderers/lightcuts/_kernels.py and multires.py by renderers/gpu/codegen.py: " \
+        "do not edit.\n" + tr.emit([n for n in names if n not in LC_OWN_FILE], helpers=False)
+
+
+@functools.lru_cache(maxsize=None)
+def lightcuts_shade_glsl() -> str:
+    """``lc_shade_gen.glsl``: the kernels of :data:`LC_OWN_FILE` (their callees are in ``lightcuts_gen.glsl``)."""
+    tr, _ = _lightcuts()
+    return "// Generated from renderers/lightcuts/_kernels.py by renderers/gpu/codegen.py: do not edit.\n" \
+        + "".join(tr.emit_fn(tr.fns[n]) for n in LC_OWN_FILE)
+
+
+@functools.lru_cache(maxsize=None)
+def _lightcuts():
+    """The lightcuts kernels of :mod:`renderers.lightcuts._kernels` and :mod:`~renderers.lightcuts.multires`
+    translated, prefixed ``lc_`` (the translator and the functions in order): the counter-based random numbers
+    ``lc_uniform(seed, pixel, slot)`` (splitmix64 in uint64 on 32-bit halves, the result in double precision, equal
+    to the CPU's) and Algorithm 2's low-resolution pixel in double precision; in float32 the bounds of a node's box,
     the cut-refinement error, hierarchical importance sampling, the Lambertian estimate and the per-pixel bodies of
-    the passes: ``lc_sample_pixel`` / ``lc_select_pixel`` (one light per cut node; Algorithm 2's reuse) and
-    ``lc_sort_pixel`` (LS'). The tree's arrays are the shader's tree image, the pixel arrays its storage buffers
+    the passes (``lc_cut_pixel``, ``lc_sample_pixel`` / ``lc_select_pixel``, ``lc_sort_pixel``,
+    ``lc_shade_pixel``). The tree's arrays are the shader's tree image, the pixel arrays its storage buffers
     (``lc_buffers_gen.glsl``): pixel ``i`` of a tile is entry ``u_first + i``, its samples ``i * CUT_MAX + s``."""
     from ..lightcuts import _kernels, multires
 
@@ -745,6 +767,7 @@ def lightcuts_glsl() -> str:
                               "cut": "lc_cut[{0}]", "err": "lc_err[{0}]", "scale_x": "u_lr_scale.x",
                               "scale_y": "u_lr_scale.y", "lr_width": "u_lr_width", "lr_height": "u_lr_height",
                               "pos": "g_pos[u_first + {0}].xyz", "nrm": "g_nrm[u_first + {0}].xyz",
+                              "albedo": "g_alb[u_first + {0}].xyz", "blocked": "lc_blocked({0}, {1})",
                               "pix_id": "uvec2(u_id_base + uint(u_first + {0}), 0u)",
                               "fmap": "intBitsToFloat(ctl[u_first + {0}].z)", "sizes": "pix[u_first + {0}].x",
                               # a cut's budget: 0 for an invalid pixel, else u_budget for all (>= 0) or ctl.x
@@ -754,7 +777,7 @@ def lightcuts_glsl() -> str:
                               "lr_leaves": lr + "leaf", "lr_nodes": lr + "node", "lr_pdfs": lr + "pdf",
                               "lr_depths": lr + "depth", "lr_counts": "lr_pix[{0}].w", "ls_leaves": ls + "leaf",
                               "ls_nodes": ls + "node", "ls_pdfs": ls + "pdf", "ls_depths": ls + "depth"})
-    tr.binding_types.update({"pos": "vec3", "nrm": "vec3", "pix_id": "u64", "n_leaves": "int", "levels": "int",
+    tr.binding_types.update({"pos": "vec3", "nrm": "vec3", "albedo": "vec3", "blocked": "bool", "pix_id": "u64", "n_leaves": "int", "levels": "int",
                              "lr_width": "int", "lr_height": "int",
                              **{k: "int" for k in ("cut", "sizes", "budgets", "cuts", "leaves", "lr_leaves", "lr_nodes",
                                                    "lr_depths", "lr_counts", "ls_leaves", "ls_nodes", "ls_depths")}})
@@ -768,13 +791,12 @@ def lightcuts_glsl() -> str:
         tr.fns[n].real = "double"
     point = {"p": "vec3", "n": "vec3", "t": "vec3", "b": "vec3", "k": "int", "node": "int", "j": "int",
              "one_sided": "bool", "budget": "int", "alb": "vec3", "lf": "int"}
-    pixel = {"i": "int", "q": "int", "seed": "u64"}
+    pixel = {"i": "int", "q": "int", "seed": "u64", "s0": "int", "s1": "int"}
     tr.infer(doubles + floats, {"uniform": {"seed": "u64", "pixel": "u64", "slot": "u64"},
                                 "low_res_pixel": {"x": "int", "y": "int"},
                                 **{r: point for r in _kernels.GLSL_FLOAT_ROOTS if "pixel" not in r},
                                 **{r: pixel for r in roots if "pixel" in r}})
-    return "// Generated from renderers/lightcuts/_kernels.py and multires.py by renderers/gpu/codegen.py: " \
-        "do not edit.\n" + tr.emit(doubles + floats, helpers=False)
+    return tr, doubles + floats
 
 
 @functools.lru_cache(maxsize=None)

@@ -31,7 +31,7 @@ ONE_MINUS = 1.0 - 2.0 ** -53
 GLSL_DOUBLE_ROOTS = ("uniform",)
 #: ... and in float32 (the tree's arrays become the shader's tree image, codegen.lightcuts_glsl).
 GLSL_FLOAT_ROOTS = ("refine_cut", "prob_left", "descend", "sample_weight", "node_live", "cut_pixel",
-                    "sample_pixel", "sample_estimate")
+                    "sample_pixel", "shade_pixel")
 
 
 @njit(cache=True)
@@ -381,22 +381,50 @@ def sample_estimate(p, n, alb, lf, pr, light_pos, light_rgb, light_nrm, one_side
 
 
 @njit(cache=True, parallel=True)
-def shade_samples(pos, nrm, alb, leaf, pdf, light_pos, light_rgb, light_nrm, one_sided, n_leaves, clamp2,
-                  contrib):
-    """Unshadowed Lambertian estimate of each sample: ``albedo/pi * I_rgb * cos / max(d^2, clamp2) / pdf``,
-    times the emitter cosine ``max(0, n_l . (p - x_l) / d)`` when ``one_sided``.
-
-    Returns a boolean (P, S) mask of the samples that need a shadow ray (non-zero contribution).
-    """
+def shade_samples(pos, nrm, alb, leaf, pdf, light_pos, light_rgb, light_nrm, one_sided, n_leaves, clamp2):
+    """The samples that need a shadow ray: a boolean (P, S) mask of those whose unshadowed estimate
+    (``sample_estimate``) is > 0."""
     n_pix, n_s = leaf.shape
     need = np.zeros((n_pix, n_s), dtype=np.bool_)
     for i in prange(n_pix):
         for s in range(n_s):
             v = sample_estimate(pos[i], nrm[i], alb[i], leaf[i, s], pdf[i, s], light_pos, light_rgb, light_nrm,
                                 one_sided, n_leaves, clamp2)
-            tot = 0.0
-            for c in range(3):
-                contrib[i, s, c] = v[c]
-                tot += v[c]
-            need[i, s] = tot > 0.0
+            need[i, s] = v[0] + v[1] + v[2] > 0.0
     return need
+
+
+@njit(cache=True)
+def shade_pixel(i, s0, s1, pos, nrm, albedo, leaves, pdfs, light_pos, light_rgb, light_nrm, one_sided, n_leaves,
+                clamp2, blocked):
+    """Direct diffuse radiance of pixel ``i`` from its samples ``[s0, s1)``: the sum, in slot order, of the
+    estimates that are > 0 and whose shadow ray is not ``blocked[i, s]`` (asked only for those); returns ``(r, g,
+    b, samples with a light)``."""
+    c0 = 0.0
+    c1 = 0.0
+    c2 = 0.0
+    drawn = 0
+    for s in range(s0, s1):
+        lf = leaves[i, s]
+        if lf >= 0:
+            drawn += 1
+            v = sample_estimate(pos[i], nrm[i], albedo[i], lf, pdfs[i, s], light_pos, light_rgb, light_nrm, one_sided,
+                                n_leaves, clamp2)
+            if v[0] + v[1] + v[2] > 0.0 and not blocked[i, s]:
+                c0 += v[0]
+                c1 += v[1]
+                c2 += v[2]
+    return c0, c1, c2, drawn
+
+
+@njit(cache=True, parallel=True)
+def shade_pixels(pos, nrm, alb, leaf, pdf, light_pos, light_rgb, light_nrm, one_sided, n_leaves, clamp2, blocked):
+    """``shade_pixel`` of every pixel over all its samples: the radiance (P, 3)."""
+    out = np.zeros((leaf.shape[0], 3))
+    for i in prange(leaf.shape[0]):
+        c0, c1, c2, _ = shade_pixel(i, 0, leaf.shape[1], pos, nrm, alb, leaf, pdf, light_pos, light_rgb, light_nrm,
+                                    one_sided, n_leaves, clamp2, blocked)
+        out[i, 0] = c0
+        out[i, 1] = c1
+        out[i, 2] = c2
+    return out
