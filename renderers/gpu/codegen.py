@@ -229,7 +229,8 @@ class Translator:
 
     def _ret_elts(self, fn) -> list[str] | None:
         """Element types of ``fn``'s tuple returns (``int`` where every return gives an int there)."""
-        tuples = [r.value.elts for r in ast.walk(fn.node) if isinstance(r, ast.Return) and isinstance(r.value, ast.Tuple)]
+        tuples = [r.value.elts for r in ast.walk(fn.node)
+                  if isinstance(r, ast.Return) and isinstance(r.value, ast.Tuple)]
         if not tuples or len({len(t) for t in tuples}) != 1:
             return None
         return ["int" if {self.etype(fn, t[k]) for t in tuples} == {"int"} else "float" for k in range(len(tuples[0]))]
@@ -777,10 +778,10 @@ def _lightcuts():
                               "lr_leaves": lr + "leaf", "lr_nodes": lr + "node", "lr_pdfs": lr + "pdf",
                               "lr_depths": lr + "depth", "lr_counts": "lr_pix[{0}].w", "ls_leaves": ls + "leaf",
                               "ls_nodes": ls + "node", "ls_pdfs": ls + "pdf", "ls_depths": ls + "depth"})
-    tr.binding_types.update({"pos": "vec3", "nrm": "vec3", "albedo": "vec3", "blocked": "bool", "pix_id": "u64", "n_leaves": "int", "levels": "int",
-                             "lr_width": "int", "lr_height": "int",
-                             **{k: "int" for k in ("cut", "sizes", "budgets", "cuts", "leaves", "lr_leaves", "lr_nodes",
-                                                   "lr_depths", "lr_counts", "ls_leaves", "ls_nodes", "ls_depths")}})
+    tr.binding_types.update({"pos": "vec3", "nrm": "vec3", "albedo": "vec3", "blocked": "bool", "pix_id": "u64",
+                             **{k: "int" for k in ("n_leaves", "levels", "lr_width", "lr_height", "cut", "sizes",
+                                                   "budgets", "cuts", "leaves", "lr_leaves", "lr_nodes", "lr_depths",
+                                                   "lr_counts", "ls_leaves", "ls_nodes", "ls_depths")}})
     tr.float32_values["ONE_MINUS"] = LC_ONE_MINUS_F32   # the largest float32 below 1, as 1 - 2^-53 in float64
     # a parent's bound never below a leaf's cosine: the CPU's rounding of the sums
     tr.precise = {"box_terms", "dot_interval", "geom_bound", "sample_weight"}
@@ -790,7 +791,7 @@ def _lightcuts():
     for n in doubles:
         tr.fns[n].real = "double"
     point = {"p": "vec3", "n": "vec3", "t": "vec3", "b": "vec3", "k": "int", "node": "int", "j": "int",
-             "one_sided": "bool", "budget": "int", "alb": "vec3", "lf": "int"}
+             "one_sided": "bool", "budget": "int"}
     pixel = {"i": "int", "q": "int", "seed": "u64", "s0": "int", "s1": "int"}
     tr.infer(doubles + floats, {"uniform": {"seed": "u64", "pixel": "u64", "slot": "u64"},
                                 "low_res_pixel": {"x": "int", "y": "int"},
