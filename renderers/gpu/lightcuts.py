@@ -17,9 +17,13 @@ as passes, each timed:
   (``lc_select.comp``), the Lambertian estimates and their shadow rays through the BVH (``lc_shade.comp``);
 * ``glossy`` — the one-bounce glossy pass (``lc_glossy.comp``), skipped when no material is glossy or metallic.
 
-The random numbers are the CPU's (counter-based: seed, pixel id, slot), so both backends draw the same samples
-up to the float32 rounding of positions and probabilities: seed for seed the images agree closely, and over
-seeds their per-pixel means and variances (``benchmarks/bench_gpu_lightcuts.py --agreement``).
+The per-pixel bodies of the cuts, select, low_res and shade passes are the CPU's pixel kernels translated
+(``_kernels.cut_pixel``, ``sample_pixel``, ``shade_pixel``, ``multires.select_pixel``, ``sort_pixel``:
+:func:`renderers.gpu.codegen.lightcuts_glsl`), reading and writing the buffers of :data:`BUFFERS`; the shaders
+keep the plumbing (invocation index, tiles, counters) and the shadow rays through the BVH. The random numbers
+are the CPU's (counter-based: seed, pixel id, slot), so both backends draw the same samples up to the float32
+rounding of positions and probabilities: seed for seed the images agree closely, and over seeds their per-pixel
+means and variances (``benchmarks/bench_gpu_lightcuts.py --agreement``).
 """
 
 from __future__ import annotations
