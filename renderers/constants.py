@@ -31,3 +31,5 @@ LC_CLAMP_FRACTION = 1e-3
 LC_OFFSET_FRACTION = 1e-4
 LC_SHADOW_EPS = 1e-3
 LC_SHADOW_END = 1.0 - LC_SHADOW_EPS
+#: The largest float32 below 1: the GPU's float32 uniforms are kept below it, as the CPU's float64 ones below 1 - 2^-53
+LC_ONE_MINUS_F32 = 1.0 - 2.0 ** -24

@@ -67,7 +67,7 @@ def test_lrls_finds_a_sample_under_the_node(leaves, node, pad):
     leaves = sorted(leaves)
     arr = np.array(leaves + [-1] * pad, dtype=np.int64)
     lo, hi = MR.leaf_range(node, 5)
-    j = MR.lrls(arr, len(leaves), lo, hi)
+    j = MR.lrls(arr[None], 0, len(leaves), lo, hi)
     under = [x for x in leaves if lo <= x <= hi]
     if under:
         assert j >= 0 and arr[j] == min(under)
@@ -94,7 +94,7 @@ def test_n_light_picks_nearest_cut_node(data):
     node = data.draw(st.sampled_from(leaves)) >> data.draw(st.integers(0, 5))
     lo, hi = MR.leaf_range(node, 6)
     la, na = np.array(leaves, np.int64), np.array(nodes, np.int64)
-    first = MR.lrls(la, len(la), lo, hi)
+    first = MR.lrls(la[None], 0, len(la), lo, hi)
     assert first >= 0
     j = MR.n_light(node, la, na, len(la), first, hi)
     cands = [i for i, x in enumerate(leaves) if lo <= x <= hi]
@@ -226,15 +226,35 @@ def test_reuse_sample_draws_partitioning_cut_nodes_by_intensity():
     inten[[4, 10, 11]] = [2.0, 1.0, 5.0]
     inten[2] = 8.0
     lo, hi = MR.leaf_range(2, 5)
-    first = MR.lrls(leaves, 3, lo, hi)
+    first = MR.lrls(leaves[None], 0, 3, lo, hi)
     us = (np.arange(8000) + 0.5) / 8000
-    out = [MR.reuse_sample(2, leaves, nodes, pdfs, depths, 3, first, hi, inten, u) for u in us]
+    out = [MR.reuse_sample(2, leaves[None], nodes[None], pdfs[None], depths[None], 0, 3, first, hi, inten, u)
+           for u in us]
     picks = np.array([j for j, _ in out])
     np.testing.assert_allclose(np.bincount(picks, minlength=3) / len(us), [2 / 8, 1 / 8, 5 / 8], atol=1e-3)
     for j, pj in out[:: 500]:
         assert pj == pytest.approx(pdfs[j] * inten[nodes[j]] / 8.0)
     # case (a): the only candidate comes from an ancestor cut node (node 1 above node 5)
-    j, pj = MR.reuse_sample(5, np.array([21], np.int64), np.array([1], np.int64), np.array([0.1]),
-                            np.array([0], np.int64), 1, 0, 23, np.r_[16.0, 16.0, np.zeros(3), 4.0, np.zeros(26)],
-                            0.3)
+    j, pj = MR.reuse_sample(5, np.array([[21]], np.int64), np.array([[1]], np.int64), np.array([[0.1]]),
+                            np.array([[0]], np.int64), 0, 1, 0, 23,
+                            np.r_[16.0, 16.0, np.zeros(3), 4.0, np.zeros(26)], 0.3)
     assert j == 0 and pj == pytest.approx(0.1 * 16.0 / 4.0)
+
+
+def test_low_res_samples_sorted_per_row_as_a_stable_argsort():
+    """``sort_low_res_samples`` (the pixel kernel ``sort_pixel`` per row, generated for the GPU's LS') gives the
+    arrays of a stable argsort by leaf with the empty entries last in slot order, and ``depth`` of every node."""
+    rng = np.random.default_rng(1)
+    n, width = 60, 12
+    size = rng.integers(0, width + 1, n)
+    cut = np.where(np.arange(width) < size[:, None], rng.integers(1, 64, (n, width)), 0)
+    live = (np.arange(width) < size[:, None]) & (rng.random((n, width)) < 0.8)
+    leaf = np.where(live, rng.integers(64, 72, (n, width)), -1)   # repeated leaves: ties keep the slot order
+    pdf = np.where(live, rng.random((n, width)), 0.0)
+    order = np.argsort(np.where(leaf >= 0, leaf, np.iinfo(np.int64).max), axis=1, kind="stable")
+    leaves, nodes, pdfs, counts, depths = MR.sort_low_res_samples(cut, size.astype(np.int32), leaf, pdf)
+    np.testing.assert_array_equal(leaves, np.take_along_axis(leaf, order, axis=1))
+    np.testing.assert_array_equal(nodes, np.take_along_axis(cut, order, axis=1))
+    np.testing.assert_array_equal(pdfs, np.take_along_axis(pdf, order, axis=1))
+    np.testing.assert_array_equal(counts, live.sum(axis=1))
+    np.testing.assert_array_equal(depths, np.floor(np.log2(np.maximum(nodes, 1))).astype(np.int64))

@@ -9,9 +9,10 @@
   double precision, BRDF lobes and light terms in float32), prefixed ``shade_``.
 * :func:`lights_glsl` translates the per-light kernels of :mod:`renderers._shade` (a light's contribution, a
   shadow ray's direction), the light table bound to the shader's light image.
-* :func:`lightcuts_glsl` translates the random numbers (double) and the bounds, cut error, branch probability and
-  descent (float32) of :mod:`renderers.lightcuts._kernels`, prefixed ``lc_``; the tree's arrays are bound to the
-  shader's tree image (``Translator.bindings``).
+* :func:`lightcuts_glsl` translates the random numbers (double) and the bounds, cut error, branch probability,
+  descent, Lambertian estimate and the per-pixel bodies of the sampling passes (float32) of
+  :mod:`renderers.lightcuts._kernels` and :mod:`~renderers.lightcuts.multires`, prefixed ``lc_``; the tree's arrays
+  are bound to the shader's tree image, the pixel arrays to its storage buffers (``Translator.bindings``).
 * :func:`glossy_glsl` translates the glossy pass's per-ray lobe sampling of :mod:`renderers.lightcuts.glossy`,
   prefixed ``glossy_``.
 * :func:`fpsm_glsl` translates the per-pixel kernels of :mod:`renderers.lightcuts.fpsm` (seed 003 Eq 1-8: acuity,
@@ -42,6 +43,15 @@ element type of a bound float32 array (``binding_types``), kept by ``+ - * /`` b
 function and the construct otherwise (also for a name GLSL reserves, such as ``half``), so a kernel change that it
 cannot follow fails loudly in the tests rather than drifting apart. In a function of ``Translator.precise`` every
 float local, tuple temporary and returned value is ``precise`` (no fused multiply-add: the CPU's rounding).
+Further:
+
+* a tuple returned by a call is unpacked with its elements' types (``leaf, pdf = descend(...)``: an int element
+  travels in the float vector, exact below 2^24, and is converted back);
+* a function without a return value (a pixel kernel that only writes bound arrays) is ``void``;
+* a float kernel may call a double-precision one that returns a scalar (``min(uniform(...), ONE_MINUS)``: its
+  result converted to float, an int argument given as a uint64 counter ``uvec2(uint(x), 0u)``); other calls across
+  precisions are refused;
+* ``<<``, ``>>`` on ints; ``Translator.binding_types`` also types bound scalars (``n_leaves`` -> ``int``).
 """
 
 from __future__ import annotations
@@ -50,6 +60,8 @@ import ast
 import functools
 import inspect
 import math
+
+from ..constants import LC_ONE_MINUS_F32
 
 #: The kernels translated (and their callees, found automatically).
 FOVEATION_ROOTS = ("point",)
@@ -102,6 +114,8 @@ class _Fn:
         self.name = node.name
         self.params = [a.arg for a in node.args.args]
         self.ret = "float"
+        #: the element types (``int`` or ``float``) of a tuple return, for typed unpacking at the call sites
+        self.ret_elts: list[str] | None = None
         self.param_types = {p: "float" for p in self.params}
         self.var_types: dict[str, str] = {}
         self.calls: set[str] = set()
@@ -195,11 +209,11 @@ class Translator:
                     if fn.var_types.get(var) != t:
                         fn.var_types[var] = t
                         changed = True
-                rets = {self._ret_type(fn, r.value) for r in ast.walk(fn.node) if isinstance(r, ast.Return)} \
-                    or {"void"}
-                ret = _join(fn.name, "return value", rets)
-                if fn.ret != ret:
-                    fn.ret = ret
+                rets = {self._ret_type(fn, r.value) for r in ast.walk(fn.node) if isinstance(r, ast.Return)}
+                ret = _join(fn.name, "return value", rets) if rets else "void"   # a kernel that stores
+                elts = self._ret_elts(fn)
+                if fn.ret != ret or fn.ret_elts != elts:
+                    fn.ret, fn.ret_elts = ret, elts
                     changed = True
             for name in names:
                 if name in roots:
@@ -223,16 +237,32 @@ class Translator:
             if isinstance(value, ast.Tuple):
                 for t, v in zip(target.elts, value.elts):
                     self._collect_assign(fn, t, v, assigned)
-            else:
-                for t in target.elts:
+            else:   # a call's tuple: its elements' types (ints travel in a float vector, exact below 2^24)
+                elts = self._callee(value).ret_elts if self._callee(value) else None
+                for k, t in enumerate(target.elts):
                     if isinstance(t, ast.Name):
-                        assigned.setdefault(t.id, set()).add("float")
+                        want = elts[k] if elts and len(elts) == len(target.elts) else "float"
+                        assigned.setdefault(t.id, set()).add(want)
         elif isinstance(target, ast.Name):
             if self.etype(fn, value) == "void":
                 raise NotImplementedError(f"{fn.name}: {target.id} takes the value of a call that returns nothing")
             assigned.setdefault(target.id, set()).add(self.etype(fn, value))
         elif not (isinstance(target, ast.Subscript) and self._is_array(target.value)):
             raise NotImplementedError(f"{fn.name}: assignment to {ast.dump(target)}")
+
+    def _callee(self, value) -> _Fn | None:
+        """The translated function ``value`` calls, if it is such a call."""
+        if isinstance(value, ast.Call) and isinstance(value.func, ast.Name):
+            return self.fns.get(value.func.id)
+        return None
+
+    def _ret_elts(self, fn) -> list[str] | None:
+        """Element types of ``fn``'s tuple returns (``int`` where every return gives an int there)."""
+        tuples = [r.value.elts for r in ast.walk(fn.node)
+                  if isinstance(r, ast.Return) and isinstance(r.value, ast.Tuple)]
+        if not tuples or len({len(t) for t in tuples}) != 1:
+            return None
+        return ["int" if {self.etype(fn, t[k]) for t in tuples} == {"int"} else "float" for k in range(len(tuples[0]))]
 
     def _ret_type(self, fn, value):
         if value is None:
@@ -255,6 +285,8 @@ class Translator:
         return f"{e.value.id}.{e.attr}" if self._is_array(e.value) else None
 
     def vtype(self, fn, name: str) -> str:
+        if name in self.bindings and name in self.binding_types:   # a bound scalar (``kmax`` -> ``u_kmax``)
+            return self.binding_types[name]
         if name in fn.param_types:
             return fn.param_types[name]
         if name in fn.var_types:
@@ -281,6 +313,8 @@ class Translator:
                 return "u64"
             if a == b == "f32" and isinstance(e.op, (ast.Add, ast.Sub, ast.Mult)):
                 return "f32"   # numba: float32 op float32 stays float32; with a float64 or an int it is float64
+            if type(e.op) in (ast.LShift, ast.RShift, ast.BitAnd, ast.BitOr, ast.BitXor):
+                return "int"   # Python has no float bit operations
             return "int" if a == b == "int" else "float"
         if isinstance(e, (ast.Compare, ast.BoolOp)) or (isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.Not)):
             return "bool"
@@ -375,7 +409,8 @@ class Translator:
                 lines = [f"{pad}{self.tname(fn, have)} {tmp} = {self.expr(fn, value)};"]
                 for comp, t in zip("xyzw", target.elts):
                     if t.id != "_":
-                        lines.append(f"{pad}{t.id} = {tmp}.{comp};")
+                        v = f"{tmp}.{comp}"
+                        lines.append(f"{pad}{t.id} = {f'int({v})' if self.vtype(fn, t.id) == 'int' else v};")
                 return lines
             if isinstance(target, ast.Subscript):   # an element of a bound array
                 return [f"{pad}{self.expr(fn, target)} = {self.cast(fn, value, self.etype(fn, target))};"]
@@ -464,6 +499,8 @@ class Translator:
             return f"{fn.real}({text})"
         if want == "i64" and have == "int":
             return f"i64_from({text})"
+        if want == "u64" and have == "int":   # a non-negative int (a sample slot) as a uint64 counter
+            return f"uvec2(uint({text}), 0u)"
         if want != have and "i64" in (want, have):
             raise NotImplementedError(f"{fn.name}: {have} used as {want}")
         return text
@@ -598,6 +635,14 @@ class Translator:
             return f"u64_shr({a}, {shift})"
         raise NotImplementedError(f"{fn.name}: uint64 operation {ta} {type(e.op).__name__} {tb}")
 
+    def _arg(self, fn, callee, a, p: str) -> str:
+        """Argument ``a`` of ``fn``'s call of ``callee`` for parameter ``p`` (an int given to a float parameter of a
+        double-precision kernel becomes a double)."""
+        want = callee.param_types[p]
+        if callee.real != fn.real and want == "float" and self.etype(fn, a) == "int":
+            return f"{callee.real}({self.expr(fn, a)})"
+        return self.cast(fn, a, want)
+
     def call(self, fn, e) -> str:
         f = e.func
         if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
@@ -642,12 +687,15 @@ class Translator:
                 return f"{self.externals[f.id]}({', '.join(args)})"
             if f.id in self.fns:
                 callee = self.fns[f.id]
-                if callee.real != fn.real:
+                narrow = callee.real == "double" and fn.real == "float"   # a double kernel's result as a float
+                if callee.real != fn.real and not (narrow and callee.ret in ("float", "int")):
                     raise NotImplementedError(f"{fn.name}: call of {f.id} across precisions ({fn.real} -> "
                                               f"{callee.real})")
                 params = [p for p in callee.params if p not in self.bindings]
                 args = [a for a in e.args if not self._is_array(a)]
-                text = ", ".join(self.cast(fn, a, callee.param_types[p]) for p, a in zip(params, args))
+                text = ", ".join(self._arg(fn, callee, a, p) for p, a in zip(params, args))
+                if narrow and callee.ret == "float":
+                    return f"float({self.glsl_name(f.id)}({text}))"
                 return f"{self.glsl_name(f.id)}({text})"
         raise NotImplementedError(f"{fn.name}: call of {ast.dump(f)}")
 
@@ -709,8 +757,8 @@ _GLSL_RESERVED = frozenset(
     "public static extern external interface long short half fixed unsigned superp input output filter sizeof cast "
     "namespace using bool int uint float double true false switch case default do struct void".split())
 
-_BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Mod: "%", ast.BitAnd: "&", ast.BitOr: "|",
-           ast.BitXor: "^"}
+_BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Mod: "%", ast.BitAnd: "&", ast.BitOr: "|", ast.RShift: ">>",
+           ast.BitXor: "^", ast.LShift: "<<"}
 _CMPOPS = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!="}
 
 
@@ -797,36 +845,78 @@ def _lights_glsl(module, roots: str) -> str:
     # the callees are shade_gen.glsl's and lights_gen.glsl's (included before): only the roots are emitted here
     return (f"// Generated from {module.__name__.replace('.', '/')}.py by renderers/gpu/codegen.py: do not edit.\n"
             + "\n".join(tr.emit_fn(tr.fns[r]) for r in getattr(module, roots)))
+#: Lightcuts kernels emitted on their own (``lc_shade_gen.glsl``): they call functions the including shader defines
+#: (``shade_pixel``'s ``blocked``: lc_shade.comp's shadow rays).
+LC_OWN_FILE = ("shade_pixel",)
 
 
 @functools.lru_cache(maxsize=None)
 def lightcuts_glsl() -> str:
-    """GLSL of the lightcuts kernels translated so far from :mod:`renderers.lightcuts._kernels`: the
-    counter-based random numbers ``lc_uniform(seed, pixel, slot)`` (splitmix64 in uint64 on 32-bit halves, the
-    result in double precision, equal to the CPU's) and, in float32, the bounds of a node's box
-    (``lc_box_terms``), the cut-refinement error (``lc_error_bound``), the branch probability (``lc_prob_left``)
-    and the hierarchical importance sampling (``lc_descend``, returning ``vec2(leaf, pdf)``)."""
-    from ..lightcuts import _kernels
+    """``lightcuts_gen.glsl``: every kernel of :func:`_lightcuts` but those of :data:`LC_OWN_FILE`."""
+    tr, names = _lightcuts()
+    return "// Generated from renderers/lightcuts/_kernels.py and multires.py by renderers/gpu/codegen.py: " \
+        "do not edit.\n" + tr.emit([n for n in names if n not in LC_OWN_FILE], helpers=False)
 
-    # the tree's arrays and the scalars every call passes are the shader's tree image and uniforms (lightcuts.glsl)
-    tr = Translator(_kernels, "lc_", bindings={"bmin": "node_min({0})[{1}]", "bmax": "node_max({0})[{1}]",
-                                               "inten": "node_inten({0})", "n_leaves": "u_n_leaves",
-                                               "clamp2": "u_clamp2", "light_pos": "light_pos({0})[{1}]",
-                                               "light_nrm": "light_nrm({0})[{1}]", "one_sided": "(u_one_sided != 0)",
-                                               "cut": "lc_cut[{0}]", "err": "lc_err[{0}]"})
-    tr.binding_types["cut"] = "int"
-    tr.float32_values["ONE_MINUS"] = 1.0 - 2.0 ** -24   # the largest float32 below 1, as 1 - 2^-53 in float64
-    tr.precise = {"box_terms", "sample_weight"}   # a parent's bound never below a leaf's cosine: the CPU's rounding
-    doubles = tr.closure(_kernels.GLSL_DOUBLE_ROOTS)
-    floats = [n for n in tr.closure(_kernels.GLSL_FLOAT_ROOTS) if n not in doubles]
+
+@functools.lru_cache(maxsize=None)
+def lightcuts_shade_glsl() -> str:
+    """``lc_shade_gen.glsl``: the kernels of :data:`LC_OWN_FILE` (their callees are in ``lightcuts_gen.glsl``)."""
+    tr, _ = _lightcuts()
+    return "// Generated from renderers/lightcuts/_kernels.py by renderers/gpu/codegen.py: do not edit.\n" \
+        + "".join(tr.emit_fn(tr.fns[n]) for n in LC_OWN_FILE)
+
+
+@functools.lru_cache(maxsize=None)
+def _lightcuts():
+    """The lightcuts kernels of :mod:`renderers.lightcuts._kernels` and :mod:`~renderers.lightcuts.multires`
+    translated, prefixed ``lc_`` (the translator and the functions in order): the counter-based random numbers
+    ``lc_uniform(seed, pixel, slot)`` (splitmix64 in uint64 on 32-bit halves, the result in double precision, equal
+    to the CPU's) and Algorithm 2's low-resolution pixel in double precision; in float32 the bounds of a node's box,
+    the cut-refinement error, hierarchical importance sampling, the Lambertian estimate and the per-pixel bodies of
+    the passes (``lc_cut_pixel``, ``lc_sample_pixel`` / ``lc_select_pixel``, ``lc_sort_pixel``,
+    ``lc_shade_pixel``). The tree's arrays are the shader's tree image, the pixel arrays its storage buffers
+    (``lc_buffers_gen.glsl``): pixel ``i`` of a tile is entry ``u_first + i``, its samples ``i * CUT_MAX + s``."""
+    from ..lightcuts import _kernels, multires
+
+    tile, lr, ls = "smp[{0} * CUT_MAX + {1}].", "lr_ls[{0} * CUT_MAX + {1}].", "lr_ls[(u_first + {0}) * CUT_MAX + {1}]."
+    tr = Translator(_kernels, "lc_", source=inspect.getsource(_kernels) + "\n" + inspect.getsource(multires),
+                    bindings={"bmin": "node_min({0})[{1}]", "bmax": "node_max({0})[{1}]", "inten": "node_inten({0})",
+                              "n_leaves": "u_n_leaves", "levels": "u_levels", "clamp2": "u_clamp2",
+                              "light_pos": "light_pos({0})[{1}]", "light_rgb": "light_rgb({0})[{1}]",
+                              "light_nrm": "light_nrm({0})[{1}]", "one_sided": "(u_one_sided != 0)",
+                              "cut": "lc_cut[{0}]", "err": "lc_err[{0}]", "scale_x": "u_lr_scale.x",
+                              "scale_y": "u_lr_scale.y", "lr_width": "u_lr_width", "lr_height": "u_lr_height",
+                              "pos": "g_pos[u_first + {0}].xyz", "nrm": "g_nrm[u_first + {0}].xyz",
+                              "albedo": "g_alb[u_first + {0}].xyz", "blocked": "lc_blocked({0}, {1})",
+                              "pix_id": "uvec2(u_id_base + uint(u_first + {0}), 0u)",
+                              "fmap": "intBitsToFloat(ctl[u_first + {0}].z)", "sizes": "pix[u_first + {0}].x",
+                              # a cut's budget: 0 for an invalid pixel, else u_budget for all (>= 0) or ctl.x
+                              "budgets": "(g_pos[u_first + {0}].w > 0.0 ? (u_budget >= 0 ? u_budget : "
+                                         "ctl[u_first + {0}].x) : 0)",
+                              "cuts": tile + "node", "leaves": tile + "leaf", "pdfs": tile + "pdf",
+                              "lr_leaves": lr + "leaf", "lr_nodes": lr + "node", "lr_pdfs": lr + "pdf",
+                              "lr_depths": lr + "depth", "lr_counts": "lr_pix[{0}].w", "ls_leaves": ls + "leaf",
+                              "ls_nodes": ls + "node", "ls_pdfs": ls + "pdf", "ls_depths": ls + "depth"})
+    tr.binding_types.update({"pos": "vec3", "nrm": "vec3", "albedo": "vec3", "blocked": "bool", "pix_id": "u64",
+                             **{k: "int" for k in ("n_leaves", "levels", "lr_width", "lr_height", "cut", "sizes",
+                                                   "budgets", "cuts", "leaves", "lr_leaves", "lr_nodes", "lr_depths",
+                                                   "lr_counts", "ls_leaves", "ls_nodes", "ls_depths")}})
+    tr.float32_values["ONE_MINUS"] = LC_ONE_MINUS_F32   # the largest float32 below 1, as 1 - 2^-53 in float64
+    # a parent's bound never below a leaf's cosine: the CPU's rounding of the sums
+    tr.precise = {"box_terms", "dot_interval", "geom_bound", "sample_weight"}
+    roots = (*_kernels.GLSL_FLOAT_ROOTS, *multires.GLSL_FLOAT_ROOTS)
+    doubles = tr.closure((*_kernels.GLSL_DOUBLE_ROOTS, *multires.GLSL_DOUBLE_ROOTS))
+    floats = [n for n in tr.closure(roots) if n not in doubles]
     for n in doubles:
         tr.fns[n].real = "double"
     point = {"p": "vec3", "n": "vec3", "t": "vec3", "b": "vec3", "k": "int", "node": "int", "j": "int",
              "one_sided": "bool", "budget": "int"}
+    pixel = {"i": "int", "q": "int", "seed": "u64", "s0": "int", "s1": "int"}
     tr.infer(doubles + floats, {"uniform": {"seed": "u64", "pixel": "u64", "slot": "u64"},
-                                **{r: point for r in _kernels.GLSL_FLOAT_ROOTS}})
-    return "// Generated from renderers/lightcuts/_kernels.py by renderers/gpu/codegen.py: do not edit.\n" \
-        + tr.emit(doubles + floats, helpers=False)
+                                "low_res_pixel": {"x": "int", "y": "int"},
+                                **{r: point for r in _kernels.GLSL_FLOAT_ROOTS if "pixel" not in r},
+                                **{r: pixel for r in roots if "pixel" in r}})
+    return tr, doubles + floats
 
 
 @functools.lru_cache(maxsize=None)

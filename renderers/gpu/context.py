@@ -332,10 +332,14 @@ def generated_source(fname: str) -> str | None:
         from .codegen import int64_glsl
 
         return int64_glsl()
-    if fname == "lightcuts_gen.glsl":
-        from .codegen import lightcuts_glsl
+    if fname in ("lightcuts_gen.glsl", "lc_shade_gen.glsl"):
+        from .codegen import lightcuts_glsl, lightcuts_shade_glsl
 
-        return lightcuts_glsl()
+        return lightcuts_glsl() if fname == "lightcuts_gen.glsl" else lightcuts_shade_glsl()
+    if fname in ("lc_buffers_gen.glsl", "lc_tree_gen.glsl"):
+        from .lightcuts import buffers_glsl, tree_glsl
+
+        return buffers_glsl() if fname == "lc_buffers_gen.glsl" else tree_glsl()
     if fname == "shade_gen.glsl":
         from .codegen import shade_glsl
 

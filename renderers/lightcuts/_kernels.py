@@ -30,7 +30,8 @@ ONE_MINUS = 1.0 - 2.0 ** -53
 #: The kernels renderers/gpu/codegen.py translates into GLSL (``lightcuts_gen.glsl``), in double precision ...
 GLSL_DOUBLE_ROOTS = ("uniform",)
 #: ... and in float32 (the tree's arrays become the shader's tree image, codegen.lightcuts_glsl).
-GLSL_FLOAT_ROOTS = ("refine_cut", "prob_left", "descend", "sample_weight")
+GLSL_FLOAT_ROOTS = ("refine_cut", "prob_left", "descend", "sample_weight", "node_live", "cut_pixel",
+                    "sample_pixel", "shade_pixel")
 
 
 @njit(cache=True)
@@ -46,12 +47,25 @@ def uniform(seed, pixel, slot):
 
 
 @njit(cache=True)
+def tangent(n0, n1, n2):
+    """Tangent T of a unit normal's orthonormal frame (T, B, N) (Duff et al. 2017)."""
+    sgn = 1.0 if n2 >= 0.0 else -1.0
+    a = -1.0 / (sgn + n2)
+    return 1.0 + sgn * n0 * n0 * a, sgn * (n0 * n1 * a), -sgn * n0
+
+
+@njit(cache=True)
+def bitangent(n0, n1, n2):
+    """Bitangent B of the frame of ``tangent``."""
+    sgn = 1.0 if n2 >= 0.0 else -1.0
+    a = -1.0 / (sgn + n2)
+    return n0 * n1 * a, sgn + n1 * n1 * a, -n1
+
+
+@njit(cache=True)
 def frame(n0, n1, n2):
     """Orthonormal tangents (T, B) of a unit normal (Duff et al. 2017)."""
-    sign = 1.0 if n2 >= 0.0 else -1.0
-    a = -1.0 / (sign + n2)
-    b = n0 * n1 * a
-    return (1.0 + sign * n0 * n0 * a, sign * b, -sign * n0), (b, sign + n1 * n1 * a, -n1)
+    return tangent(n0, n1, n2), bitangent(n0, n1, n2)
 
 
 @njit(cache=True)
@@ -266,6 +280,20 @@ def refine_cut(p, n, t, b, bmin, bmax, inten, n_leaves, clamp2, budget, cut, err
     return m
 
 
+@njit(cache=True)
+def cut_pixel(i, pos, nrm, budgets, bmin, bmax, inten, n_leaves, clamp2, cut, err):
+    """Pixel ``i`` of ``build_cuts``: its cut refined to ``budgets[i]`` nodes into ``cut`` (scratch ``err``, both
+    of length >= the budget); returns its size (0 for a budget <= 0)."""
+    nb = budgets[i]
+    if nb <= 0:
+        return 0
+    p = pos[i]
+    nn = nrm[i]
+    t = tangent(nn[0], nn[1], nn[2])
+    b = bitangent(nn[0], nn[1], nn[2])
+    return refine_cut(p, nn, t, b, bmin, bmax, inten, n_leaves, clamp2, nb, cut, err)
+
+
 @njit(cache=True, parallel=True)
 def build_cuts(pos, nrm, budget, bmin, bmax, inten, n_leaves, clamp2, cut, err):
     """Refine each pixel's cut from the root to ``budget[i]`` nodes by the largest error bound.
@@ -277,13 +305,7 @@ def build_cuts(pos, nrm, budget, bmin, bmax, inten, n_leaves, clamp2, cut, err):
     n_pix = pos.shape[0]
     size = np.zeros(n_pix, dtype=np.int32)
     for i in prange(n_pix):
-        nb = budget[i]
-        if nb <= 0:
-            continue
-        p = pos[i]
-        nn = nrm[i]
-        t, b = frame(nn[0], nn[1], nn[2])
-        size[i] = refine_cut(p, nn, t, b, bmin, bmax, inten, n_leaves, clamp2, nb, cut[i], err[i])
+        size[i] = cut_pixel(i, pos, nrm, budget, bmin, bmax, inten, n_leaves, clamp2, cut[i], err[i])
     return size
 
 
@@ -293,23 +315,31 @@ def node_live(p, n, t, b, bmin, bmax, inten, k):
     return inten[k] > 0.0 and geom_bound(p, n, t, b, bmin, bmax, k) > 0.0
 
 
+@njit(cache=True)
+def sample_pixel(i, seed, pos, nrm, pix_id, cuts, sizes, bmin, bmax, inten, n_leaves, clamp2, leaves, pdfs):
+    """Pixel ``i`` of ``sample_cuts``: a light ``leaves[i, s]`` drawn with probability ``pdfs[i, s]`` for each of
+    its cut nodes ``cuts[i, s]`` (random slot ``2 s``), -1 and 0 where the node cannot contribute. The minimum
+    with ``ONE_MINUS`` changes no float64 uniform; it keeps the GPU's float32 one below 1."""
+    p = pos[i]
+    nn = nrm[i]
+    t = tangent(nn[0], nn[1], nn[2])
+    b = bitangent(nn[0], nn[1], nn[2])
+    for s in range(sizes[i]):
+        k = cuts[i, s]
+        leaves[i, s] = -1
+        pdfs[i, s] = 0.0
+        if node_live(p, nn, t, b, bmin, bmax, inten, k):
+            u = min(uniform(seed, pix_id[i], 2 * s), ONE_MINUS)
+            lf, pr = descend(p, nn, t, b, bmin, bmax, inten, n_leaves, k, u, clamp2)
+            leaves[i, s] = lf
+            pdfs[i, s] = pr
+
+
 @njit(cache=True, parallel=True)
 def sample_cuts(pos, nrm, pix_id, cut, size, bmin, bmax, inten, n_leaves, clamp2, seed, leaf, pdf):
     """One light per cut node by hierarchical importance sampling; ``leaf = -1`` where a node cannot contribute."""
     for i in prange(pos.shape[0]):
-        p = pos[i]
-        nn = nrm[i]
-        t, b = frame(nn[0], nn[1], nn[2])
-        for s in range(size[i]):
-            k = cut[i, s]
-            if not node_live(p, nn, t, b, bmin, bmax, inten, k):
-                leaf[i, s] = -1
-                pdf[i, s] = 0.0
-                continue
-            u = uniform(seed, pix_id[i], 2 * s)
-            lf, pr = descend(p, nn, t, b, bmin, bmax, inten, n_leaves, k, u, clamp2)
-            leaf[i, s] = lf
-            pdf[i, s] = pr
+        sample_pixel(i, seed, pos, nrm, pix_id, cut, size, bmin, bmax, inten, n_leaves, clamp2, leaf, pdf)
         for s in range(size[i], leaf.shape[1]):
             leaf[i, s] = -1
             pdf[i, s] = 0.0
@@ -339,34 +369,62 @@ def sample_weight(p, n, light_pos, light_nrm, one_sided, j, pdf, clamp2):
     return g
 
 
-@njit(cache=True, parallel=True)
-def shade_samples(pos, nrm, alb, leaf, pdf, light_pos, light_rgb, light_nrm, one_sided, n_leaves, clamp2,
-                  contrib):
-    """Unshadowed Lambertian estimate of each sample: ``albedo/pi * I_rgb * cos / max(d^2, clamp2) / pdf``,
-    times the emitter cosine ``max(0, n_l . (p - x_l) / d)`` when ``one_sided``.
+@njit(cache=True)
+def sample_estimate(p, n, alb, lf, pr, light_pos, light_rgb, light_nrm, one_sided, n_leaves, clamp2):
+    """Unshadowed Lambertian estimate (RGB) of light ``lf`` (a heap node, -1: none) drawn with probability ``pr``
+    at ``p`` (normal ``n``, diffuse albedo ``alb``): ``albedo * I_rgb * sample_weight``."""
+    if lf < 0 or pr <= 0.0:
+        return 0.0, 0.0, 0.0
+    j = lf - n_leaves
+    g = sample_weight(p, n, light_pos, light_nrm, one_sided, j, pr, clamp2)
+    return alb[0] * light_rgb[j, 0] * g, alb[1] * light_rgb[j, 1] * g, alb[2] * light_rgb[j, 2] * g
 
-    Returns a boolean (P, S) mask of the samples that need a shadow ray (non-zero contribution).
-    """
+
+@njit(cache=True, parallel=True)
+def shade_samples(pos, nrm, alb, leaf, pdf, light_pos, light_rgb, light_nrm, one_sided, n_leaves, clamp2):
+    """The samples that need a shadow ray: a boolean (P, S) mask of those whose unshadowed estimate
+    (``sample_estimate``) is > 0."""
     n_pix, n_s = leaf.shape
     need = np.zeros((n_pix, n_s), dtype=np.bool_)
     for i in prange(n_pix):
-        p = pos[i]
-        nn = nrm[i]
         for s in range(n_s):
-            contrib[i, s, 0] = 0.0
-            contrib[i, s, 1] = 0.0
-            contrib[i, s, 2] = 0.0
-            lf = leaf[i, s]
-            if lf < 0 or pdf[i, s] <= 0.0:
-                continue
-            j = lf - n_leaves
-            g = sample_weight(p, nn, light_pos, light_nrm, one_sided, j, pdf[i, s], clamp2)
-            if g == 0.0:
-                continue
-            tot = 0.0
-            for c in range(3):
-                v = alb[i, c] * light_rgb[j, c] * g
-                contrib[i, s, c] = v
-                tot += v
-            need[i, s] = tot > 0.0
+            v = sample_estimate(pos[i], nrm[i], alb[i], leaf[i, s], pdf[i, s], light_pos, light_rgb, light_nrm,
+                                one_sided, n_leaves, clamp2)
+            need[i, s] = v[0] + v[1] + v[2] > 0.0
     return need
+
+
+@njit(cache=True)
+def shade_pixel(i, s0, s1, pos, nrm, albedo, leaves, pdfs, light_pos, light_rgb, light_nrm, one_sided, n_leaves,
+                clamp2, blocked):
+    """Direct diffuse radiance of pixel ``i`` from its samples ``[s0, s1)``: the sum, in slot order, of the
+    estimates that are > 0 and whose shadow ray is not ``blocked[i, s]`` (asked only for those); returns ``(r, g,
+    b, samples with a light)``."""
+    c0 = 0.0
+    c1 = 0.0
+    c2 = 0.0
+    drawn = 0
+    for s in range(s0, s1):
+        lf = leaves[i, s]
+        if lf >= 0:
+            drawn += 1
+            v = sample_estimate(pos[i], nrm[i], albedo[i], lf, pdfs[i, s], light_pos, light_rgb, light_nrm, one_sided,
+                                n_leaves, clamp2)
+            if v[0] + v[1] + v[2] > 0.0 and not blocked[i, s]:
+                c0 += v[0]
+                c1 += v[1]
+                c2 += v[2]
+    return c0, c1, c2, drawn
+
+
+@njit(cache=True, parallel=True)
+def shade_pixels(pos, nrm, alb, leaf, pdf, light_pos, light_rgb, light_nrm, one_sided, n_leaves, clamp2, blocked):
+    """``shade_pixel`` of every pixel over all its samples: the radiance (P, 3)."""
+    out = np.zeros((leaf.shape[0], 3))
+    for i in prange(leaf.shape[0]):
+        c0, c1, c2, _ = shade_pixel(i, 0, leaf.shape[1], pos, nrm, alb, leaf, pdf, light_pos, light_rgb, light_nrm,
+                                    one_sided, n_leaves, clamp2, blocked)
+        out[i, 0] = c0
+        out[i, 1] = c1
+        out[i, 2] = c2
+    return out

@@ -39,6 +39,12 @@ import numpy as np
 from numba import njit, prange
 
 from . import _kernels as K
+from ._kernels import ONE_MINUS, bitangent, descend, node_live, tangent, uniform
+
+#: The per-pixel kernels renderers/gpu/codegen.py translates with those of ``_kernels``, in float32 ...
+GLSL_FLOAT_ROOTS = ("select_pixel", "sort_pixel")
+#: ... and in double precision (as the CPU's float64: a pixel's low-resolution pixel must be the same)
+GLSL_DOUBLE_ROOTS = ("low_res_pixel",)
 
 
 @njit(cache=True)
@@ -85,17 +91,17 @@ def eq10_as_printed(a: int, b: int) -> float:
 
 
 @njit(cache=True)
-def lrls(leaves, count, lid_min, lid_max):
-    """Index of the first entry of the sorted ``leaves[:count]`` in ``[lid_min, lid_max]``, or -1."""
+def lrls(lr_leaves, q, count, lid_min, lid_max):
+    """Index of the first entry of the sorted ``lr_leaves[q, :count]`` in ``[lid_min, lid_max]``, or -1."""
     lo = 0
     hi = count
     while lo < hi:
-        mid = (lo + hi) // 2
-        if leaves[mid] < lid_min:
+        mid = (lo + hi) >> 1
+        if lr_leaves[q, mid] < lid_min:
             lo = mid + 1
         else:
             hi = mid
-    if lo < count and leaves[lo] <= lid_max:
+    if lo < count and lr_leaves[q, lo] <= lid_max:
         return lo
     return -1
 
@@ -143,8 +149,9 @@ def n_light(node, leaves, nodes, count, first, lid_max, pdfs=None, inten=None, u
 
 
 @njit(cache=True)
-def reuse_sample(node, leaves, nodes, pdfs, depths, count, first, lid_max, inten, u):
-    """The reused sample for cut node ``node`` and its probability ``(index, pdf)`` (used by Algorithm 2).
+def reuse_sample(node, lr_leaves, lr_nodes, lr_pdfs, lr_depths, q, count, first, lid_max, inten, u):
+    """The reused sample ``LS'[q][index]`` for cut node ``node`` and its probability ``(index, pdf)`` (used by
+    Algorithm 2).
 
     The low-resolution cut ``LC'[p']`` partitions the lights, so the samples under ``node`` come either
     (a) from one cut node ``node'`` above ``node`` — a single candidate, probability approximated by
@@ -156,14 +163,14 @@ def reuse_sample(node, leaves, nodes, pdfs, depths, count, first, lid_max, inten
     and biased the image (−5 % to +7 % on small lamps; docs/lightcuts.md).
     """
     dn = depth(node)
-    if depths[first] < dn:
-        return first, pdfs[first] * inten[nodes[first]] / inten[node]
+    if lr_depths[q, first] < dn:
+        return first, lr_pdfs[q, first] * inten[lr_nodes[q, first]] / inten[node]
     total = 0.0
     pick = first
     pick_w = 0.0
     j = first
-    while j < count and leaves[j] <= lid_max:
-        wj = inten[nodes[j]]
+    while j < count and lr_leaves[q, j] <= lid_max:
+        wj = inten[lr_nodes[q, j]]
         if wj > 0.0:
             total += wj
             r = wj / total
@@ -173,28 +180,104 @@ def reuse_sample(node, leaves, nodes, pdfs, depths, count, first, lid_max, inten
                 u = u / r
             else:
                 u = (u - r) / (1.0 - r)
-            u = min(u, K.ONE_MINUS)
+            u = min(u, ONE_MINUS)
         j += 1
     if total <= 0.0:
-        return first, pdfs[first]
-    return pick, pdfs[pick] * pick_w / total
+        return first, lr_pdfs[q, first]
+    return pick, lr_pdfs[q, pick] * pick_w / total
+
+
+@njit(cache=True)
+def sort_pixel(q, cuts, sizes, leaves, pdfs, ls_leaves, ls_nodes, ls_pdfs, ls_depths):
+    """``LS'[q]``: the samples of low-resolution pixel ``q`` that have a light (``leaves[q, s] >= 0``, ``s <
+    sizes[q]``) sorted by leaf offset by insertion (stable: ties keep the slot order), with their cut node, pdf
+    and node depth. Returns their count."""
+    count = 0
+    for s in range(sizes[q]):
+        lf = leaves[q, s]
+        if lf >= 0:
+            r = count - 1
+            while r >= 0 and ls_leaves[q, r] > lf:
+                ls_leaves[q, r + 1] = ls_leaves[q, r]
+                ls_nodes[q, r + 1] = ls_nodes[q, r]
+                ls_pdfs[q, r + 1] = ls_pdfs[q, r]
+                ls_depths[q, r + 1] = ls_depths[q, r]
+                r -= 1
+            ls_leaves[q, r + 1] = lf
+            ls_nodes[q, r + 1] = cuts[q, s]
+            ls_pdfs[q, r + 1] = pdfs[q, s]
+            ls_depths[q, r + 1] = depth(cuts[q, s])
+            count += 1
+    return count
+
+
+@njit(cache=True, parallel=True)
+def _sort_rows(cut, size, leaf, pdf, leaves, nodes, pdfs, depths, counts):
+    for q in prange(cut.shape[0]):
+        counts[q] = sort_pixel(q, cut, size, leaf, pdf, leaves, nodes, pdfs, depths)
+        r = counts[q]
+        for s in range(cut.shape[1]):   # then the empty entries in slot order (those past the cut too)
+            if leaf[q, s] < 0 or s >= size[q]:
+                leaves[q, r] = leaf[q, s]
+                nodes[q, r] = cut[q, s]
+                pdfs[q, r] = pdf[q, s]
+                depths[q, r] = depth(max(cut[q, s], 1))
+                r += 1
 
 
 def sort_low_res_samples(cut, size, leaf, pdf):
     """``LS'`` per low-resolution pixel sorted by leaf offset: ``(leaves, nodes, pdfs, counts, depths)``.
 
     ``cut``/``leaf``/``pdf`` are the ``(P', B')`` outputs of ``sampling.cut_and_sample``; empty entries
-    (``leaf = -1``) are dropped.
+    (``leaf = -1``) follow the ``counts`` sorted ones.
     """
-    key = np.where(leaf >= 0, leaf, np.iinfo(np.int64).max)
-    order = np.argsort(key, axis=1, kind="stable")
-    leaves = np.take_along_axis(leaf, order, axis=1)
-    nodes = np.take_along_axis(cut, order, axis=1)
-    pdfs = np.take_along_axis(pdf, order, axis=1)
-    counts = (leaf >= 0).sum(axis=1).astype(np.int64)
-    depths = (np.frexp(np.maximum(nodes, 1).astype(np.float64))[1] - 1).astype(np.int64)
-    return (np.ascontiguousarray(leaves), np.ascontiguousarray(nodes), np.ascontiguousarray(pdfs), counts,
-            np.ascontiguousarray(depths))
+    leaves, nodes, pdfs, depths = (np.empty_like(leaf), np.empty_like(cut), np.empty_like(pdf), np.empty_like(cut))
+    counts = np.zeros(cut.shape[0], dtype=np.int64)
+    _sort_rows(cut, np.asarray(size, dtype=np.int64), leaf, pdf, leaves, nodes, pdfs, depths, counts)
+    return leaves, nodes, pdfs, counts, depths
+
+
+@njit(cache=True)
+def low_res_pixel(x, y, scale_x, scale_y, lr_width, lr_height):
+    """Algorithm 2's low-resolution pixel ``p'`` under pixel ``(x, y)`` (``scale``: w' / w, h' / h), row-major."""
+    return min(int(y * scale_y), lr_height - 1) * lr_width + min(int(x * scale_x), lr_width - 1)
+
+
+@njit(cache=True)
+def select_pixel(i, q, seed, pos, nrm, pix_id, fmap, cuts, sizes, bmin, bmax, inten, n_leaves, levels, clamp2,
+                 lr_leaves, lr_nodes, lr_pdfs, lr_counts, lr_depths, leaves, pdfs):
+    """Algorithm 2 for pixel ``i`` over low-resolution pixel ``q``: for each cut node, with probability
+    ``1 - map[p]`` (uniform ``rad``, slot ``2 s + 1``) the reused sample ``LS'[q]`` under the node (Eq 9's leaf
+    range; ``lrls``, ``reuse_sample``), else (or if none) hierarchical importance sampling (slot ``2 s``). Writes
+    ``leaves[i, s]``, ``pdfs[i, s]``; returns the number of reused samples. The minima with ``ONE_MINUS`` keep
+    the GPU's float32 uniforms below 1 (for ``rad / (1 - map)`` also the CPU's, where it would round to 1)."""
+    p = pos[i]
+    nn = nrm[i]
+    t = tangent(nn[0], nn[1], nn[2])
+    b = bitangent(nn[0], nn[1], nn[2])
+    reused = 0
+    for s in range(sizes[i]):
+        k = cuts[i, s]
+        leaves[i, s] = -1
+        pdfs[i, s] = 0.0
+        if node_live(p, nn, t, b, bmin, bmax, inten, k):
+            rad = min(uniform(seed, pix_id[i], 2 * s + 1), ONE_MINUS)
+            first = -1
+            if rad <= 1.0 - fmap[i] and lr_counts[q] > 0:
+                lo, hi = leaf_range(k, levels)
+                first = lrls(lr_leaves, q, lr_counts[q], lo, hi)
+                if first >= 0:
+                    j, pj = reuse_sample(k, lr_leaves, lr_nodes, lr_pdfs, lr_depths, q, lr_counts[q], first, hi,
+                                         inten, min(rad / (1.0 - fmap[i]), ONE_MINUS) if fmap[i] < 1.0 else 0.0)
+                    leaves[i, s] = lr_leaves[q, j]
+                    pdfs[i, s] = pj
+                    reused += 1
+            if first < 0:
+                u = min(uniform(seed, pix_id[i], 2 * s), ONE_MINUS)
+                lf, pr = descend(p, nn, t, b, bmin, bmax, inten, n_leaves, k, u, clamp2)
+                leaves[i, s] = lf
+                pdfs[i, s] = pr
+    return reused
 
 
 @njit(cache=True, parallel=True)
@@ -206,35 +289,10 @@ def select_lights(pos, nrm, pix_id, pix_x, pix_y, fmap, cut, size, bmin, bmax, i
     n_pix = pos.shape[0]
     reused = np.zeros(n_pix, dtype=np.int64)
     for i in prange(n_pix):
-        p = pos[i]
-        nn = nrm[i]
-        t, b = K.frame(nn[0], nn[1], nn[2])
-        qx = min(int(pix_x[i] * scale_x), lr_width - 1)
-        qy = min(int(pix_y[i] * scale_y), lr_height - 1)
-        q = qy * lr_width + qx
-        for s in range(size[i]):
-            k = cut[i, s]
-            leaf[i, s] = -1
-            pdf[i, s] = 0.0
-            if not K.node_live(p, nn, t, b, bmin, bmax, inten, k):
-                continue
-            rad = K.uniform(seed, pix_id[i], 2 * s + 1)
-            done = False
-            if rad <= 1.0 - fmap[i] and lr_counts[q] > 0:
-                lo, hi = leaf_range(k, levels)
-                first = lrls(lr_leaves[q], lr_counts[q], lo, hi)
-                if first >= 0:
-                    j, pj = reuse_sample(k, lr_leaves[q], lr_nodes[q], lr_pdfs[q], lr_depths[q], lr_counts[q],
-                                         first, hi, inten, rad / (1.0 - fmap[i]) if fmap[i] < 1.0 else 0.0)
-                    leaf[i, s] = lr_leaves[q, j]
-                    pdf[i, s] = pj
-                    reused[i] += 1
-                    done = True
-            if not done:
-                u = K.uniform(seed, pix_id[i], 2 * s)
-                lf, pr = K.descend(p, nn, t, b, bmin, bmax, inten, n_leaves, k, u, clamp2)
-                leaf[i, s] = lf
-                pdf[i, s] = pr
+        q = low_res_pixel(pix_x[i], pix_y[i], scale_x, scale_y, lr_width, lr_height)
+        reused[i] = select_pixel(i, q, seed, pos, nrm, pix_id, fmap, cut, size, bmin, bmax, inten,
+                                 n_leaves, levels, clamp2, lr_leaves, lr_nodes, lr_pdfs, lr_counts, lr_depths, leaf,
+                                 pdf)
         for s in range(size[i], leaf.shape[1]):
             leaf[i, s] = -1
             pdf[i, s] = 0.0

@@ -127,20 +127,20 @@ def cut_and_sample(tree: LightTree, pos, nrm, budget, pix_id, seed: int, max_bud
 
 
 def shade_tile(tree: LightTree, pos, nrm, alb, leaf, pdf, occluded: Occluder | None, ray_offset: float):
-    """Shade the chosen samples of a tile and apply visibility; returns ``(radiance (n, 3), rays)``."""
-    contrib = np.empty(leaf.shape + (3,))
+    """Shade the chosen samples of a tile and apply visibility; returns ``(radiance (n, 3), rays)``: the shadow
+    rays of the samples that contribute, cast in one batch, then ``_kernels.shade_pixel`` per pixel."""
     one_sided = tree.light_nrm is not None
-    lnrm = tree.light_nrm if one_sided else np.zeros((1, 3))
-    need = K.shade_samples(pos, nrm, alb, leaf, pdf, tree.light_pos, tree.light_rgb, lnrm, one_sided,
-                           tree.n_leaves, clamp2(tree), contrib)
+    light = (tree.light_pos, tree.light_rgb, tree.light_nrm if one_sided else np.zeros((1, 3)), one_sided,
+             tree.n_leaves, clamp2(tree))
+    need = K.shade_samples(pos, nrm, alb, leaf, pdf, *light)
     rays = int(need.sum())
+    blocked = np.zeros(need.shape, dtype=bool)
     if occluded is not None and rays:
         pi, si = np.nonzero(need)
         origins = pos[pi] + ray_offset * nrm[pi]
         targets = tree.light_pos[leaf[pi, si] - tree.n_leaves]
-        blocked = np.asarray(occluded(origins, targets), dtype=bool)
-        contrib[pi[blocked], si[blocked]] = 0.0
-    return contrib.sum(axis=1), rays
+        blocked[pi, si] = np.asarray(occluded(origins, targets), dtype=bool)
+    return K.shade_pixels(pos, nrm, alb, leaf, pdf, *light, blocked), rays
 
 
 def stochastic_lightcuts(tree: LightTree, gbuf: GBuffer, budget, *, seed: int = 0,

@@ -1,26 +1,15 @@
 #version 430
-// Cuts (seed 003 §3.1 "refine the lightcuts until the number of nodes becomes #L"; _kernels.build_cuts): each
-// valid pixel of the tile refines its cut from the root to its budget, u_budget for all (>= 0) or its own ctl.x.
+// Cuts (seed 003 §3.1 "refine the lightcuts until the number of nodes becomes #L"): the generated
+// _kernels.cut_pixel for each pixel of the tile (lc_cut), its nodes copied to the tile's sample list.
 layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "scene.glsl"
 #include "lightcuts.glsl"
-#include "lc_buffers.glsl"
-uniform int u_budget;
 
 void main() {
     cnt_begin();
-    uint i = gid();
-    if (i < uint(u_n)) {
-        int px = u_first + int(i);
-        int m = 0;
-        if (g_pos[px].w > 0.0) {
-            vec3 p = g_pos[px].xyz, n = g_nrm[px].xyz, t, b;
-            lc_frame(n, t, b);
-            m = lc_refine_cut(p, n, t, b, u_budget >= 0 ? u_budget : ctl[px].x);
-            for (int s = 0; s < m; s++) smp[i * uint(CUT_MAX) + uint(s)] = uvec4(uint(lc_cut[s]), 0u, 0u, 0u);
-        }
-        pix[px].x = m;
-    }
+    int i = int(gid()), m = i < u_n ? lc_cut_pixel(i) : 0;
+    for (int s = 0; s < m; s++) smp[i * CUT_MAX + s].node = lc_cut[s];
+    if (i < u_n) pix[u_first + i].x = m;
     cnt_end();
 }
