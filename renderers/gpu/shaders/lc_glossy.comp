@@ -33,10 +33,10 @@ void main() {
         vec3 acc = u_r0 == 0 ? vec3(0.0) : gloss[px].xyz;
         uint live = 0u, missed = 0u;
         if (c > u_r0) {
-            vec3 P = g_pos[px].xyz, n = g_nrm[px].xyz, ks = g_ks[px].xyz, t, b;
+            vec3 P = g_pos[px].xyz, n = g_nrm[px].xyz, ks = g_ks[px].xyz;
+            vec3 t = lc_tangent(n.x, n.y, n.z), b = lc_bitangent(n.x, n.y, n.z);
             float s_exp = g_alb[px].w;
             vec3 V = -camera_ray_d(dvec2(double(px % u_width), double(px / u_width)) + 0.5LF);
-            lc_frame(n, t, b);
             float offset = ray_offset(bounds_lo(), bounds_hi());
             for (int r = u_r0; r < min(u_r1, c); r++) {
                 float u1 = lc_uniform_f(u_seed, uvec2(uint(px), 0u), uint(GLOSSY_STREAM + 2 * r));
@@ -55,16 +55,15 @@ void main() {
                 } else {
                     Surf sf = surface(k, o, dir, th);
                     radiance = sf.base;
-                    vec3 bt, bb;
-                    lc_frame(sf.n, bt, bb);
+                    vec3 bt = lc_tangent(sf.n.x, sf.n.y, sf.n.z), bb = lc_bitangent(sf.n.x, sf.n.y, sf.n.z);
                     int m = lc_refine_cut(sf.p, sf.n, bt, bb, u_bounce_lspp);
                     uvec2 id = uvec2((uint(px) << 20) | uint(r), uint(px) >> 12);
                     for (int s = 0; s < m; s++) {
-                        if (!node_live(sf.p, sf.n, bt, bb, lc_cut[s])) continue;
-                        float pdf;
-                        int leaf = descend(sf.p, sf.n, bt, bb, lc_cut[s],
-                                           lc_uniform_f(u_bounce_seed, id, uint(2 * s)), pdf);
-                        vec3 v = light_estimate(sf.p, sf.n, sf.a, leaf, pdf);
+                        if (!lc_node_live(sf.p, sf.n, bt, bb, lc_cut[s])) continue;
+                        float u = lc_uniform_f(u_bounce_seed, id, uint(2 * s));
+                        vec2 lp = lc_descend(sf.p, sf.n, bt, bb, lc_cut[s], u);   // (leaf, pdf)
+                        int leaf = int(lp.x);
+                        vec3 v = lc_sample_estimate(sf.p, sf.n, sf.a, leaf, lp.y);
                         if (v.x + v.y + v.z > 0.0 && (u_shadows == 0 || !occluded(sf.p, sf.n, leaf, offset)))
                             radiance += v;
                     }

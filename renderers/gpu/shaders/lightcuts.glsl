@@ -13,19 +13,10 @@ int lc_cut[CUT_MAX];
 float lc_err[CUT_MAX];
 #include "lightcuts_gen.glsl"
 
-// The generated kernels for lc_glossy.comp: a uniform as a float32 below 1, the frame, a node's test, the descent
-// (leaf, pdf) and the Lambertian estimate.
+// A uniform as a float32 below 1 (the CPU's min(uniform, ONE_MINUS) in float32), for lc_glossy.comp's lobe.
 float lc_uniform_f(uvec2 seed, uvec2 pixel, uint slot) {
     return min(float(lc_uniform(seed, pixel, uvec2(slot, 0u))), LC_ONE_MINUS_F32);
 }
-void lc_frame(vec3 n, out vec3 t, out vec3 b) { t = lc_tangent(n.x, n.y, n.z); b = lc_bitangent(n.x, n.y, n.z); }
-bool node_live(vec3 p, vec3 n, vec3 t, vec3 b, int k) { return lc_node_live(p, n, t, b, k); }
-int descend(vec3 p, vec3 n, vec3 t, vec3 b, int node, float u, out float pdf) {
-    vec2 r = lc_descend(p, n, t, b, node, u);
-    pdf = r.y;
-    return int(r.x);
-}
-vec3 light_estimate(vec3 p, vec3 n, vec3 alb, int leaf, float pdf) { return lc_sample_estimate(p, n, alb, leaf, pdf); }
 
 // Shadow segment of visibility.EmbreeOccluder: from p offset along n towards the light, shortened to (1 - 1e-3)
 // of its length, any hit.
