@@ -31,3 +31,10 @@ LC_CLAMP_FRACTION = 1e-3
 LC_OFFSET_FRACTION = 1e-4
 LC_SHADOW_EPS = 1e-3
 LC_SHADOW_END = 1.0 - LC_SHADOW_EPS
+
+# -- the LP buffer's filters (renderers/antialias.py lp_filter): rows continued around the angular seam on each side
+# for FXAA and for LMFR's Gaussian, and that Gaussian's sigma and radius (pixels)
+LP_PAD_FXAA = 16
+LP_PAD_GAUSS = 1
+LP_GAUSS_SIGMA = 1.0
+LP_GAUSS_RADIUS = 1

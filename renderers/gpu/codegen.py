@@ -10,6 +10,11 @@
 * :func:`lightcuts_glsl` translates the random numbers (double) and the bounds, cut error, branch probability and
   descent (float32) of :mod:`renderers.lightcuts._kernels`, prefixed ``lc_``; the tree's arrays are bound to the
   shader's tree image (``Translator.bindings``).
+* :func:`lp_glsl` translates the LP buffer's per-pixel kernels of :mod:`renderers._lp` (a screen offset's column
+  from the u(r) table; a screen pixel's bilinear fetch from the LP buffer, rows wrapped at the seam), prefixed
+  ``lp_``; :func:`antialias_glsl` the Gaussians of :mod:`renderers.antialias` (scipy's separable ``correlate1d``
+  of a pixel; the foveal Gaussian's band and pixel), prefixed ``aa_``. The images they read are bound to
+  macros or image loads of the including shader (``img[y, x, ch]`` -> ``px_at(y, x)[ch]``).
 * :func:`constants_glsl` emits the shared constant table :mod:`renderers.constants`; :func:`int64_glsl` the
   64-bit integer helpers.
 
@@ -17,7 +22,9 @@ Types are inferred to a fixed point: a name is ``int`` when every value given to
 ``i64``/``u64`` (numba's ``np.int64``/``np.uint64``, on 32-bit halves) when it holds those, ``vec2``-``vec4`` for
 tuples, otherwise ``float`` (``double`` in a double-precision closure). The translator knows the small Python
 subset these kernels use (assignments, tuple unpacking, ``if``/``elif``/``else``, ``for ... in range``,
-``while``, ``return``, arithmetic, comparisons including chained ones, ``math`` functions) and raises
+``while``, ``return``, arithmetic, comparisons including chained ones, ``math`` functions, the casts
+``np.float32``/``np.float64`` (to the closure's precision: numba's ``float()`` of a float32 stays float32),
+calls of another translated module's kernels (``Translator.externals``: ``point`` -> ``fov_point``)) and raises
 ``NotImplementedError`` naming the function and the construct otherwise, so a kernel change that it cannot follow
 fails loudly in the tests rather than drifting apart.
 """
@@ -100,6 +107,9 @@ class Translator:
         self.float32_values: dict[str, float] = {}
         #: the element type of a bound array that is not ``float`` (``cut`` -> ``int``)
         self.binding_types: dict[str, str] = {}
+        #: functions of another translated module this one calls: name -> (GLSL name, return type); the arrays
+        #: bound here are dropped from their arguments (the callee reads its own), the bound scalars passed
+        self.externals: dict[str, tuple[str, str]] = {}
         #: functions whose float locals are ``precise`` (no fused multiply-add: the rounding of the CPU's sums)
         self.precise: set[str] = set()
         self.prefix = prefix
@@ -216,6 +226,8 @@ class Translator:
         return isinstance(node, ast.Name) and node.id in self.bindings
 
     def vtype(self, fn, name: str) -> str:
+        if name in self.bindings and name in self.binding_types:   # a bound scalar (``kmax`` -> ``u_kmax``)
+            return self.binding_types[name]
         if name in fn.param_types:
             return fn.param_types[name]
         if name in fn.var_types:
@@ -263,18 +275,22 @@ class Translator:
                     return "int" if ts == {"int"} else "float"
                 if f.id in self.fns:
                     return self.fns[f.id].ret
+                if f.id in self.externals:
+                    return self.externals[f.id][1]
             return "float"
         return "float"
 
     # -- emission ----------------------------------------------------------------------------------------------
-    def emit(self, names, helpers: bool = True) -> str:
+    def emit(self, names, helpers: bool = True, consts: bool = True) -> str:
+        """GLSL of the functions ``names``, with the float helpers and the module's constants unless told not to
+        (a second file of the same module, included after the first)."""
         out = [_HELPERS] if helpers else []
         types = {t for n in names for t in [*self.fns[n].var_types.values(), *self.fns[n].param_types.values()]}
         if types & {"i64", "u64"}:   # one copy per shader: the include is expanded once
             out.append('#include "int64_gen.glsl"')
-        for k, v in sorted(self.u64_consts.items()):
+        for k, v in sorted(self.u64_consts.items() if consts else ()):
             out.append(f"const uvec2 {self.const_name(k)} = uvec2({v & 0xFFFFFFFF}u, {v >> 32}u);")
-        for k, v in sorted(self.consts.items()):
+        for k, v in sorted(self.consts.items() if consts else ()):
             if k in self.shared:
                 continue
             if isinstance(v, int):
@@ -538,6 +554,10 @@ class Translator:
             if self.etype(fn, e.args[0]) == "u64":
                 return self.expr(fn, e.args[0])
             raise NotImplementedError(f"{fn.name}: np.uint64 of a {self.etype(fn, e.args[0])}")
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
+                and f.attr in ("float32", "float64"):   # in a double closure float32 rounds, as on the CPU
+            x = self.cast(fn, e.args[0], "float")
+            return f"double(float({x}))" if f.attr == "float32" and fn.real == "double" else x
         if isinstance(f, ast.Name) and f.id == "float" and self.etype(fn, e.args[0]) == "u64":
             return f"u64_to_{fn.real}({self.expr(fn, e.args[0])})"
         if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "math":
@@ -571,6 +591,10 @@ class Translator:
                 args = [a for a in e.args if not self._is_array(a)]
                 text = ", ".join(self.cast(fn, a, callee.param_types[p]) for p, a in zip(params, args))
                 return f"{self.glsl_name(f.id)}({text})"
+            if f.id in self.externals:
+                args = ", ".join(self.expr(fn, a) for a in e.args   # bound arrays dropped, bound scalars kept
+                                 if not (self._is_array(a) and "{0}" in self.bindings[a.id]))
+                return f"{self.externals[f.id][0]}({args})"
         raise NotImplementedError(f"{fn.name}: call of {ast.dump(f)}")
 
 
@@ -719,6 +743,57 @@ def fpsm_glsl() -> str:
     tr.infer(names, {r: {} for r in fpsm.GLSL_FLOAT_ROOTS})
     return "// Generated from renderers/lightcuts/fpsm.py by renderers/gpu/codegen.py: do not edit.\n" \
         '#include "constants_gen.glsl"\n' + tr.emit(names, helpers=False)
+
+
+def _kernel_glsl(module, prefix: str, roots, params: dict, bindings: dict, binding_types: dict,
+                 externals: dict | None = None, after=()) -> str:
+    """GLSL of the closure of ``roots`` in ``module`` (``params``: the roots' parameter types), without the
+    functions and constants of the closure of ``after``, emitted by another file the shader includes first."""
+    tr = Translator(module, prefix, bindings=bindings)
+    tr.binding_types.update(binding_types)
+    tr.externals.update(externals or {})
+    done = tr.closure(after)
+    names = [n for n in tr.closure(roots) if n not in done]
+    tr.infer(done + names, params)
+    head = f"// Generated from {module.__name__.replace('.', '/')}.py by renderers/gpu/codegen.py: do not edit.\n"
+    return head + tr.emit(names, helpers=False, consts=not after)
+
+
+#: The LP kernels' arrays and scalars on the GPU: the LP buffer image ``src``, the per-column table ``cols``
+#: (lp_cols.glsl), the u(r) table and the uniforms of lp_map.glsl; ``point`` is the generated ``fov_point``.
+_LP_BINDINGS = {"lp": "imageLoad(src, ivec2({1}, {0}))[{2}]", "utab": "lp_utab({0})", "exact": "lp_exact({0})",
+                "inv_step": "u_inv_step", "kmax": "u_kmax", "method": "METHOD", "gx": "u_gaze.x", "gy": "u_gaze.y",
+                "Lr": "cols({0}).y", "n": "int(cols({0}).z)", "w_eff": "u_w_eff"}
+_LP_INTS = dict.fromkeys(("exact", "kmax", "method", "n", "w_eff"), "int")
+
+
+@functools.lru_cache(maxsize=None)
+def lp_glsl(part: str = "u") -> str:
+    """GLSL of the LP kernels of :mod:`renderers._lp`: ``part`` ``"u"`` the column of a screen offset
+    (``lp_table_u(dx, dy)``, lp_map.glsl), ``"inverse"`` a screen pixel's colour (``lp_inverse_pixel(x, y)``,
+    inverse_map.comp, which includes the first)."""
+    from .. import _lp
+
+    roots = _lp.GLSL_FLOAT_ROOTS if part == "u" else _lp.GLSL_INVERSE_ROOTS
+    return _kernel_glsl(_lp, "lp_", roots, {"table_u": {}, "inverse_pixel": {"x": "int", "y": "float"}},
+                        _LP_BINDINGS, _LP_INTS, {"point": ("fov_point", "vec2")},
+                        after=() if part == "u" else _lp.GLSL_FLOAT_ROOTS)
+
+
+@functools.lru_cache(maxsize=None)
+def antialias_glsl(part: str = "gauss") -> str:
+    """GLSL of the Gaussians of :mod:`renderers.antialias`: ``part`` ``"gauss"`` a pixel's Gaussian
+    (``aa_gauss_pixel``, gauss3.comp and foveal.comp), ``"foveal"`` the foveal band and pixel (foveal.comp, after
+    the first). The including shader defines ``px_at(y, x)`` (the image) and the uniforms ``u_w`` (weights),
+    ``u_edges`` and ``u_radii`` (the bands)."""
+    from .. import antialias as AA
+
+    pixel = dict.fromkeys(("y", "x", "ch", "o", "r", "b", "h", "w"), "int")
+    return _kernel_glsl(AA, "aa_", AA.GLSL_FLOAT_ROOTS if part == "gauss" else AA.GLSL_FOVEAL_ROOTS,
+                        {"gauss_pixel": pixel, "foveal_pixel": pixel, "foveal_band": {}},
+                        {"img": "px_at({0}, {1})[{2}]", "k": "u_w[{0}]", "edges": "u_edges[{0}]",
+                         "radii": "u_radii[{0}]"}, {"radii": "int"},
+                        after=() if part == "gauss" else AA.GLSL_FLOAT_ROOTS)
 
 
 def int64_glsl() -> str:

@@ -322,6 +322,14 @@ def generated_source(fname: str) -> str | None:
         from .codegen import shade_glsl
 
         return shade_glsl()
+    if fname in ("lp_u_gen.glsl", "lp_inverse_gen.glsl"):
+        from .codegen import lp_glsl
+
+        return lp_glsl(fname[3:-9])
+    if fname in ("gauss_gen.glsl", "foveal_gen.glsl"):
+        from .codegen import antialias_glsl
+
+        return antialias_glsl(fname[:-9])
     if fname == "constants_gen.glsl":
         from .codegen import constants_glsl
 
