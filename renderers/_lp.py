@@ -22,6 +22,7 @@ TWO_PI = 2.0 * math.pi
 #: the u(r) table, and a screen pixel's bilinear fetch from the LP buffer (which calls it).
 GLSL_FLOAT_ROOTS = ("table_u",)
 GLSL_INVERSE_ROOTS = ("inverse_pixel",)
+GLSL_FILL_ROOTS = ("fill_row",)
 
 
 @njit(cache=True, inline="always")
@@ -84,6 +85,25 @@ def wrap_pad(lp, n, pad, out):
             j = (jj - pad) % nc
             for ch in range(lp.shape[2]):
                 out[jj, c, ch] = lp[j, c, ch]
+
+
+@njit(cache=True, inline="always")
+def fill_row(lp, shaded, j, w):
+    """Copy into each unshaded pixel of LP row ``j`` the last shaded pixel of the row at a smaller column (column
+    0 if there is none), in place."""
+    src = 0
+    for c in range(w):
+        if shaded[j, c]:
+            src = c
+        elif src != c:
+            lp[j, c] = lp[j, src]
+
+
+@njit(cache=True, parallel=True)
+def fill_rows(lp, shaded):
+    """:func:`fill_row` of every row of the LP buffer ``lp`` (h, w, 3), in place."""
+    for j in prange(lp.shape[0]):
+        fill_row(lp, shaded, j, lp.shape[1])
 
 
 @njit(cache=True, inline="always")

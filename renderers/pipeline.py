@@ -296,10 +296,9 @@ def fill_unshaded(lp, layout: LPLayout, jj, ii):
     """
     shaded = np.zeros((layout.h, layout.w), dtype=np.bool_)
     shaded[jj, ii] = True
-    src = np.where(shaded, np.arange(layout.w)[None, :], 0)
-    np.maximum.accumulate(src, axis=1, out=src)
-    rows = np.arange(layout.h)[:, None]
-    return lp[rows, src]
+    out = np.array(lp, dtype=np.float32)   # a copy
+    _lp.fill_rows(out, shaded)
+    return out
 
 
 def finish(tracer: Tracer, layout: LPLayout, lp, params: dict, width: int, height: int, exposure: float,

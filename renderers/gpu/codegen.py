@@ -110,6 +110,9 @@ class Translator:
         #: functions of another translated module this one calls: name -> (GLSL name, return type); the arrays
         #: bound here are dropped from their arguments (the callee reads its own), the bound scalars passed
         self.externals: dict[str, tuple[str, str]] = {}
+        #: bound arrays that are written by a statement (an image): name -> template with ``{0}``, ``{1}`` for the
+        #: subscripts and ``{value}`` (``lp[j, c] = v`` -> ``imageStore(lp, ivec2(c, j), v)``)
+        self.stores: dict[str, str] = {}
         #: functions whose float locals are ``precise`` (no fused multiply-add: the rounding of the CPU's sums)
         self.precise: set[str] = set()
         self.prefix = prefix
@@ -180,7 +183,7 @@ class Translator:
                         fn.var_types[var] = t
                         changed = True
                 rets = {self._ret_type(fn, r.value) for r in ast.walk(fn.node) if isinstance(r, ast.Return)}
-                ret = _join(fn.name, "return value", rets)
+                ret = _join(fn.name, "return value", rets) if rets else "void"   # a kernel that stores
                 if fn.ret != ret:
                     fn.ret = ret
                     changed = True
@@ -344,6 +347,11 @@ class Translator:
                     if t.id != "_":
                         lines.append(f"{pad}{t.id} = {tmp}.{comp};")
                 return lines
+            if isinstance(target, ast.Subscript) and target.value.id in self.stores:   # an image store
+                idx = target.slice.elts if isinstance(target.slice, ast.Tuple) else [target.slice]
+                value = self.cast(fn, value, self.etype(fn, target))
+                return [pad + self.stores[target.value.id].format(*(self.expr(fn, i) for i in idx), value=value)
+                        + ";"]
             if isinstance(target, ast.Subscript):   # an element of a bound array
                 return [f"{pad}{self.expr(fn, target)} = {self.cast(fn, value, self.etype(fn, target))};"]
             return [f"{pad}{target.id} = {self.cast(fn, value, self.vtype(fn, target.id))};"]
@@ -746,12 +754,13 @@ def fpsm_glsl() -> str:
 
 
 def _kernel_glsl(module, prefix: str, roots, params: dict, bindings: dict, binding_types: dict,
-                 externals: dict | None = None, after=()) -> str:
+                 externals: dict | None = None, after=(), stores: dict | None = None) -> str:
     """GLSL of the closure of ``roots`` in ``module`` (``params``: the roots' parameter types), without the
     functions and constants of the closure of ``after``, emitted by another file the shader includes first."""
     tr = Translator(module, prefix, bindings=bindings)
     tr.binding_types.update(binding_types)
     tr.externals.update(externals or {})
+    tr.stores.update(stores or {})
     done = tr.closure(after)
     names = [n for n in tr.closure(roots) if n not in done]
     tr.infer(done + names, params)
@@ -771,9 +780,15 @@ _LP_INTS = dict.fromkeys(("exact", "kmax", "method", "n", "w_eff"), "int")
 def lp_glsl(part: str = "u") -> str:
     """GLSL of the LP kernels of :mod:`renderers._lp`: ``part`` ``"u"`` the column of a screen offset
     (``lp_table_u(dx, dy)``, lp_map.glsl), ``"inverse"`` a screen pixel's colour (``lp_inverse_pixel(x, y)``,
-    inverse_map.comp, which includes the first)."""
+    inverse_map.comp, which includes the first), ``"fill"`` the filling of an LP row (``lp_fill_row(j, w)``,
+    in place in the image ``lp``; shaded: flag bit 1)."""
     from .. import _lp
 
+    if part == "fill":
+        return _kernel_glsl(_lp, "lp_", _lp.GLSL_FILL_ROOTS, {"fill_row": {"j": "int", "w": "int"}},
+                            {"lp": "imageLoad(lp, ivec2({1}, {0}))",
+                             "shaded": "((flags[({0}) * u_lp_w + ({1})] & 1u) != 0u)"},
+                            {"lp": "vec4", "shaded": "bool"}, stores={"lp": "imageStore(lp, ivec2({1}, {0}), {value})"})
     roots = _lp.GLSL_FLOAT_ROOTS if part == "u" else _lp.GLSL_INVERSE_ROOTS
     return _kernel_glsl(_lp, "lp_", roots, {"table_u": {}, "inverse_pixel": {"x": "int", "y": "float"}},
                         _LP_BINDINGS, _LP_INTS, {"point": ("fov_point", "vec2")},

@@ -322,7 +322,7 @@ def generated_source(fname: str) -> str | None:
         from .codegen import shade_glsl
 
         return shade_glsl()
-    if fname in ("lp_u_gen.glsl", "lp_inverse_gen.glsl"):
+    if fname in ("lp_u_gen.glsl", "lp_inverse_gen.glsl", "lp_fill_gen.glsl"):
         from .codegen import lp_glsl
 
         return lp_glsl(fname[3:-9])
