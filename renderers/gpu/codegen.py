@@ -15,6 +15,8 @@
   ``lp_``; :func:`antialias_glsl` the Gaussians of :mod:`renderers.antialias` (scipy's separable ``correlate1d``
   of a pixel; the foveal Gaussian's band and pixel), prefixed ``aa_``. The images they read are bound to
   macros or image loads of the including shader (``img[y, x, ch]`` -> ``px_at(y, x)[ch]``).
+* :func:`gt_glsl` translates GT's sample jitter (:func:`renderers.pipeline.sample_offset`: the lowbias32 hash
+  in numba's ``np.uint32``, GLSL ``uint``), prefixed ``gt_``.
 * :func:`constants_glsl` emits the shared constant table :mod:`renderers.constants`; :func:`int64_glsl` the
   64-bit integer helpers.
 
@@ -128,6 +130,8 @@ class Translator:
 
         #: module-level np.uint64 constants (the random numbers' multipliers), emitted as uvec2(lo, hi)
         self.u64_consts = {k: int(v) for k, v in vars(module).items() if isinstance(v, np.uint64)}
+        #: module-level np.uint32 constants (the GT jitter's hash), emitted as GLSL ``uint``
+        self.u32_consts = {k: int(v) for k, v in vars(module).items() if isinstance(v, np.uint32)}
 
     # -- analysis ----------------------------------------------------------------------------------------------
     def closure(self, roots) -> list[str]:
@@ -237,6 +241,8 @@ class Translator:
             return fn.var_types[name]
         if name in self.u64_consts:
             return "u64"
+        if name in self.u32_consts:
+            return "uint"
         v = self.consts.get(name)
         if v is not None:
             return "int" if isinstance(v, int) else "float"
@@ -255,6 +261,8 @@ class Translator:
                 return "int" if isinstance(e.op, ast.BitAnd) else "i64"
             if "u64" in (a, b):
                 return "u64"
+            if "uint" in (a, b) and {a, b} <= {"int", "uint"}:
+                return "uint"
             return "int" if a == b == "int" else "float"
         if isinstance(e, (ast.Compare, ast.BoolOp)) or (isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.Not)):
             return "bool"
@@ -268,8 +276,8 @@ class Translator:
         if isinstance(e, ast.Call):
             f = e.func
             if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
-                    and f.attr in ("int64", "uint64"):
-                return "i64" if f.attr == "int64" else "u64"
+                    and f.attr in ("int64", "uint64", "uint32"):
+                return {"int64": "i64", "uint64": "u64", "uint32": "uint"}[f.attr]
             if isinstance(f, ast.Name):
                 if f.id == "int":
                     return "int"
@@ -291,6 +299,8 @@ class Translator:
         types = {t for n in names for t in [*self.fns[n].var_types.values(), *self.fns[n].param_types.values()]}
         if types & {"i64", "u64"}:   # one copy per shader: the include is expanded once
             out.append('#include "int64_gen.glsl"')
+        for k, v in sorted(self.u32_consts.items() if consts else ()):
+            out.append(f"const uint {self.const_name(k)} = {v}u;")
         for k, v in sorted(self.u64_consts.items() if consts else ()):
             out.append(f"const uvec2 {self.const_name(k)} = uvec2({v & 0xFFFFFFFF}u, {v >> 32}u);")
         for k, v in sorted(self.consts.items() if consts else ()):
@@ -419,7 +429,7 @@ class Translator:
     def cast(self, fn, e, want: str) -> str:
         text = self.expr(fn, e)
         have = self.etype(fn, e)
-        if want == "float" and have == "int":
+        if want == "float" and have in ("int", "uint"):
             return f"{fn.real}({text})"
         if want == "i64" and have == "int":
             return f"i64_from({text})"
@@ -452,7 +462,7 @@ class Translator:
                 return e.id
             if e.id in self.bindings:
                 return self.bindings[e.id]
-            if e.id in self.u64_consts:
+            if e.id in self.u64_consts or e.id in self.u32_consts:
                 return self.const_name(e.id)
             if e.id in self.consts:
                 if fn.real == "double" and isinstance(self.consts[e.id], float):
@@ -487,7 +497,10 @@ class Translator:
             if type(e.op) not in _BINOPS:
                 raise NotImplementedError(f"{fn.name}: operator {type(e.op).__name__}")
             ta, tb = self.etype(fn, e.left), self.etype(fn, e.right)
-            if ta != tb:  # GLSL converts implicitly, but say it (and keep int/float mixing visible)
+            if "uint" in (ta, tb) and {ta, tb} <= {"int", "uint"}:   # uint arithmetic wraps modulo 2^32
+                a = f"uint({a})" if ta == "int" else a
+                b = f"uint({b})" if tb == "int" else b
+            elif ta != tb:  # GLSL converts implicitly, but say it (and keep int/float mixing visible)
                 a = f"{fn.real}({a})" if ta == "int" else a
                 b = f"{fn.real}({b})" if tb == "int" else b
             return f"({a} {_BINOPS[type(e.op)]} {b})"
@@ -562,6 +575,11 @@ class Translator:
             if self.etype(fn, e.args[0]) == "u64":
                 return self.expr(fn, e.args[0])
             raise NotImplementedError(f"{fn.name}: np.uint64 of a {self.etype(fn, e.args[0])}")
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
+                and f.attr == "uint32":   # numba's uint32 of a wider product: its low 32 bits, as GLSL's uint
+            if self.etype(fn, e.args[0]) not in ("int", "uint"):
+                raise NotImplementedError(f"{fn.name}: np.uint32 of a {self.etype(fn, e.args[0])}")
+            return f"uint({self.expr(fn, e.args[0])})"
         if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
                 and f.attr in ("float32", "float64"):   # in a double closure float32 rounds, as on the CPU
             x = self.cast(fn, e.args[0], "float")
@@ -655,7 +673,7 @@ def _const_int(e) -> int | None:
     return None
 
 
-_BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Mod: "%", ast.BitAnd: "&", ast.BitOr: "|",
+_BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Mod: "%", ast.BitAnd: "&", ast.BitOr: "|", ast.RShift: ">>",
            ast.BitXor: "^"}
 _CMPOPS = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!="}
 
@@ -809,6 +827,21 @@ def antialias_glsl(part: str = "gauss") -> str:
                         {"img": "px_at({0}, {1})[{2}]", "k": "u_w[{0}]", "edges": "u_edges[{0}]",
                          "radii": "u_radii[{0}]"}, {"radii": "int"},
                         after=() if part == "gauss" else AA.GLSL_FLOAT_ROOTS)
+
+
+@functools.lru_cache(maxsize=None)
+def gt_glsl() -> str:
+    """GLSL of the GT sample jitter of :mod:`renderers.pipeline`: ``gt_sample_offset(px, py, s, side)`` (dvec2,
+    the lowbias32 hash in uint, the offset in double precision like the CPU's float64)."""
+    from .. import pipeline
+
+    tr = Translator(pipeline, "gt_")
+    names = tr.closure(pipeline.GLSL_DOUBLE_ROOTS)
+    for n in names:
+        tr.fns[n].real = "double"
+    tr.infer(names, {"sample_offset": dict.fromkeys(("px", "py", "s", "side"), "int")})
+    return "// Generated from renderers/pipeline.py by renderers/gpu/codegen.py: do not edit.\n" \
+        + tr.emit(names, helpers=False)
 
 
 def int64_glsl() -> str:

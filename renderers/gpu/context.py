@@ -326,6 +326,10 @@ def generated_source(fname: str) -> str | None:
         from .codegen import lp_glsl
 
         return lp_glsl(fname[3:-9])
+    if fname == "gt_gen.glsl":
+        from .codegen import gt_glsl
+
+        return gt_glsl()
     if fname in ("gauss_gen.glsl", "foveal_gen.glsl"):
         from .codegen import antialias_glsl
 

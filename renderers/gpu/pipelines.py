@@ -32,7 +32,7 @@ def render_gt(fr: Frame, camera, width: int, height: int, spp: int = 1, pixel_fi
     """
     img = fr.pool.get("image", 12 * width * height)
     side = math.isqrt(spp)
-    defines = {"SPP": spp, "SPP_SIDE": side, **{k: f"{v}u" for k, v in cpu.GT_HASH.items()}}
+    defines = {"SPP": spp, "SPP_SIDE": side}
     cam = camera_uniforms(camera, width, height)
     origin = camera.position
     rows = max(1, fr.batch // (width * spp))
