@@ -23,6 +23,7 @@ TWO_PI = 2.0 * math.pi
 GLSL_FLOAT_ROOTS = ("table_u",)
 GLSL_INVERSE_ROOTS = ("inverse_pixel",)
 GLSL_FILL_ROOTS = ("fill_row",)
+GLSL_NEEDED_ROOTS = ("needed",)
 
 
 @njit(cache=True, inline="always")
@@ -85,6 +86,21 @@ def wrap_pad(lp, n, pad, out):
             j = (jj - pad) % nc
             for ch in range(lp.shape[2]):
                 out[jj, c, ch] = lp[j, c, ch]
+
+
+@njit(cache=True, inline="always")
+def needed(border, x, y, width, height):
+    """Whether an LP pixel (of the mask) is shaded: a border pixel's bilinear fetch reads it (``border``), or its
+    screen position ``(x, y)`` lies on the ``width`` x ``height`` display."""
+    return border or (x >= 0.0 and x < width and y >= 0.0 and y < height)
+
+
+@njit(cache=True, parallel=True)
+def mark_needed(need, jj, ii, x, y, width, height):
+    """:func:`needed` of the LP pixels ``(jj, ii)`` at screen positions ``(x, y)``, into ``need`` (h, w) (which
+    holds the border footprint)."""
+    for q in prange(jj.size):
+        need[jj[q], ii[q]] = needed(need[jj[q], ii[q]], x[q], y[q], width, height)
 
 
 @njit(cache=True, inline="always")

@@ -25,6 +25,7 @@ from .constants import LP_GAUSS_RADIUS, LP_GAUSS_SIGMA, LP_PAD_FXAA, LP_PAD_GAUS
 #: (LMFR's LP filter), and the foveal Gaussian's band and pixel, which call it.
 GLSL_FLOAT_ROOTS = ("gauss_pixel",)
 GLSL_FOVEAL_ROOTS = ("foveal_band", "foveal_pixel")
+GLSL_LUMA_ROOTS = ("luma",)
 
 FXAA_STEPS_12 = np.array([1.0, 1.5, 2.0, 4.0, 12.0])
 FOVEAL_BANDS_DEG = np.array([5.0, 15.0, 30.0])
@@ -168,10 +169,27 @@ def _fxaa(rgb, luma, steps, subpix, edge_threshold, edge_threshold_min, row0, ro
                 out[y - row0, x, ch] = _bil(rgb, px, py, ch)
 
 
+@njit(cache=True, inline="always")
+def luma(r, g, b, exposure):
+    """FXAA's luma of a linear RGB pixel: ``sqrt(clip(exposure Y, 0, 1))``, ``Y`` the Rec. 709 luminance, in
+    float32 throughout (as numpy computes it for a float32 image and a Python float)."""
+    y = np.float32(exposure) * (np.float32(LUMA_R) * r + np.float32(LUMA_G) * g + np.float32(LUMA_B) * b)
+    return math.sqrt(min(max(y, np.float32(0.0)), np.float32(1.0)))
+
+
+@njit(cache=True, parallel=True)
+def _luma_image(rgb, exposure, out):
+    for y in prange(rgb.shape[0]):
+        for x in range(rgb.shape[1]):
+            out[y, x, 0] = luma(rgb[y, x, 0], rgb[y, x, 1], rgb[y, x, 2], exposure)
+
+
 def fxaa_luma(rgb: np.ndarray, exposure: float = 1.0) -> np.ndarray:
-    """FXAA's luma channel: ``sqrt(clip(exposure * (0.2126 R + 0.7152 G + 0.0722 B), 0, 1))``, (h, w, 1)."""
-    y = exposure * (LUMA_R * rgb[..., 0] + LUMA_G * rgb[..., 1] + LUMA_B * rgb[..., 2])
-    return np.sqrt(np.clip(y, 0.0, 1.0)).astype(np.float32)[..., None]
+    """FXAA's luma channel of an (h, w, 3) image (:func:`luma` of every pixel), (h, w, 1) float32."""
+    rgb = np.ascontiguousarray(rgb, dtype=np.float32)
+    out = np.empty(rgb.shape[:2] + (1,), dtype=np.float32)
+    _luma_image(rgb, float(exposure), out)
+    return out
 
 
 def fxaa(rgb: np.ndarray, exposure: float = 1.0, *, subpix: float = 0.75, edge_threshold: float = 0.166,

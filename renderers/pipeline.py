@@ -211,7 +211,8 @@ class LPLayout:
         jj, ii = np.nonzero(self.mask)
         x, y = m.inverse(ii + 0.5, jj + 0.5)
         need = self.border_footprint()
-        need[jj, ii] |= disp.contains(x, y)
+        _lp.mark_needed(need, jj, ii, np.ascontiguousarray(x, dtype=np.float64),
+                        np.ascontiguousarray(y, dtype=np.float64), float(disp.width), float(disp.height))
         sel = need[jj, ii]
         return jj, ii, x, y, sel
 

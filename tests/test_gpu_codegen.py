@@ -158,7 +158,8 @@ def _copy_of_shade(tmp_path, name: str, edits: list[tuple[str, str]]):
     ("    return LUMA_R * r + LUMA_G * g + LUMA_B * b", "    return [r, g, b][0]", "luminance: subscript of List"),
     ("    return LUMA_R * r + LUMA_G * g + LUMA_B * b", "    return r, g, b, r, g", "luminance: tuple of 5 values"),
     ("    cos_t = nx * wx", "    cos_t = np.dot(nx, wx)\n    cos_t = nx * wx", "irradiance_factor: call of "),
-], ids=["for-over-tuple", "int64-product", "list", "5-tuple", "numpy-call"])
+    ("    cos_t = nx * wx", "    q = np.uint32(nx)\n    cos_t = nx * wx", "irradiance_factor: np.uint32 of a float"),
+], ids=["for-over-tuple", "int64-product", "list", "5-tuple", "numpy-call", "uint32-of-float"])
 def test_generator_names_what_it_cannot_translate(tmp_path, old, new, message):
     mod = _copy_of_shade(tmp_path, "_shade_bad", [(old, new)])
     try:
@@ -166,6 +167,31 @@ def test_generator_names_what_it_cannot_translate(tmp_path, old, new, message):
             codegen.shade_glsl(mod)
     finally:
         sys.modules.pop("renderers._shade_bad", None)
+
+
+def test_the_pixel_kernels_of_the_lp_passes_are_the_cpus_filters():
+    """The Gaussian pixel kernel that the GPU's LP and foveal filters are generated from (antialias.gauss_pixel) is
+    bit for bit scipy's separable correlate1d (antialias.blur) on the CPU; the row filling (_lp.fill_rows) copies
+    each unshaded pixel's last shaded left neighbour; and the generated GLSL calls them by name."""
+    from renderers import _lp, antialias as AA
+
+    rng = np.random.default_rng(29)
+    img = (rng.random((23, 31, 3)) ** 3 * 4).astype(np.float32)
+    for b in (1, 2, 3):
+        r = AA.FOVEAL_RADII[b]
+        out = np.empty_like(img)
+        k = AA.FOVEAL_WEIGHTS[AA.FOVEAL_STRIDE * (b - 1):]
+        AA._gaussian(img, np.ascontiguousarray(k), r, 0, out)
+        assert np.array_equal(out, AA.blur(img, AA.FOVEAL_SIGMAS[b], r))
+    shaded = rng.random((23, 31)) < 0.5
+    filled = img.copy()
+    _lp.fill_rows(filled, shaded)
+    src = np.maximum.accumulate(np.where(shaded, np.arange(31), 0), axis=1)
+    assert np.array_equal(filled, img[np.arange(23)[:, None], src])
+    assert "vec3 lp_inverse_pixel(int x, float y)" in codegen.lp_glsl("inverse")
+    assert "void lp_fill_row(int j, int w)" in codegen.lp_glsl("fill")
+    assert "float aa_foveal_pixel(" in codegen.antialias_glsl("foveal")
+    assert "dvec2 gt_sample_offset(int px, int py, int s, int side)" in codegen.gt_glsl()
 
 
 def test_a_kernel_change_moves_both_backends_together(tmp_path, monkeypatch):

@@ -798,10 +798,18 @@ _LP_INTS = dict.fromkeys(("exact", "kmax", "method", "n", "w_eff"), "int")
 def lp_glsl(part: str = "u") -> str:
     """GLSL of the LP kernels of :mod:`renderers._lp`: ``part`` ``"u"`` the column of a screen offset
     (``lp_table_u(dx, dy)``, lp_map.glsl), ``"inverse"`` a screen pixel's colour (``lp_inverse_pixel(x, y)``,
-    inverse_map.comp, which includes the first), ``"fill"`` the filling of an LP row (``lp_fill_row(j, w)``,
+    inverse_map.comp, which includes the first), ``"needed"`` whether an LP pixel is shaded (``lp_needed``,
+    lp_mark.comp), ``"fill"`` the filling of an LP row (``lp_fill_row(j, w)``,
     in place in the image ``lp``; shaded: flag bit 1)."""
     from .. import _lp
 
+    if part == "needed":   # double precision: the positions are the CPU's float64 (lp_cols.glsl lp_position_d)
+        tr = Translator(_lp, "lp_")
+        names = tr.closure(_lp.GLSL_NEEDED_ROOTS)
+        tr.fns["needed"].real = "double"
+        tr.infer(names, {"needed": {"border": "bool"}})
+        return "// Generated from renderers/_lp.py by renderers/gpu/codegen.py: do not edit.\n" \
+            + tr.emit(names, helpers=False, consts=False)
     if part == "fill":
         return _kernel_glsl(_lp, "lp_", _lp.GLSL_FILL_ROOTS, {"fill_row": {"j": "int", "w": "int"}},
                             {"lp": "imageLoad(lp, ivec2({1}, {0}))",
@@ -817,10 +825,16 @@ def lp_glsl(part: str = "u") -> str:
 def antialias_glsl(part: str = "gauss") -> str:
     """GLSL of the Gaussians of :mod:`renderers.antialias`: ``part`` ``"gauss"`` a pixel's Gaussian
     (``aa_gauss_pixel``, gauss3.comp and foveal.comp), ``"foveal"`` the foveal band and pixel (foveal.comp, after
-    the first). The including shader defines ``px_at(y, x)`` (the image) and the uniforms ``u_w`` (weights),
+    the first), ``"luma"`` FXAA's luma (``aa_luma``, lp_luma.comp). The including shader defines ``px_at(y, x)`` (the image) and the uniforms ``u_w`` (weights),
     ``u_edges`` and ``u_radii`` (the bands)."""
     from .. import antialias as AA
 
+    if part == "luma":
+        tr = Translator(AA, "aa_")
+        names = tr.closure(AA.GLSL_LUMA_ROOTS)
+        tr.infer(names, {"luma": {}})
+        return "// Generated from renderers/antialias.py by renderers/gpu/codegen.py: do not edit.\n" \
+            + tr.emit(names, helpers=False, consts=False)
     pixel = dict.fromkeys(("y", "x", "ch", "o", "r", "b", "h", "w"), "int")
     return _kernel_glsl(AA, "aa_", AA.GLSL_FLOAT_ROOTS if part == "gauss" else AA.GLSL_FOVEAL_ROOTS,
                         {"gauss_pixel": pixel, "foveal_pixel": pixel, "foveal_band": {}},

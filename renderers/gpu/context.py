@@ -322,7 +322,7 @@ def generated_source(fname: str) -> str | None:
         from .codegen import shade_glsl
 
         return shade_glsl()
-    if fname in ("lp_u_gen.glsl", "lp_inverse_gen.glsl", "lp_fill_gen.glsl"):
+    if fname in ("lp_u_gen.glsl", "lp_inverse_gen.glsl", "lp_fill_gen.glsl", "lp_needed_gen.glsl"):
         from .codegen import lp_glsl
 
         return lp_glsl(fname[3:-9])
@@ -330,7 +330,7 @@ def generated_source(fname: str) -> str | None:
         from .codegen import gt_glsl
 
         return gt_glsl()
-    if fname in ("gauss_gen.glsl", "foveal_gen.glsl"):
+    if fname in ("gauss_gen.glsl", "foveal_gen.glsl", "luma_gen.glsl"):
         from .codegen import antialias_glsl
 
         return antialias_glsl(fname[:-9])
