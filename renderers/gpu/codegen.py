@@ -11,20 +11,23 @@
   descent (float32) of :mod:`renderers.lightcuts._kernels`, prefixed ``lc_``; the tree's arrays are bound to the
   shader's tree image (``Translator.bindings``).
 * :func:`lp_glsl` translates the LP buffer's per-pixel kernels of :mod:`renderers._lp` (a screen offset's column
-  from the u(r) table; a screen pixel's bilinear fetch from the LP buffer, rows wrapped at the seam), prefixed
-  ``lp_``; :func:`antialias_glsl` the Gaussians of :mod:`renderers.antialias` (scipy's separable ``correlate1d``
-  of a pixel; the foveal Gaussian's band and pixel), prefixed ``aa_``. The images they read are bound to
-  macros or image loads of the including shader (``img[y, x, ch]`` -> ``px_at(y, x)[ch]``).
+  from the u(r) table; a screen pixel's bilinear fetch from the LP buffer, rows wrapped at the seam; whether an LP
+  pixel is shaded; the filling of an LP row), prefixed ``lp_``; :func:`antialias_glsl` those of
+  :mod:`renderers.antialias` (scipy's separable ``correlate1d`` at a pixel; the foveal Gaussian's band and pixel;
+  FXAA's luma), prefixed ``aa_``. The images they read are bound to macros or image loads of the including shader
+  (``img[y, x, ch]`` -> ``px_at(y, x)[ch]``), an image they write to a store (``Translator.stores``).
 * :func:`gt_glsl` translates GT's sample jitter (:func:`renderers.pipeline.sample_offset`: the lowbias32 hash
   in numba's ``np.uint32``, GLSL ``uint``), prefixed ``gt_``.
 * :func:`constants_glsl` emits the shared constant table :mod:`renderers.constants`; :func:`int64_glsl` the
   64-bit integer helpers.
 
 Types are inferred to a fixed point: a name is ``int`` when every value given to it is an integer expression,
-``i64``/``u64`` (numba's ``np.int64``/``np.uint64``, on 32-bit halves) when it holds those, ``vec2``-``vec4`` for
-tuples, otherwise ``float`` (``double`` in a double-precision closure). The translator knows the small Python
-subset these kernels use (assignments, tuple unpacking, ``if``/``elif``/``else``, ``for ... in range``,
-``while``, ``return``, arithmetic, comparisons including chained ones, ``math`` functions, the casts
+``i64``/``u64`` (numba's ``np.int64``/``np.uint64``, on 32-bit halves) when it holds those, ``uint`` for numba's
+``np.uint32`` (every product wrapped in ``np.uint32(...)`` on the CPU, where numba widens to 64 bits),
+``vec2``-``vec4`` for tuples, otherwise ``float`` (``double`` in a double-precision closure); a bound scalar has the
+type ``Translator.binding_types`` gives it, a kernel without ``return`` is ``void``. The translator knows the
+small Python subset these kernels use (assignments, tuple unpacking, ``if``/``elif``/``else``, ``for ... in range``,
+``while``, ``return``, arithmetic (``>>`` on ints), comparisons including chained ones, ``math`` functions, the casts
 ``np.float32``/``np.float64`` (to the closure's precision: numba's ``float()`` of a float32 stays float32),
 calls of another translated module's kernels (``Translator.externals``: ``point`` -> ``fov_point``)) and raises
 ``NotImplementedError`` naming the function and the construct otherwise, so a kernel change that it cannot follow
@@ -357,7 +360,7 @@ class Translator:
                     if t.id != "_":
                         lines.append(f"{pad}{t.id} = {tmp}.{comp};")
                 return lines
-            if isinstance(target, ast.Subscript) and target.value.id in self.stores:   # an image store
+            if isinstance(target, ast.Subscript) and getattr(target.value, "id", None) in self.stores:   # image
                 idx = target.slice.elts if isinstance(target.slice, ast.Tuple) else [target.slice]
                 value = self.cast(fn, value, self.etype(fn, target))
                 return [pad + self.stores[target.value.id].format(*(self.expr(fn, i) for i in idx), value=value)
@@ -814,7 +817,8 @@ def lp_glsl(part: str = "u") -> str:
         return _kernel_glsl(_lp, "lp_", _lp.GLSL_FILL_ROOTS, {"fill_row": {"j": "int", "w": "int"}},
                             {"lp": "imageLoad(lp, ivec2({1}, {0}))",
                              "shaded": "((flags[({0}) * u_lp_w + ({1})] & 1u) != 0u)"},
-                            {"lp": "vec4", "shaded": "bool"}, stores={"lp": "imageStore(lp, ivec2({1}, {0}), {value})"})
+                            {"lp": "vec4", "shaded": "bool"},
+                            stores={"lp": "imageStore(lp, ivec2({1}, {0}), {value})"})
     roots = _lp.GLSL_FLOAT_ROOTS if part == "u" else _lp.GLSL_INVERSE_ROOTS
     return _kernel_glsl(_lp, "lp_", roots, {"table_u": {}, "inverse_pixel": {"x": "int", "y": "float"}},
                         _LP_BINDINGS, _LP_INTS, {"point": ("fov_point", "vec2")},
@@ -825,8 +829,8 @@ def lp_glsl(part: str = "u") -> str:
 def antialias_glsl(part: str = "gauss") -> str:
     """GLSL of the Gaussians of :mod:`renderers.antialias`: ``part`` ``"gauss"`` a pixel's Gaussian
     (``aa_gauss_pixel``, gauss3.comp and foveal.comp), ``"foveal"`` the foveal band and pixel (foveal.comp, after
-    the first), ``"luma"`` FXAA's luma (``aa_luma``, lp_luma.comp). The including shader defines ``px_at(y, x)`` (the image) and the uniforms ``u_w`` (weights),
-    ``u_edges`` and ``u_radii`` (the bands)."""
+    the first), ``"luma"`` FXAA's luma (``aa_luma``, lp_luma.comp). The including shader defines ``px_at(y, x)``
+    (the image) and the uniforms ``u_w`` (weights), ``u_edges`` and ``u_radii`` (the bands)."""
     from .. import antialias as AA
 
     if part == "luma":

@@ -15,6 +15,7 @@ void main() {
     if (i < uint(u_lp_w * u_lp_h)) {
         int c = int(i) % u_lp_w, y = int(i) / u_lp_w + PAD, h = u_lp_h + 2 * PAD;
         put(ivec2(c, y - PAD), vec3(aa_gauss_pixel(y, c, 0, 0, LP_GAUSS_RADIUS, h, u_lp_w),
-            aa_gauss_pixel(y, c, 1, 0, LP_GAUSS_RADIUS, h, u_lp_w), aa_gauss_pixel(y, c, 2, 0, LP_GAUSS_RADIUS, h, u_lp_w)));
+            aa_gauss_pixel(y, c, 1, 0, LP_GAUSS_RADIUS, h, u_lp_w),
+            aa_gauss_pixel(y, c, 2, 0, LP_GAUSS_RADIUS, h, u_lp_w)));
     }
 }
