@@ -15,9 +15,5 @@ uniform int u_kmax;
 #include "lp_u_gen.glsl"
 float lp_u(float dx, float dy) { return lp_table_u(dx, dy); }
 
-// Polar angle in [0, 2 pi) (seed 001 Eq 1's indicator).
-float lp_angle(float dx, float dy) {
-    float a = fov_atan2(dy, dx);
-    if (a < 0.0) a += 6.283185307179586;
-    return a >= 6.283185307179586 ? 0.0 : a;
-}
+// Polar angle in [0, 2 pi) (seed 001 Eq 1's indicator): the CPU's kernel, renderers/foveation/_kernels.py angle.
+float lp_angle(float dx, float dy) { return fov_angle(dx, dy); }
