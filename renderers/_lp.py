@@ -18,8 +18,9 @@ from numba import njit, prange
 from .foveation._kernels import FORWARD, angle, point
 
 TWO_PI = 2.0 * math.pi
-#: The kernels the GPU backend translates (renderers/gpu/codegen.py ``lp_glsl``): a screen offset's column from
-#: the u(r) table, and a screen pixel's bilinear fetch from the LP buffer (which calls it).
+#: The kernels the GPU backend translates (renderers/gpu/codegen.py ``lp_glsl``), one generated file each: a screen
+#: offset's column from the u(r) table, a screen pixel's bilinear fetch from the LP buffer (which calls it), the
+#: filling of an LP row, whether an LP pixel is shaded.
 GLSL_FLOAT_ROOTS = ("table_u",)
 GLSL_INVERSE_ROOTS = ("inverse_pixel",)
 GLSL_FILL_ROOTS = ("fill_row",)
@@ -173,6 +174,7 @@ def table_u(utab, exact, inv_step, kmax, method, P, dx, dy):
 
 @njit(cache=True, inline="always")
 def _blend(lp, ch, c0, c1, a0, a1, b0, b1, w00, w01, w10, w11):
+    """Channel ``ch`` of the bilinear blend of LP pixels (rows a0, a1 of column c0; b0, b1 of c1)."""
     return w00 * lp[a0, c0, ch] + w01 * lp[a1, c0, ch] + w10 * lp[b0, c1, ch] + w11 * lp[b1, c1, ch]
 
 
