@@ -19,7 +19,13 @@ import numpy as np
 from numba import njit, prange
 
 from . import _lp
-from .constants import LUMA_B, LUMA_G, LUMA_R
+from .constants import LP_GAUSS_RADIUS, LP_GAUSS_SIGMA, LP_PAD_FXAA, LP_PAD_GAUSS, LUMA_B, LUMA_G, LUMA_R
+
+#: The kernels the GPU backend translates (renderers/gpu/codegen.py ``antialias_glsl``): the Gaussian of a pixel
+#: (LMFR's LP filter), and the foveal Gaussian's band and pixel, which call it.
+GLSL_FLOAT_ROOTS = ("gauss_pixel",)
+GLSL_FOVEAL_ROOTS = ("foveal_band", "foveal_pixel")
+GLSL_LUMA_ROOTS = ("luma",)
 
 FXAA_STEPS_12 = np.array([1.0, 1.5, 2.0, 4.0, 12.0])
 FOVEAL_BANDS_DEG = np.array([5.0, 15.0, 30.0])
@@ -176,10 +182,27 @@ def _fxaa(img, steps, subpix, edge_threshold, edge_threshold_min, row0, row1, ou
                 img, steps, subpix, edge_threshold, edge_threshold_min, x, y)
 
 
+@njit(cache=True, inline="always")
+def luma(r, g, b, exposure):
+    """FXAA's luma of a linear RGB pixel: ``sqrt(clip(exposure Y, 0, 1))``, ``Y`` the Rec. 709 luminance, in
+    float32 throughout (as numpy computes it for a float32 image and a Python float)."""
+    y = np.float32(exposure) * (np.float32(LUMA_R) * r + np.float32(LUMA_G) * g + np.float32(LUMA_B) * b)
+    return math.sqrt(min(max(y, np.float32(0.0)), np.float32(1.0)))
+
+
+@njit(cache=True, parallel=True)
+def _luma_image(rgb, exposure, out):
+    for y in prange(rgb.shape[0]):
+        for x in range(rgb.shape[1]):
+            out[y, x, 0] = luma(rgb[y, x, 0], rgb[y, x, 1], rgb[y, x, 2], exposure)
+
+
 def fxaa_luma(rgb: np.ndarray, exposure: float = 1.0) -> np.ndarray:
-    """FXAA's luma channel: ``sqrt(clip(exposure * (0.2126 R + 0.7152 G + 0.0722 B), 0, 1))``, (h, w, 1)."""
-    y = exposure * (LUMA_R * rgb[..., 0] + LUMA_G * rgb[..., 1] + LUMA_B * rgb[..., 2])
-    return np.sqrt(np.clip(y, 0.0, 1.0)).astype(np.float32)[..., None]
+    """FXAA's luma channel of an (h, w, 3) image (:func:`luma` of every pixel), (h, w, 1) float32."""
+    rgb = np.ascontiguousarray(rgb, dtype=np.float32)
+    out = np.empty(rgb.shape[:2] + (1,), dtype=np.float32)
+    _luma_image(rgb, float(exposure), out)
+    return out
 
 
 def fxaa(rgb: np.ndarray, exposure: float = 1.0, *, subpix: float = 0.75, edge_threshold: float = 0.166,
@@ -200,6 +223,82 @@ def _gauss1d(sigma: float, radius: int) -> np.ndarray:
     return (k / k.sum()).astype(np.float32)
 
 
+#: Weights of band ``b`` >= 1 start at ``FOVEAL_STRIDE * (b - 1)`` of :data:`FOVEAL_WEIGHTS`.
+FOVEAL_STRIDE = 2 * max(FOVEAL_RADII) + 1
+#: The foveal bands' normalised 1-D Gaussian weights, one after the other (both backends read this array).
+FOVEAL_WEIGHTS = np.zeros(FOVEAL_STRIDE * (len(FOVEAL_RADII) - 1), dtype=np.float32)
+for _b in range(1, len(FOVEAL_RADII)):
+    FOVEAL_WEIGHTS[FOVEAL_STRIDE * (_b - 1):][:2 * FOVEAL_RADII[_b] + 1] = _gauss1d(FOVEAL_SIGMAS[_b],
+                                                                                   FOVEAL_RADII[_b])
+del _b
+#: The number of foveal band edges (:data:`FOVEAL_BANDS_DEG`).
+FOVEAL_EDGES = len(FOVEAL_BANDS_DEG)
+
+
+@njit(cache=True, inline="always")
+def _gauss_column(img, y, x, ch, k, o, r, h):
+    """The vertical pass of :func:`blur` at ``(y, x)``, channel ``ch``, with the weights ``k[o:o + 2 r + 1]``, as
+    scipy's ``correlate1d`` computes it (float64: the centre, then the symmetric pairs from the outermost in; rows
+    clamped to ``[0, h)``), stored as float32."""
+    acc = np.float64(img[y, x, ch]) * np.float64(k[o + r])
+    for q in range(r):
+        j = r - q
+        acc += (np.float64(img[max(y - j, 0), x, ch]) + np.float64(img[min(y + j, h - 1), x, ch])) \
+            * np.float64(k[o + q])
+    return np.float32(acc)
+
+
+@njit(cache=True, inline="always")
+def gauss_pixel(img, y, x, ch, k, o, r, h, w):
+    """:func:`blur` of an (h, w, 3) image at pixel ``(y, x)``, channel ``ch``: the horizontal pass of
+    :func:`_gauss_column` (columns clamped to ``[0, w)``), bit for bit scipy's separable ``correlate1d``."""
+    acc = np.float64(_gauss_column(img, y, x, ch, k, o, r, h)) * np.float64(k[o + r])
+    for q in range(r):
+        j = r - q
+        acc += (np.float64(_gauss_column(img, y, max(x - j, 0), ch, k, o, r, h))
+                + np.float64(_gauss_column(img, y, min(x + j, w - 1), ch, k, o, r, h))) * np.float64(k[o + q])
+    return acc
+
+
+@njit(cache=True, parallel=True)
+def _gaussian(img, k, r, y0, out):
+    """``out[y] = blur(img)[y0 + y]``: :func:`gauss_pixel` over the rows of ``out``."""
+    h, w = img.shape[0], img.shape[1]
+    for y in prange(out.shape[0]):
+        for x in range(w):
+            for ch in range(3):
+                out[y, x, ch] = gauss_pixel(img, y0 + y, x, ch, k, 0, r, h, w)
+
+
+@njit(cache=True, inline="always")
+def foveal_band(e, edges):
+    """The foveal band of eccentricity ``e`` (degrees): how many band edges lie at or below it."""
+    b = 0
+    for q in range(FOVEAL_EDGES):
+        if e >= edges[q]:
+            b += 1
+    return b
+
+
+@njit(cache=True, inline="always")
+def foveal_pixel(img, y, x, ch, b, k, radii, h, w):
+    """The foveal Gaussian of band ``b`` at pixel ``(y, x)``, channel ``ch``: the pixel itself in band 0, else
+    :func:`gauss_pixel` with the band's radius and weights (:data:`FOVEAL_WEIGHTS`)."""
+    if b == 0:
+        return np.float64(img[y, x, ch])
+    return gauss_pixel(img, y, x, ch, k, FOVEAL_STRIDE * (b - 1), radii[b], h, w)
+
+
+@njit(cache=True, parallel=True)
+def _foveal(img, ecc, edges, k, radii, r0, out):
+    h, w = img.shape[0], img.shape[1]
+    for y in prange(out.shape[0]):
+        for x in range(w):
+            b = foveal_band(ecc[y, x], edges)
+            for ch in range(3):
+                out[y, x, ch] = foveal_pixel(img, r0 + y, x, ch, b, k, radii, h, w)
+
+
 def blur(img: np.ndarray, sigma: float, radius: int, axes=(0, 1)) -> np.ndarray:
     """Separable Gaussian blur (edge-clamped) of an (h, w, 3) image."""
     from scipy.ndimage import correlate1d
@@ -213,12 +312,14 @@ def blur(img: np.ndarray, sigma: float, radius: int, axes=(0, 1)) -> np.ndarray:
 
 def lp_filter(lp: np.ndarray, n: np.ndarray, kind: str, exposure: float = 1.0) -> np.ndarray:
     """Anti-alias an LP buffer (h, w, 3) whose column ``c`` holds ``n[c]`` rows: ``fxaa`` or ``gaussian3``."""
-    pad = 16 if kind == "fxaa" else 1
+    pad = LP_PAD_FXAA if kind == "fxaa" else LP_PAD_GAUSS
     padded = np.empty((lp.shape[0] + 2 * pad, lp.shape[1], 3), dtype=np.float32)
     _lp.wrap_pad(lp, n, pad, padded)
     if kind == "fxaa":
         return fxaa(padded, exposure, rows=(pad, pad + lp.shape[0]))
-    return np.ascontiguousarray(blur(padded, 1.0, 1)[pad:pad + lp.shape[0]])
+    out = np.empty(lp.shape, dtype=np.float32)
+    _gaussian(padded, _gauss1d(LP_GAUSS_SIGMA, LP_GAUSS_RADIUS), LP_GAUSS_RADIUS, pad, out)
+    return out
 
 
 def foveal_gaussian(img: np.ndarray, geometry, y0: int = 0, rows: tuple[int, int] | None = None):
@@ -230,10 +331,7 @@ def foveal_gaussian(img: np.ndarray, geometry, y0: int = 0, rows: tuple[int, int
     """
     r0, r1 = rows if rows is not None else (0, img.shape[0])
     ecc = geometry.eccentricity_map(slice(y0 + r0, y0 + r1))
-    band = np.searchsorted(np.asarray(FOVEAL_BANDS_DEG), ecc, side="right")  # edges at or below e
-    out = img[r0:r1].copy()
-    for b in range(1, len(FOVEAL_SIGMAS)):
-        sel = band == b
-        if sel.any():
-            out[sel] = blur(img, FOVEAL_SIGMAS[b], FOVEAL_RADII[b])[r0:r1][sel]
+    out = np.empty((r1 - r0,) + img.shape[1:], dtype=np.float32)
+    _foveal(np.ascontiguousarray(img, dtype=np.float32), ecc, FOVEAL_BANDS_DEG, FOVEAL_WEIGHTS,
+            np.array(FOVEAL_RADII), r0, out)
     return out

@@ -33,3 +33,10 @@ LC_SHADOW_EPS = 1e-3
 LC_SHADOW_END = 1.0 - LC_SHADOW_EPS
 #: The largest float32 below 1: the GPU's float32 uniforms are kept below it, as the CPU's float64 ones below 1 - 2^-53
 LC_ONE_MINUS_F32 = 1.0 - 2.0 ** -24
+
+# -- the LP buffer's filters (renderers/antialias.py lp_filter): rows continued around the angular seam on each side
+# for FXAA and for LMFR's Gaussian, and that Gaussian's sigma and radius (pixels)
+LP_PAD_FXAA = 16
+LP_PAD_GAUSS = 1
+LP_GAUSS_SIGMA = 1.0
+LP_GAUSS_RADIUS = 1

@@ -25,6 +25,7 @@ import math
 import time
 
 import numpy as np
+from numba import njit, prange
 
 from data_schema.errors import UserError
 
@@ -72,30 +73,49 @@ def render_gt(tracer: Tracer, camera: Camera, width: int, height: int, spp: int 
     return img
 
 
-#: Constants of the GT sample jitter (Wellons' lowbias32 integer hash); renderers/gpu/shaders/gt.glsl uses them.
-GT_HASH = {"HASH_M1": 0x7FEB352D, "HASH_M2": 0x846CA68B, "HASH_X": 0x9E3779B1, "HASH_Y": 0x85EBCA77}
+#: The GT sample jitter's constants: Wellons' lowbias32 integer hash (M1, M2) and the seeds of the pixel's x and
+#: of the second coordinate.
+HASH_M1, HASH_M2 = np.uint32(0x7FEB352D), np.uint32(0x846CA68B)
+HASH_X, HASH_Y = np.uint32(0x9E3779B1), np.uint32(0x85EBCA77)
+#: The kernel the GPU backend translates (renderers/gpu/codegen.py ``gt_glsl``), in double precision.
+GLSL_DOUBLE_ROOTS = ("sample_offset",)
 
 
-def _lowbias32(x: np.ndarray) -> np.ndarray:
-    x = x ^ (x >> np.uint32(16))
-    x = x * np.uint32(GT_HASH["HASH_M1"])
-    x = x ^ (x >> np.uint32(15))
-    x = x * np.uint32(GT_HASH["HASH_M2"])
-    return x ^ (x >> np.uint32(16))
+@njit(cache=True, inline="always")
+def _lowbias32(x):
+    """Wellons' lowbias32 hash of a uint32 (every step modulo 2^32)."""
+    x = np.uint32(x ^ (x >> 16))
+    x = np.uint32(x * HASH_M1)
+    x = np.uint32(x ^ (x >> 15))
+    x = np.uint32(x * HASH_M2)
+    return np.uint32(x ^ (x >> 16))
+
+
+@njit(cache=True, inline="always")
+def sample_offset(px, py, s, side):
+    """Sub-pixel position ``(ox, oy)`` in [0, 1) of sample ``s`` of pixel ``(px, py)``: stratum ``s`` of a
+    ``side`` x ``side`` grid, jittered inside it by an integer hash of (pixel, sample index)."""
+    h = _lowbias32(np.uint32(np.uint32(px) * HASH_X) ^ _lowbias32(np.uint32(py) ^ _lowbias32(np.uint32(s))))
+    h2 = _lowbias32(h ^ HASH_Y)
+    return (s % side + (h >> 8) / 16777216.0) / side, (int(s / side) + (h2 >> 8) / 16777216.0) / side
+
+
+@njit(cache=True, parallel=True)
+def _sample_offsets(px, py, side, ox, oy):
+    for q in prange(px.size):
+        for s in range(ox.shape[1]):
+            ox[q, s], oy[q, s] = sample_offset(px[q], py[q], s, side)
 
 
 def gt_sample_offsets(px, py, spp: int):
     """Sub-pixel positions ``(ox, oy)`` in [0, 1) of the ``spp`` samples of pixels ``(px, py)``, shape
     ``px.shape + (spp,)``: a ``sqrt(spp)`` x ``sqrt(spp)`` grid of strata, each sample jittered inside its stratum
-    by an integer hash of (pixel, sample index), so both backends place the samples identically."""
-    side = math.isqrt(spp)
-    s = np.arange(spp, dtype=np.uint32)
-    px = np.asarray(px).astype(np.uint32)[..., None]
-    py = np.asarray(py).astype(np.uint32)[..., None]
-    h = _lowbias32((px * np.uint32(GT_HASH["HASH_X"])) ^ _lowbias32(py ^ _lowbias32(s)))
-    h2 = _lowbias32(h ^ np.uint32(GT_HASH["HASH_Y"]))
-    ox = ((s % side) + (h >> np.uint32(8)) / 16777216.0) / side
-    oy = ((s // side) + (h2 >> np.uint32(8)) / 16777216.0) / side
+    by an integer hash of (pixel, sample index) (:func:`sample_offset`), so both backends place the samples
+    identically."""
+    px, py = np.broadcast_arrays(np.asarray(px, dtype=np.int64), np.asarray(py, dtype=np.int64))
+    ox = np.empty(px.shape + (spp,))
+    oy = np.empty_like(ox)
+    _sample_offsets(px.ravel(), py.ravel(), math.isqrt(spp), ox.reshape(-1, spp), oy.reshape(-1, spp))
     return ox, oy
 
 
@@ -191,7 +211,8 @@ class LPLayout:
         jj, ii = np.nonzero(self.mask)
         x, y = m.inverse(ii + 0.5, jj + 0.5)
         need = self.border_footprint()
-        need[jj, ii] |= disp.contains(x, y)
+        _lp.mark_needed(need, jj, ii, np.ascontiguousarray(x, dtype=np.float64),
+                        np.ascontiguousarray(y, dtype=np.float64), float(disp.width), float(disp.height))
         sel = need[jj, ii]
         return jj, ii, x, y, sel
 
@@ -296,10 +317,9 @@ def fill_unshaded(lp, layout: LPLayout, jj, ii):
     """
     shaded = np.zeros((layout.h, layout.w), dtype=np.bool_)
     shaded[jj, ii] = True
-    src = np.where(shaded, np.arange(layout.w)[None, :], 0)
-    np.maximum.accumulate(src, axis=1, out=src)
-    rows = np.arange(layout.h)[:, None]
-    return lp[rows, src]
+    out = np.array(lp, dtype=np.float32)   # a copy
+    _lp.fill_rows(out, shaded)
+    return out
 
 
 def finish(tracer: Tracer, layout: LPLayout, lp, params: dict, width: int, height: int, exposure: float,

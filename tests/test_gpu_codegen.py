@@ -193,7 +193,8 @@ def _copy_of_shade(tmp_path, name: str, edits: list[tuple[str, str]]):
     ("    cos_t = nx * wx", "    cos_t = np.dot(nx, wx)\n    cos_t = nx * wx", "irradiance_factor: call of "),
     ("    cos_t = nx * wx", "    half = nx\n    cos_t = half * wx",
      "irradiance_factor: name 'half' is reserved in GLSL"),
-], ids=["for-over-tuple", "int64-product", "list", "5-tuple", "numpy-call", "glsl-keyword"])
+    ("    cos_t = nx * wx", "    q = np.uint32(nx)\n    cos_t = nx * wx", "irradiance_factor: np.uint32 of a float"),
+], ids=["for-over-tuple", "int64-product", "list", "5-tuple", "numpy-call", "glsl-keyword", "uint32-of-float"])
 def test_generator_names_what_it_cannot_translate(tmp_path, old, new, message):
     mod = _copy_of_shade(tmp_path, "_shade_bad", [(old, new)])
     try:
@@ -219,9 +220,34 @@ def test_generator_names_a_missing_binding_and_a_value_of_nothing():
     source = inspect.getsource(_warp).replace("            fragment((j % n[c])", "            zz = fragment((j % n[c])")
     tr = codegen.Translator(_warp, "rep_", source=source, bindings={k: "" for k in ("u", "phi", "z", "L", "n", "col",
                                                                                      "zbuf", "out", "covered")})
-    tr.externals = {"fragment": "rep_fragment"}
+    tr.externals = {"fragment": ("rep_fragment", "void")}
     with pytest.raises(NotImplementedError, match="raster_triangle: zz takes the value of a call that returns nothing"):
         tr.infer(tr.closure(_warp.GLSL_FLOAT_ROOTS), {"warp_quad": {}})
+
+
+def test_the_pixel_kernels_of_the_lp_passes_are_the_cpus_filters():
+    """The Gaussian pixel kernel that the GPU's LP and foveal filters are generated from (antialias.gauss_pixel) is
+    bit for bit scipy's separable correlate1d (antialias.blur) on the CPU; the row filling (_lp.fill_rows) copies
+    each unshaded pixel's last shaded left neighbour; and the generated GLSL calls them by name."""
+    from renderers import _lp, antialias as AA
+
+    rng = np.random.default_rng(29)
+    img = (rng.random((23, 31, 3)) ** 3 * 4).astype(np.float32)
+    for b in (1, 2, 3):
+        r = AA.FOVEAL_RADII[b]
+        out = np.empty_like(img)
+        k = AA.FOVEAL_WEIGHTS[AA.FOVEAL_STRIDE * (b - 1):]
+        AA._gaussian(img, np.ascontiguousarray(k), r, 0, out)
+        assert np.array_equal(out, AA.blur(img, AA.FOVEAL_SIGMAS[b], r))
+    shaded = rng.random((23, 31)) < 0.5
+    filled = img.copy()
+    _lp.fill_rows(filled, shaded)
+    src = np.maximum.accumulate(np.where(shaded, np.arange(31), 0), axis=1)
+    assert np.array_equal(filled, img[np.arange(23)[:, None], src])
+    assert "vec3 lp_inverse_pixel(int x, float y)" in codegen.lp_glsl("inverse")
+    assert "void lp_fill_row(int j, int w)" in codegen.lp_glsl("fill")
+    assert "float aa_foveal_pixel(" in codegen.antialias_glsl("foveal")
+    assert "dvec2 gt_sample_offset(int px, int py, int s, int side)" in codegen.gt_glsl()
 
 
 def test_a_kernel_change_moves_both_backends_together(tmp_path, monkeypatch):

@@ -27,6 +27,14 @@
   (``Translator.externals``: a module function called by its GLSL name, not translated).
 * :func:`projection_glsl` translates the pinhole camera of :mod:`renderers.projection` (a screen position's
   image-plane offsets and ray in precise double, the inverse in float), prefixed ``proj_``.
+* :func:`lp_glsl` translates the LP buffer's per-pixel kernels of :mod:`renderers._lp` (a screen offset's column
+  from the u(r) table; a screen pixel's bilinear fetch from the LP buffer, rows wrapped at the seam; whether an LP
+  pixel is shaded; the filling of an LP row), prefixed ``lp_``; :func:`antialias_glsl` those of
+  :mod:`renderers.antialias` (scipy's separable ``correlate1d`` at a pixel; the foveal Gaussian's band and pixel;
+  FXAA's luma), prefixed ``aa_``. The images they read are bound to macros or image loads of the including shader
+  (``img[y, x, ch]`` -> ``px_at(y, x)[ch]``), an image they write to a store (``Translator.stores``).
+* :func:`gt_glsl` translates GT's sample jitter (:func:`renderers.pipeline.sample_offset`: the lowbias32 hash
+  in numba's ``np.uint32``, GLSL ``uint``), prefixed ``gt_``.
 * :func:`constants_glsl` emits the shared constant table :mod:`renderers.constants`; :func:`int64_glsl` the
   64-bit integer helpers.
 
@@ -52,6 +60,10 @@ Further:
   result converted to float, an int argument given as a uint64 counter ``uvec2(uint(x), 0u)``); other calls across
   precisions are refused;
 * ``<<``, ``>>`` on ints; ``Translator.binding_types`` also types bound scalars (``n_leaves`` -> ``int``).
+* ``uint`` for numba's ``np.uint32`` (every product wrapped in ``np.uint32(...)`` on the CPU, where numba widens
+  to 64 bits); the casts ``np.float32``/``np.float64`` (to the closure's precision: numba's ``float()`` of a float32
+  stays float32); calls of another translated module's kernels (``Translator.externals``: ``point`` ->
+  ``fov_point``); image stores as assignment targets (``Translator.stores``).
 """
 
 from __future__ import annotations
@@ -136,11 +148,16 @@ class Translator:
         self.float32_values: dict[str, float] = {}
         #: the element type of a bound array that is not ``float`` (``cut`` -> ``int``)
         self.binding_types: dict[str, str] = {}
+        #: functions called, not translated: name -> (GLSL name, return type). Those of another translated module
+        #: (``point`` -> ``fov_point``) and those of this module that the shader writes itself (the GPU's fragment
+        #: of the warped-grid rasteriser is a phase of atomics where the CPU depth-tests). The arrays bound here are
+        #: dropped from their arguments (the callee reads its own), the bound scalars passed
+        self.externals: dict[str, tuple[str, str]] = {}
+        #: bound arrays that are written by a statement (an image): name -> template with ``{0}``, ``{1}`` for the
+        #: subscripts and ``{value}`` (``lp[j, c] = v`` -> ``imageStore(lp, ivec2(c, j), v)``)
+        self.stores: dict[str, str] = {}
         #: functions whose float locals are ``precise`` (no fused multiply-add: the rounding of the CPU's sums)
         self.precise: set[str] = set()
-        #: functions of the module that the shader writes itself (Python name -> GLSL name): called, not translated
-        #: (the GPU's fragment of the warped-grid rasteriser is a phase of atomics where the CPU depth-tests)
-        self.externals: dict[str, str] = {}
         self.prefix = prefix
         tree = ast.parse(source if source is not None else inspect.getsource(module))
         self.fns = {n.name: _Fn(n) for n in tree.body if isinstance(n, ast.FunctionDef)}
@@ -154,6 +171,8 @@ class Translator:
 
         #: module-level np.uint64 constants (the random numbers' multipliers), emitted as uvec2(lo, hi)
         self.u64_consts = {k: int(v) for k, v in vars(module).items() if isinstance(v, np.uint64)}
+        #: module-level np.uint32 constants (the GT jitter's hash), emitted as GLSL ``uint``
+        self.u32_consts = {k: int(v) for k, v in vars(module).items() if isinstance(v, np.uint32)}
 
     # -- analysis ----------------------------------------------------------------------------------------------
     def closure(self, roots) -> list[str]:
@@ -293,6 +312,8 @@ class Translator:
             return fn.var_types[name]
         if name in self.u64_consts:
             return "u64"
+        if name in self.u32_consts:
+            return "uint"
         v = self.consts.get(name)
         if v is not None:
             return "int" if isinstance(v, int) else "float"
@@ -311,6 +332,8 @@ class Translator:
                 return "int" if isinstance(e.op, ast.BitAnd) else "i64"
             if "u64" in (a, b):
                 return "u64"
+            if "uint" in (a, b) and {a, b} <= {"int", "uint"}:
+                return "uint"
             if a == b == "f32" and isinstance(e.op, (ast.Add, ast.Sub, ast.Mult)):
                 return "f32"   # numba: float32 op float32 stays float32; with a float64 or an int it is float64
             if type(e.op) in (ast.LShift, ast.RShift, ast.BitAnd, ast.BitOr, ast.BitXor):
@@ -330,8 +353,8 @@ class Translator:
         if isinstance(e, ast.Call):
             f = e.func
             if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
-                    and f.attr in ("int64", "uint64"):
-                return "i64" if f.attr == "int64" else "u64"
+                    and f.attr in ("int64", "uint64", "uint32"):
+                return {"int64": "i64", "uint64": "u64", "uint32": "uint"}[f.attr]
             if isinstance(f, ast.Name):
                 if f.id == "int":
                     return "int"
@@ -339,21 +362,25 @@ class Translator:
                     ts = {self.etype(fn, a) for a in e.args}
                     return ts.pop() if ts in ({"int"}, {"f32"}) else "float"
                 if f.id in self.externals:
-                    return "void"
+                    return self.externals[f.id][1]
                 if f.id in self.fns:
                     return self.fns[f.id].ret
             return "float"
         return "float"
 
     # -- emission ----------------------------------------------------------------------------------------------
-    def emit(self, names, helpers: bool = True) -> str:
+    def emit(self, names, helpers: bool = True, consts: bool = True) -> str:
+        """GLSL of the functions ``names``, with the float helpers and the module's constants unless told not to
+        (a second file of the same module, included after the first)."""
         out = [_HELPERS] if helpers else []
         types = {t for n in names for t in [*self.fns[n].var_types.values(), *self.fns[n].param_types.values()]}
         if types & {"i64", "u64"}:   # one copy per shader: the include is expanded once
             out.append('#include "int64_gen.glsl"')
-        for k, v in sorted(self.u64_consts.items()):
+        for k, v in sorted(self.u32_consts.items() if consts else ()):
+            out.append(f"const uint {self.const_name(k)} = {v}u;")
+        for k, v in sorted(self.u64_consts.items() if consts else ()):
             out.append(f"const uvec2 {self.const_name(k)} = uvec2({v & 0xFFFFFFFF}u, {v >> 32}u);")
-        for k, v in sorted(self.consts.items()):
+        for k, v in sorted(self.consts.items() if consts else ()):
             if k in self.shared:
                 continue
             if isinstance(v, int):
@@ -412,6 +439,11 @@ class Translator:
                         v = f"{tmp}.{comp}"
                         lines.append(f"{pad}{t.id} = {f'int({v})' if self.vtype(fn, t.id) == 'int' else v};")
                 return lines
+            if isinstance(target, ast.Subscript) and getattr(target.value, "id", None) in self.stores:   # image
+                idx = target.slice.elts if isinstance(target.slice, ast.Tuple) else [target.slice]
+                value = self.cast(fn, value, self.etype(fn, target))
+                return [pad + self.stores[target.value.id].format(*(self.expr(fn, i) for i in idx), value=value)
+                        + ";"]
             if isinstance(target, ast.Subscript):   # an element of a bound array
                 return [f"{pad}{self.expr(fn, target)} = {self.cast(fn, value, self.etype(fn, target))};"]
             return [f"{pad}{target.id} = {self.cast(fn, value, self.vtype(fn, target.id))};"]
@@ -495,7 +527,7 @@ class Translator:
     def cast(self, fn, e, want: str) -> str:
         text = self.expr(fn, e)
         have = self.etype(fn, e)
-        if want == "float" and have in ("int", "f32"):
+        if want == "float" and have in ("int", "f32", "uint"):
             return f"{fn.real}({text})"
         if want == "i64" and have == "int":
             return f"i64_from({text})"
@@ -530,7 +562,7 @@ class Translator:
                 return e.id
             if e.id in self.bindings:
                 return self.bindings[e.id]
-            if e.id in self.u64_consts:
+            if e.id in self.u64_consts or e.id in self.u32_consts:
                 return self.const_name(e.id)
             if e.id in self.consts:
                 if fn.real == "double" and isinstance(self.consts[e.id], float):
@@ -572,7 +604,10 @@ class Translator:
             if type(e.op) not in _BINOPS:
                 raise NotImplementedError(f"{fn.name}: operator {type(e.op).__name__}")
             ta, tb = self.etype(fn, e.left), self.etype(fn, e.right)
-            if ta != tb:  # GLSL converts implicitly, but say it (and keep int/float mixing visible)
+            if "uint" in (ta, tb) and {ta, tb} <= {"int", "uint"}:   # uint arithmetic wraps modulo 2^32
+                a = f"uint({a})" if ta == "int" else a
+                b = f"uint({b})" if tb == "int" else b
+            elif ta != tb:  # GLSL converts implicitly, but say it (and keep int/float mixing visible)
                 a = f"{fn.real}({a})" if ta in ("int", "f32") else a
                 b = f"{fn.real}({b})" if tb in ("int", "f32") else b
             return f"({a} {_BINOPS[type(e.op)]} {b})"
@@ -655,6 +690,15 @@ class Translator:
             if self.etype(fn, e.args[0]) == "u64":
                 return self.expr(fn, e.args[0])
             raise NotImplementedError(f"{fn.name}: np.uint64 of a {self.etype(fn, e.args[0])}")
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
+                and f.attr == "uint32":   # numba's uint32 of a wider product: its low 32 bits, as GLSL's uint
+            if self.etype(fn, e.args[0]) not in ("int", "uint"):
+                raise NotImplementedError(f"{fn.name}: np.uint32 of a {self.etype(fn, e.args[0])}")
+            return f"uint({self.expr(fn, e.args[0])})"
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
+                and f.attr in ("float32", "float64"):   # in a double closure float32 rounds, as on the CPU
+            x = self.cast(fn, e.args[0], "float")
+            return f"double(float({x}))" if f.attr == "float32" and fn.real == "double" else x
         if isinstance(f, ast.Name) and f.id == "float" and self.etype(fn, e.args[0]) == "u64":
             return f"u64_to_{fn.real}({self.expr(fn, e.args[0])})"
         if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "math":
@@ -683,8 +727,10 @@ class Translator:
             if f.id == "abs":
                 return f"abs({self.expr(fn, e.args[0])})"
             if f.id in self.externals:
-                args = [self.expr(fn, a) for a in e.args if not self._is_array(a)]
-                return f"{self.externals[f.id]}({', '.join(args)})"
+                args = ", ".join(self.expr(fn, a) for a in e.args   # bound arrays dropped, bound scalars kept
+                                 if not (self._is_array(a) and ("{0}" in self.bindings[a.id]
+                                                                or not self.bindings[a.id])))
+                return f"{self.externals[f.id][0]}({args})"
             if f.id in self.fns:
                 callee = self.fns[f.id]
                 narrow = callee.real == "double" and fn.real == "float"   # a double kernel's result as a float
@@ -994,7 +1040,7 @@ def warp_glsl() -> str:
                                              "L": "cols({0}).w", "n": "int(cols({0}).z)", "col": "", "zbuf": "",
                                              "out": "", "covered": ""})
     tr.binding_types["n"] = "int"
-    tr.externals = {"fragment": "rep_fragment"}
+    tr.externals = {"fragment": ("rep_fragment", "void")}
     names = tr.closure(_warp.GLSL_FLOAT_ROOTS)
     tr.infer(names, {"warp_quad": {k: "int" for k in ("a", "b", "cc", "d", "w_eff", "w")}})
     return "// Generated from renderers/_warp.py by renderers/gpu/codegen.py: do not edit.\n" \
@@ -1017,6 +1063,94 @@ def projection_glsl() -> str:
     tr.infer(doubles + floats, {r: {} for r in (*projection.GLSL_DOUBLE_ROOTS, *projection.GLSL_FLOAT_ROOTS)})
     return "// Generated from renderers/projection.py by renderers/gpu/codegen.py: do not edit.\n" \
         + tr.emit(doubles + floats, helpers=False)
+
+
+def _kernel_glsl(module, prefix: str, roots, params: dict, bindings: dict, binding_types: dict,
+                 externals: dict | None = None, after=(), stores: dict | None = None) -> str:
+    """GLSL of the closure of ``roots`` in ``module`` (``params``: the roots' parameter types), without the
+    functions and constants of the closure of ``after``, emitted by another file the shader includes first."""
+    tr = Translator(module, prefix, bindings=bindings)
+    tr.binding_types.update(binding_types)
+    tr.externals.update(externals or {})
+    tr.stores.update(stores or {})
+    done = tr.closure(after)
+    names = [n for n in tr.closure(roots) if n not in done]
+    tr.infer(done + names, params)
+    head = f"// Generated from {module.__name__.replace('.', '/')}.py by renderers/gpu/codegen.py: do not edit.\n"
+    return head + tr.emit(names, helpers=False, consts=not after)
+
+
+#: The LP kernels' arrays and scalars on the GPU: the LP buffer image ``src``, the per-column table ``cols``
+#: (lp_cols.glsl), the u(r) table and the uniforms of lp_map.glsl; ``point`` is the generated ``fov_point``.
+_LP_BINDINGS = {"lp": "imageLoad(src, ivec2({1}, {0}))[{2}]", "utab": "lp_utab({0})", "exact": "lp_exact({0})",
+                "inv_step": "u_inv_step", "kmax": "u_kmax", "method": "METHOD", "gx": "u_gaze.x", "gy": "u_gaze.y",
+                "Lr": "cols({0}).y", "n": "int(cols({0}).z)", "w_eff": "u_w_eff"}
+_LP_INTS = dict.fromkeys(("exact", "kmax", "method", "n", "w_eff"), "int")
+
+
+@functools.lru_cache(maxsize=None)
+def lp_glsl(part: str = "u") -> str:
+    """GLSL of the LP kernels of :mod:`renderers._lp`: ``part`` ``"u"`` the column of a screen offset
+    (``lp_table_u(dx, dy)``, lp_map.glsl), ``"inverse"`` a screen pixel's colour (``lp_inverse_pixel(x, y)``,
+    inverse_map.comp, which includes the first), ``"needed"`` whether an LP pixel is shaded (``lp_needed``,
+    lp_mark.comp), ``"fill"`` the filling of an LP row (``lp_fill_row(j, w)``,
+    in place in the image ``lp``; shaded: flag bit 1)."""
+    from .. import _lp
+
+    if part == "needed":   # double precision: the positions are the CPU's float64 (lp_cols.glsl lp_position_d)
+        tr = Translator(_lp, "lp_")
+        names = tr.closure(_lp.GLSL_NEEDED_ROOTS)
+        tr.fns["needed"].real = "double"
+        tr.infer(names, {"needed": {"border": "bool"}})
+        return "// Generated from renderers/_lp.py by renderers/gpu/codegen.py: do not edit.\n" \
+            + tr.emit(names, helpers=False, consts=False)
+    if part == "fill":
+        return _kernel_glsl(_lp, "lp_", _lp.GLSL_FILL_ROOTS, {"fill_row": {"j": "int", "w": "int"}},
+                            {"lp": "imageLoad(lp, ivec2({1}, {0}))",
+                             "shaded": "((flags[({0}) * u_lp_w + ({1})] & 1u) != 0u)"},
+                            {"lp": "vec4", "shaded": "bool"},
+                            stores={"lp": "imageStore(lp, ivec2({1}, {0}), {value})"})
+    roots = _lp.GLSL_FLOAT_ROOTS if part == "u" else _lp.GLSL_INVERSE_ROOTS
+    return _kernel_glsl(_lp, "lp_", roots, {"table_u": {}, "inverse_pixel": {"x": "int", "y": "float"}},
+                        _LP_BINDINGS, _LP_INTS, {"point": ("fov_point", "vec2")},
+                        after=() if part == "u" else _lp.GLSL_FLOAT_ROOTS)
+
+
+@functools.lru_cache(maxsize=None)
+def antialias_glsl(part: str = "gauss") -> str:
+    """GLSL of the Gaussians of :mod:`renderers.antialias`: ``part`` ``"gauss"`` a pixel's Gaussian
+    (``aa_gauss_pixel``, gauss3.comp and foveal.comp), ``"foveal"`` the foveal band and pixel (foveal.comp, after
+    the first), ``"luma"`` FXAA's luma (``aa_luma``, lp_luma.comp). The including shader defines ``px_at(y, x)``
+    (the image) and the uniforms ``u_w`` (weights), ``u_edges`` and ``u_radii`` (the bands)."""
+    from .. import antialias as AA
+
+    if part == "luma":
+        tr = Translator(AA, "aa_")
+        names = tr.closure(AA.GLSL_LUMA_ROOTS)
+        tr.infer(names, {"luma": {}})
+        return "// Generated from renderers/antialias.py by renderers/gpu/codegen.py: do not edit.\n" \
+            + tr.emit(names, helpers=False, consts=False)
+    pixel = dict.fromkeys(("y", "x", "ch", "o", "r", "b", "h", "w"), "int")
+    return _kernel_glsl(AA, "aa_", AA.GLSL_FLOAT_ROOTS if part == "gauss" else AA.GLSL_FOVEAL_ROOTS,
+                        {"gauss_pixel": pixel, "foveal_pixel": pixel, "foveal_band": {}},
+                        {"img": "px_at({0}, {1})[{2}]", "k": "u_w[{0}]", "edges": "u_edges[{0}]",
+                         "radii": "u_radii[{0}]"}, {"radii": "int"},
+                        after=() if part == "gauss" else AA.GLSL_FLOAT_ROOTS)
+
+
+@functools.lru_cache(maxsize=None)
+def gt_glsl() -> str:
+    """GLSL of the GT sample jitter of :mod:`renderers.pipeline`: ``gt_sample_offset(px, py, s, side)`` (dvec2,
+    the lowbias32 hash in uint, the offset in double precision like the CPU's float64)."""
+    from .. import pipeline
+
+    tr = Translator(pipeline, "gt_")
+    names = tr.closure(pipeline.GLSL_DOUBLE_ROOTS)
+    for n in names:
+        tr.fns[n].real = "double"
+    tr.infer(names, {"sample_offset": dict.fromkeys(("px", "py", "s", "side"), "int")})
+    return "// Generated from renderers/pipeline.py by renderers/gpu/codegen.py: do not edit.\n" \
+        + tr.emit(names, helpers=False)
 
 
 def int64_glsl() -> str:

@@ -352,6 +352,18 @@ def generated_source(fname: str) -> str | None:
         from .codegen import lights_glsl
 
         return lights_glsl(roots="GLSL_LIGHT_ROOTS" if fname == "lights_gen.glsl" else "GLSL_POINT_ROOTS")
+    if fname in ("lp_u_gen.glsl", "lp_inverse_gen.glsl", "lp_fill_gen.glsl", "lp_needed_gen.glsl"):
+        from .codegen import lp_glsl
+
+        return lp_glsl(fname[3:-9])
+    if fname == "gt_gen.glsl":
+        from .codegen import gt_glsl
+
+        return gt_glsl()
+    if fname in ("gauss_gen.glsl", "foveal_gen.glsl", "luma_gen.glsl"):
+        from .codegen import antialias_glsl
+
+        return antialias_glsl(fname[:-9])
     if fname == "constants_gen.glsl":
         from .codegen import constants_glsl
 

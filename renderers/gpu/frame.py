@@ -65,10 +65,15 @@ def pool_of(device) -> Pool:
 
 
 def set_uniforms(prog, values: dict) -> None:
-    """Set the uniforms ``prog`` uses (the compiler drops unused ones; those are skipped)."""
+    """Set the uniforms ``prog`` uses (the compiler drops unused ones; those are skipped, and an array's unused
+    trailing elements: the leading values are set)."""
     for k, v in values.items():
         if k in prog:
-            prog[k] = v
+            u = prog[k]
+            n = getattr(u, "array_length", 1)
+            if isinstance(v, tuple) and n > 1 and u.dimension == 1 and len(v) > n:
+                v = v[:n]
+            prog[k] = v[0] if isinstance(v, tuple) and n == 1 and u.dimension == 1 and len(v) > 1 else v
 
 
 def bind(buffers: dict | None, images: dict | None = None) -> None:

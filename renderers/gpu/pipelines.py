@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from .. import pipeline as cpu
+from ..constants import LP_GAUSS_RADIUS, LP_GAUSS_SIGMA, LP_PAD_FXAA, LP_PAD_GAUSS
 from .frame import B_OUT, C, Frame
 from .upload import camera_uniforms
 
@@ -31,7 +32,7 @@ def render_gt(fr: Frame, camera, width: int, height: int, spp: int = 1, pixel_fi
     """
     img = fr.pool.get("image", 12 * width * height)
     side = math.isqrt(spp)
-    defines = {"SPP": spp, "SPP_SIDE": side, **{k: f"{v}u" for k, v in cpu.GT_HASH.items()}}
+    defines = {"SPP": spp, "SPP_SIDE": side}
     cam = camera_uniforms(camera, width, height)
     origin = camera.position
     rows = max(1, fr.batch // (width * spp))
@@ -221,10 +222,11 @@ def finish_lp(fr: Frame, tables: LPTables, lp, params: dict, width: int, height:
                        images={4: lp, 6: luma})
                 fr.run("fxaa.comp", w * h, tables.buffers,
                        {**uni, "u_subpix": 0.75, "u_edge_threshold": 0.166, "u_edge_threshold_min": 0.0833},
-                       {"PAD": 16}, {**tables.images, 4: lp, 6: luma, 5: src})
+                       {"PAD": LP_PAD_FXAA}, {**tables.images, 4: lp, 6: luma, 5: src})
             else:
                 fr.run("gauss3.comp", w * h, tables.buffers,
-                       {**uni, "u_k": tuple(float(x) for x in AA._gauss1d(1.0, 1))}, {"PAD": 1},
+                       {**uni, "u_w": tuple(float(x) for x in AA._gauss1d(LP_GAUSS_SIGMA, LP_GAUSS_RADIUS))},
+                       {"PAD": LP_PAD_GAUSS},
                        {**tables.images, 4: lp, 5: src})
     img = fr.pool.get("image", 12 * width * height)
     post = lp_aa and not vafr
@@ -233,14 +235,10 @@ def finish_lp(fr: Frame, tables: LPTables, lp, params: dict, width: int, height:
         fr.run("inverse_map.comp", width * height, {**tables.buffers, **({} if post else {15: mid})}, uni,
                {**tables.defines(), "OUT_IMAGE": int(post)}, {**tables.images, 4: src, **({5: mid} if post else {})})
     if post:
-        weights = np.zeros(33, dtype=np.float32)
-        for b in range(1, len(AA.FOVEAL_SIGMAS)):
-            r = AA.FOVEAL_RADII[b]
-            weights[11 * (b - 1):11 * (b - 1) + 2 * r + 1] = AA._gauss1d(AA.FOVEAL_SIGMAS[b], r)
         with fr.timer("antialias"):
             fr.run("foveal.comp", width * height, {15: img},
                    {**uni, "u_c_r": tables.c_r, "u_edges": tuple(float(e) for e in AA.FOVEAL_BANDS_DEG),
-                    "u_radii": tuple(AA.FOVEAL_RADII[1:]), "u_w": tuple(float(x) for x in weights)},
+                    "u_radii": tuple(AA.FOVEAL_RADII), "u_w": tuple(float(x) for x in AA.FOVEAL_WEIGHTS)},
                    {"OUT_IMAGE": 0}, {4: mid})
     return img
 

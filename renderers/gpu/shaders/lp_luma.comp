@@ -1,9 +1,9 @@
 #version 430
-// FXAA's luma of every LP pixel: sqrt(clip(exposure Y, 0, 1)) of linear Rec. 709 luminance
-// (renderers/antialias.py fxaa_luma).
+// FXAA's luma of every LP pixel: aa_luma, generated from renderers/antialias.py luma.
 layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "constants_gen.glsl"
+#include "luma_gen.glsl"
 layout(binding = 4, rgba32f) uniform restrict readonly image2D src;
 layout(binding = 6, r32f) uniform restrict writeonly image2D luma;
 uniform int u_lp_w;
@@ -13,8 +13,7 @@ void main() {
     uint i = gid();
     if (i < uint(u_n)) {
         ivec2 p = ivec2(int(i) % u_lp_w, int(i) / u_lp_w);
-        vec3 c = imageLoad(src, p).xyz;
-        float y = u_exposure * (LUMA_R * c.x + LUMA_G * c.y + LUMA_B * c.z);
-        imageStore(luma, p, vec4(sqrt(clamp(y, 0.0, 1.0))));
+        vec4 c = imageLoad(src, p);
+        imageStore(luma, p, vec4(aa_luma(c.x, c.y, c.z, u_exposure)));
     }
 }

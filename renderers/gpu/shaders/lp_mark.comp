@@ -1,14 +1,15 @@
 #version 430
 // Which LP pixels are shaded (renderers/pipeline.py LPLayout.shaded_pixels): those of the mask (j < n[c])
-// whose screen position lies on the display or that a border pixel's bilinear fetch reads (flag bit 2, set
-// from the CPU's list by lp_flags.comp). They are appended to the sample list (counter C_SAMPLES) with their
-// camera ray; flags become 1 (shaded) or 0, and unshaded LP pixels are zeroed.
+// that lp_needed (generated from renderers/_lp.py needed) takes: on the display, or read by a border pixel's
+// bilinear fetch (flag bit 2, set from the CPU's list by lp_flags.comp). They are appended to the sample list
+// (counter C_SAMPLES) with their camera ray; flags become 1 (shaded) or 0, and unshaded LP pixels are zeroed.
 layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "camera.glsl"
 #include "samples.glsl"
 #include "lp_cols.glsl"
 layout(std430, binding = 14) buffer Flags { uint flags[]; };
+#include "lp_needed_gen.glsl"
 
 void main() {
     cnt_begin();
@@ -19,8 +20,7 @@ void main() {
         int i = int(idx) % u_lp_w, j = int(idx) / u_lp_w;
         if (j < col_n(i)) {
             p = lp_position_d(i, j);
-            need = (flags[idx] & 2u) != 0u
-                || (p.x >= 0.0LF && p.x < double(u_screen.x) && p.y >= 0.0LF && p.y < double(u_screen.y));
+            need = lp_needed((flags[idx] & 2u) != 0u, p.x, p.y, u_screen.x, u_screen.y);
             if (!need) cnt_add(C_OFFSCREEN_LP_PIXELS, 1u);
         }
         flags[idx] = need ? 1u : 0u;
