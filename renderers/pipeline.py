@@ -28,7 +28,7 @@ import numpy as np
 
 from data_schema.errors import UserError
 
-from . import _lp
+from . import _gt, _lp
 from .antialias import FOVEAL_RADII, foveal_gaussian, lp_filter
 from .projection import camera_rays, plane_to_screen, tan_half_fov
 from .scene import Camera
@@ -72,51 +72,24 @@ def render_gt(tracer: Tracer, camera: Camera, width: int, height: int, spp: int 
     return img
 
 
-#: Constants of the GT sample jitter (Wellons' lowbias32 integer hash); renderers/gpu/shaders/gt.glsl uses them.
-GT_HASH = {"HASH_M1": 0x7FEB352D, "HASH_M2": 0x846CA68B, "HASH_X": 0x9E3779B1, "HASH_Y": 0x85EBCA77}
-
-
-def _lowbias32(x: np.ndarray) -> np.ndarray:
-    x = x ^ (x >> np.uint32(16))
-    x = x * np.uint32(GT_HASH["HASH_M1"])
-    x = x ^ (x >> np.uint32(15))
-    x = x * np.uint32(GT_HASH["HASH_M2"])
-    return x ^ (x >> np.uint32(16))
-
-
 def gt_sample_offsets(px, py, spp: int):
     """Sub-pixel positions ``(ox, oy)`` in [0, 1) of the ``spp`` samples of pixels ``(px, py)``, shape
-    ``px.shape + (spp,)``: a ``sqrt(spp)`` x ``sqrt(spp)`` grid of strata, each sample jittered inside its stratum
-    by an integer hash of (pixel, sample index), so both backends place the samples identically."""
-    side = math.isqrt(spp)
-    s = np.arange(spp, dtype=np.uint32)
-    px = np.asarray(px).astype(np.uint32)[..., None]
-    py = np.asarray(py).astype(np.uint32)[..., None]
-    h = _lowbias32((px * np.uint32(GT_HASH["HASH_X"])) ^ _lowbias32(py ^ _lowbias32(s)))
-    h2 = _lowbias32(h ^ np.uint32(GT_HASH["HASH_Y"]))
-    ox = ((s % side) + (h >> np.uint32(8)) / 16777216.0) / side
-    oy = ((s // side) + (h2 >> np.uint32(8)) / 16777216.0) / side
-    return ox, oy
+    ``px.shape + (spp,)``: :func:`._gt.sample_offset` (a ``sqrt(spp)`` x ``sqrt(spp)`` grid of strata, each
+    sample jittered inside its stratum by an integer hash of (pixel, sample index))."""
+    px, py = np.broadcast_arrays(np.asarray(px, dtype=np.int64), np.asarray(py, dtype=np.int64))
+    ox, oy = np.empty((px.size, spp)), np.empty((px.size, spp))
+    _gt.sample_offsets(px.ravel(), py.ravel(), spp, math.isqrt(spp), ox, oy)
+    return ox.reshape(px.shape + (spp,)), oy.reshape(px.shape + (spp,))
 
 
 def resolve_samples(rad, ox, oy, r0: int, r1: int, pixel_filter: str) -> np.ndarray:
     """Pixels of rows ``[r0, r1)`` from samples ``rad`` (rows, W, spp, 3) at offsets ``ox, oy`` (rows, W, spp):
     ``box`` averages each pixel's samples; ``tent`` weights the samples of the 3 x 3 neighbouring pixels by
-    ``(1 - |dx|)(1 - |dy|)`` (distance to the pixel centre, radius 1 px) and normalises."""
-    if pixel_filter == "box":
-        return rad[r0:r1].mean(axis=2)
-    R, W = rad.shape[:2]
-    num = np.zeros((r1 - r0, W, 3))
-    den = np.zeros((r1 - r0, W))
-    for dy in (-1, 0, 1):
-        a, b = max(r0, -dy), min(r1, R - dy)
-        for dx in (-1, 0, 1):
-            c, d = max(0, -dx), min(W, W - dx)
-            w = (np.maximum(0.0, 1.0 - np.abs(dx + ox[a + dy:b + dy, c + dx:d + dx] - 0.5))
-                 * np.maximum(0.0, 1.0 - np.abs(dy + oy[a + dy:b + dy, c + dx:d + dx] - 0.5)))
-            num[a - r0:b - r0, c:d] += np.einsum("rws,rwsk->rwk", w, rad[a + dy:b + dy, c + dx:d + dx])
-            den[a - r0:b - r0, c:d] += w.sum(axis=2)
-    return (num / den[..., None]).astype(np.float32)
+    ``(1 - |dx|)(1 - |dy|)`` (distance to the pixel centre, radius 1 px) and normalises (:func:`._gt.resolve_pixel`)."""
+    out = np.empty((r1 - r0, rad.shape[1], 3), dtype=np.float32)
+    _gt.resolve(np.ascontiguousarray(rad, dtype=np.float32), np.ascontiguousarray(ox), np.ascontiguousarray(oy),
+                r0, r1, int(pixel_filter == "tent"), out)
+    return out
 
 
 class LPLayout:

@@ -17,6 +17,8 @@
 * :func:`fpsm_glsl` translates the per-pixel kernels of :mod:`renderers.lightcuts.fpsm` (seed 003 Eq 1-8: acuity,
   Sobel gradient, binomial blur, B-spline resampling, contrast, rho, map in float32; the budget in double), prefixed
   ``fpsm_``; the images they read are bound to the FPSM shader's buffers.
+* :func:`gt_glsl` translates the GT sample positions and pixel filter of :mod:`renderers._gt` (double), prefixed
+  ``gt_``; the samples and their positions are bound to the sample shader's buffers.
 * :func:`constants_glsl` emits the shared constant table :mod:`renderers.constants`; :func:`int64_glsl` the
   64-bit integer helpers.
 
@@ -25,7 +27,9 @@ Types are inferred to a fixed point: a name is ``int`` when every value given to
 tuples, otherwise ``float`` (``double`` in a double-precision closure). The translator knows the small Python
 subset these kernels use (assignments, tuple unpacking, ``if``/``elif``/``else``, ``for ... in range``,
 ``while``, ``return``, arithmetic, comparisons including chained ones, ``math`` functions, ``math.pi`` and
-``math.inf``) and raises ``NotImplementedError`` naming the function and the construct otherwise, so a kernel
+``math.inf``, integer ``//`` (Python's floor, exact through double), ``np.float32(x)`` (rounded to float32) and
+numba's ``np.uint32`` arithmetic as GLSL ``uint`` (``+``, ``-``, ``*``, ``<<`` only inside ``np.uint32(...)``,
+which truncates numba's 64-bit result as GLSL wraps; integer constants above 2^31 - 1 are ``uint``) and raises ``NotImplementedError`` naming the function and the construct otherwise, so a kernel
 change that it cannot follow fails loudly in the tests rather than drifting apart.
 """
 
@@ -231,7 +235,7 @@ class Translator:
             return "u64"
         v = self.consts.get(name)
         if v is not None:
-            return "int" if isinstance(v, int) else "float"
+            return ("u32" if v > 0x7FFFFFFF else "int") if isinstance(v, int) else "float"
         return "float"
 
     def etype(self, fn, e) -> str:
@@ -247,6 +251,8 @@ class Translator:
                 return "int" if isinstance(e.op, ast.BitAnd) else "i64"
             if "u64" in (a, b):
                 return "u64"
+            if "u32" in (a, b):
+                return "u32" if {a, b} <= {"u32", "int"} else "float"
             return "int" if a == b == "int" else "float"
         if isinstance(e, (ast.Compare, ast.BoolOp)) or (isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.Not)):
             return "bool"
@@ -260,8 +266,8 @@ class Translator:
         if isinstance(e, ast.Call):
             f = e.func
             if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
-                    and f.attr in ("int64", "uint64"):
-                return "i64" if f.attr == "int64" else "u64"
+                    and f.attr in ("int64", "uint64", "uint32", "float32"):
+                return {"int64": "i64", "uint64": "u64", "uint32": "u32", "float32": "float"}[f.attr]
             if isinstance(f, ast.Name):
                 if f.id == "int":
                     return "int"
@@ -285,7 +291,8 @@ class Translator:
             if k in self.shared:
                 continue
             if isinstance(v, int):
-                out.append(f"const int {self.const_name(k)} = {v};")
+                out.append(f"const uint {self.const_name(k)} = {v}u;" if v > 0x7FFFFFFF
+                           else f"const int {self.const_name(k)} = {v};")
             else:
                 out.append(f"const float {self.const_name(k)} = {_flt(v)};")
         out.append("")
@@ -395,6 +402,8 @@ class Translator:
         """The GLSL type of an inferred type in ``fn`` (``float`` is ``fn``'s precision)."""
         if t in ("i64", "u64"):
             return "uvec2"
+        if t == "u32":
+            return "uint"
         if fn.real == "double" and (t == "float" or t.startswith("vec")):
             return "double" if t == "float" else "d" + t
         return t
@@ -402,8 +411,10 @@ class Translator:
     def cast(self, fn, e, want: str) -> str:
         text = self.expr(fn, e)
         have = self.etype(fn, e)
-        if want == "float" and have == "int":
+        if want == "float" and have in ("int", "u32"):
             return f"{fn.real}({text})"
+        if want != have and "u32" in (want, have):
+            raise NotImplementedError(f"{fn.name}: {have} used as {want}")
         if want == "i64" and have == "int":
             return f"i64_from({text})"
         if want != have and "i64" in (want, have):
@@ -461,6 +472,10 @@ class Translator:
                 return self.i64_op(fn, e)
             if "u64" in (self.etype(fn, e.left), self.etype(fn, e.right)):
                 return self.u64_op(fn, e)
+            if self.etype(fn, e) == "u32":
+                return self.u32_op(fn, e, wrapped=False)
+            if isinstance(e.op, ast.FloorDiv) and self.etype(fn, e) == "int":   # Python floors; exact in double
+                return f"int(floor(double({a}) / double({b})))"
             if isinstance(e.op, ast.Mod) and "float" in (self.etype(fn, e.left), self.etype(fn, e.right)):
                 return f"mod({self.cast(fn, e.left, 'float')}, {self.cast(fn, e.right, 'float')})"  # Python's sign
             if isinstance(e.op, ast.Pow):
@@ -533,8 +548,38 @@ class Translator:
             return f"u64_shr({a}, {shift})"
         raise NotImplementedError(f"{fn.name}: uint64 operation {ta} {type(e.op).__name__} {tb}")
 
+    def u32_op(self, fn, e, wrapped: bool) -> str:
+        """numba's arithmetic on ``np.uint32`` values (the GT sample hash) as GLSL ``uint``: ``^``, ``&``, ``|``,
+        ``>>``, ``%`` anywhere; ``+``, ``-``, ``*``, ``<<`` only ``wrapped`` in ``np.uint32(...)`` (numba widens them
+        to 64 bits, GLSL wraps modulo 2^32: the same value only once truncated). Integer operands become ``uint``."""
+        ops = {ast.BitXor: "^", ast.BitAnd: "&", ast.BitOr: "|", ast.RShift: ">>", ast.Mod: "%"}
+        wide = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.LShift: "<<"}
+        if type(e.op) not in ops and not (wrapped and type(e.op) in wide):
+            raise NotImplementedError(f"{fn.name}: uint32 operation {type(e.op).__name__}"
+                                      + ("" if type(e.op) not in wide else " outside np.uint32(...)"))
+
+        def operand(x):
+            c = _const_int(x)
+            if c is not None and not isinstance(x, ast.Call):
+                return f"{c}u"
+            return self.expr(fn, x) if self.etype(fn, x) == "u32" else f"uint({self.expr(fn, x)})"
+
+        return f"({operand(e.left)} {({**ops, **wide})[type(e.op)]} {operand(e.right)})"
+
     def call(self, fn, e) -> str:
         f = e.func
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
+                and f.attr == "uint32":   # truncation to 32 bits: GLSL's uint arithmetic wraps by itself
+            a = e.args[0]
+            if isinstance(a, ast.BinOp) and self.etype(fn, a) == "u32":
+                return self.u32_op(fn, a, wrapped=True)
+            if self.etype(fn, a) in ("int", "u32"):
+                return self.expr(fn, a) if self.etype(fn, a) == "u32" else f"uint({self.expr(fn, a)})"
+            raise NotImplementedError(f"{fn.name}: np.uint32 of a {self.etype(fn, a)}")
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
+                and f.attr == "float32":   # rounded to float32 (in a double closure: and back)
+            text = self.cast(fn, e.args[0], "float")
+            return f"double(float({text}))" if fn.real == "double" else text
         if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
                 and f.attr == "int64":
             return f"i64_from(int({self.expr(fn, e.args[0])}))"
@@ -691,7 +736,7 @@ def lights_glsl(module=None, roots: str = "GLSL_LIGHT_ROOTS") -> str:
     length; ``GLSL_POINT_ROOTS``: a shading point's light loop), prefixed ``shade_`` like the kernels of
     ``shade_gen.glsl`` they call. The tables are the shader's images (``scene.glsl``: ``material(m, c)`` is column
     ``c`` of ``mat_f``; 3 texels per light: position | kind, intensity | cast, direction); the hit's outputs its
-    record ``hit_surf``; a point's per-light outputs shade.comp's arrays ``contrib``, ``lum``.
+    record ``hit_surf``; a point's per-light outputs samples.comp's arrays ``contrib``, ``lum``.
     ``module``: another module of the same kernels (tests translate a changed copy)."""
     if module is None:
         return _lights_glsl_cached(roots)
@@ -784,6 +829,26 @@ def fpsm_glsl() -> str:
                                 for r in (*fpsm.GLSL_DOUBLE_ROOTS, *fpsm.GLSL_FLOAT_ROOTS)})
     return "// Generated from renderers/lightcuts/fpsm.py by renderers/gpu/codegen.py: do not edit.\n" \
         '#include "constants_gen.glsl"\n' + tr.emit(doubles + floats, helpers=False)
+
+
+@functools.lru_cache(maxsize=None)
+def gt_glsl() -> str:
+    """GLSL of the GT kernels of :mod:`renderers._gt` in double precision, prefixed ``gt_``: the sample positions
+    ``gt_sample_offset(px, py, s, spp, side)`` and the pixel filter ``gt_resolve_pixel(x, y, width, rows, spp,
+    tent)`` (box or tent, numpy's summation order), which reads sample ``s`` of pixel ``(x, u_s0 + y)`` from the
+    sample pipeline's output buffer ``outbuf`` (``samples.glsl``, rows of ``u_width`` pixels), its position from
+    ``gt_sample_offset`` and keeps its 8 running sums in the shader's array ``gt_part``."""
+    from .. import _gt
+
+    offset = "gt_sample_offset({1}, u_s0 + ({0}), {2}, SPP, SPP_SIDE)"
+    tr = Translator(_gt, "gt_", bindings={"rad": "outbuf[3 * ((({0}) * u_width + ({1})) * SPP + ({2})) + ({3})]",
+                                          "ox": offset + ".x", "oy": offset + ".y", "part": "gt_part[{0}]"})
+    names = tr.closure(_gt.GLSL_DOUBLE_ROOTS)
+    for n in names:
+        tr.fns[n].real = "double"
+    tr.infer(names, {r: {p: "int" for p in tr.fns[r].params if p not in tr.bindings} for r in _gt.GLSL_DOUBLE_ROOTS})
+    return "// Generated from renderers/_gt.py by renderers/gpu/codegen.py: do not edit.\n" \
+        + tr.emit(names, helpers=False)
 
 
 def int64_glsl() -> str:

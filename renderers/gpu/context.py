@@ -316,6 +316,10 @@ def generated_source(fname: str) -> str | None:
         from .codegen import fpsm_glsl
 
         return fpsm_glsl()
+    if fname == "gt_gen.glsl":
+        from .codegen import gt_glsl
+
+        return gt_glsl()
     if fname == "int64_gen.glsl":
         from .codegen import int64_glsl
 
