@@ -1,18 +1,15 @@
 #version 430
-// The sample pipeline (renderers/gpu/frame.py SAMPLE_PASSES: the CPU's renderers/pipeline.py and tracer.py cut into
-// passes), one invocation per pixel or sample. PASS is one of
+// The sample pipeline (renderers/gpu/frame.py SAMPLE_PASSES: renderers/pipeline.py and tracer.py cut into passes),
+// one invocation per pixel or sample. PASS is one of
 //   GBUFFER       deferred visibility (seed 001 §3.4) of every screen pixel centre: triangle and t
-//   GEN_GT        GT samples of rows [u_y0, ...): SPP per pixel at renderers/_gt.py's sample_offset, slot
-//                 u_slot_base + index
+//   GEN_GT        SPP GT samples per pixel of rows [u_y0, ...) at renderers/_gt.py sample_offset, slot u_slot_base + i
 //   GEN_DEFERRED  an LP sample takes the G-buffer pixel under its screen position (clamped to the display) and that
 //                 pixel's camera ray (renderers/pipeline.py GBuffer.shade)
-//   RESOLVE       GT pixels of rows [u_y0, u_y0 + u_n / u_width) from their samples (rows [u_s0, u_s1) of the batch)
-//                 by renderers/_gt.py resolve_pixel (box or tent)
+//   RESOLVE       GT pixels of rows [u_y0, ...) from the samples of rows [u_s0, u_s1): _gt.py resolve_pixel (box, tent)
 // and then, over the samples (k, d, at: the hit triangle, the ray, the first mask word):
 //   TRACE         primary visibility: closest hit of each sample's ray (Embree INTERSECT in tracer.py)
 //   SHADE         renderers/_shade.py shade_contributions: unshadowed contributions (its light_loop), light culling,
-//                 the lights still to shadow-test (masks) and the radiance of the rest (partial); misses take the
-//                 background
+//                 the lights still to shadow-test (masks), the radiance of the rest (partial); misses: background
 //   SHADOW        shadow rays (Embree OCCLUDED): one per light still in the mask; an occluded light leaves the mask
 //   GATHER        partial + the lights that passed, into the sample's output slot (_shade.py accumulate);
 //                 non-finite values are counted (the host refuses them)
@@ -66,10 +63,8 @@ void main() {
         hits[i] = gbuf[p.y * int(u_screen.x) + p.x];
 #elif PASS == RESOLVE
         int px = int(i) % u_width, p = 3 * (u_y0 * u_width + int(i));
-        vec3 c = vec3(gt_resolve_pixel(px, u_y0 - u_s0 + int(i) / u_width, u_width, u_s1 - u_s0, SPP, u_tent));
-        img[p] = c.x;
-        img[p + 1] = c.y;
-        img[p + 2] = c.z;
+        dvec3 c = gt_resolve_pixel(px, u_y0 - u_s0 + int(i) / u_width, u_width, u_s1 - u_s0, SPP, u_tent);
+        for (int k = 0; k < 3; k++) img[p + k] = float(c[k]);
 #elif PASS == TRACE
         float t;
         k = trace(u_origin, d, INF, false, t);
@@ -123,10 +118,9 @@ void main() {
             vec3 n = facing_normal(k, d), p = u_origin + d * hits[i].y;
             uint rays = 0u;
             for (int w = 0; w < MASK_WORDS; w++) {
-                uint m = masks[at + uint(w)], keep = m;
-                while (m != 0u) {
+                uint keep = masks[at + uint(w)];
+                for (uint m = keep; m != 0u; m &= m - 1u) {
                     int b = findLSB(m);
-                    m &= m - 1u;
                     vec3 so, sd;
                     float dist, t;
                     shadow_ray(w * 32 + b, p, n, u_offset, u_far, so, sd, dist);
