@@ -25,12 +25,13 @@
 Types are inferred to a fixed point: a name is ``int`` when every value given to it is an integer expression,
 ``i64``/``u64`` (numba's ``np.int64``/``np.uint64``, on 32-bit halves) when it holds those, ``vec2``-``vec4`` for
 tuples, otherwise ``float`` (``double`` in a double-precision closure). The translator knows the small Python
-subset these kernels use (assignments, tuple unpacking, ``if``/``elif``/``else``, ``for ... in range``,
-``while``, ``return``, arithmetic, comparisons including chained ones, ``math`` functions, ``math.pi`` and
-``math.inf``, integer ``//`` (Python's floor, exact through double), ``np.float32(x)`` (rounded to float32) and
-numba's ``np.uint32`` arithmetic as GLSL ``uint`` (``+``, ``-``, ``*``, ``<<`` only inside ``np.uint32(...)``,
-which truncates numba's 64-bit result as GLSL wraps; integer constants above 2^31 - 1 are ``uint``) and raises ``NotImplementedError`` naming the function and the construct otherwise, so a kernel
-change that it cannot follow fails loudly in the tests rather than drifting apart.
+subset these kernels use (assignments, tuple unpacking, ``if``/``elif``/``else``, ``for ... in range``, ``while``,
+``return``, arithmetic, comparisons including chained ones, ``math`` functions, ``math.pi`` and ``math.inf``,
+integer ``//`` (Python's floor, exact through double), ``np.float32(x)`` (rounded to float32) and numba's
+``np.uint32`` arithmetic as GLSL ``uint`` (``+``, ``-``, ``*``, ``<<`` only inside ``np.uint32(...)``, which
+truncates numba's 64-bit result as GLSL wraps; integer constants above 2^31 - 1 are ``uint``) and raises
+``NotImplementedError`` naming the function and the construct otherwise, so a kernel change that it cannot follow
+fails loudly in the tests rather than drifting apart.
 """
 
 from __future__ import annotations

@@ -3,8 +3,9 @@
 The sample pipeline is the CPU's (renderers/tracer.py) cut into passes of one shader (``shaders/samples.comp``,
 :data:`SAMPLE_PASSES`): ``trace`` (primary visibility), ``shade`` (contributions, culling, the lights left to
 shadow-test), ``shadow`` (occlusion rays) and ``gather`` (radiance into each sample's output slot), after the
-passes that make the samples (``gen_gt``, ``gbuffer`` and ``gen_deferred``) and before ``resolve`` (GT pixels). Work counts are summed per workgroup on the GPU into a small
-counter buffer and read back once per frame into :class:`~renderers.tracer.Counters`.
+passes that make the samples (``gen_gt``, ``gbuffer`` and ``gen_deferred``) and before ``resolve`` (GT pixels).
+Work counts are summed per workgroup on the GPU into a small counter buffer and read back once per frame into
+:class:`~renderers.tracer.Counters`.
 """
 
 from __future__ import annotations
