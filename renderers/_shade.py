@@ -37,7 +37,7 @@ GLSL_FLOAT_ROOTS = ("material_lobes", "light_direction", "irradiance_factor", "s
 #: The kernels that read the scene's tables (``L_*``, ``mat_f`` bound to the GPU's light and material images) and
 #: write a hit's record (``albedo``, ``base``, ``ks`` bound to the shader's ``hit_surf``): ``lights_gen.glsl``.
 GLSL_LIGHT_ROOTS = ("hit_material", "light_term", "shadow_direction")
-#: The light loop of a shading point (``contrib``, ``lum`` bound to shade.comp's per-point arrays):
+#: The light loop of a shading point (``contrib``, ``lum`` bound to samples.comp's per-point arrays):
 #: ``light_loop_gen.glsl``.
 GLSL_POINT_ROOTS = ("light_loop",)
 

@@ -29,7 +29,7 @@ from numba import njit, prange
 
 from data_schema.errors import UserError
 
-from . import _lp, _warp
+from . import _gt, _lp, _warp
 from .antialias import FOVEAL_RADII, foveal_gaussian, lp_filter
 from .projection import camera_rays, plane_to_screen, tan_half_fov
 from .scene import Camera
@@ -73,70 +73,24 @@ def render_gt(tracer: Tracer, camera: Camera, width: int, height: int, spp: int 
     return img
 
 
-#: The GT sample jitter's constants: Wellons' lowbias32 integer hash (M1, M2) and the seeds of the pixel's x and
-#: of the second coordinate.
-HASH_M1, HASH_M2 = np.uint32(0x7FEB352D), np.uint32(0x846CA68B)
-HASH_X, HASH_Y = np.uint32(0x9E3779B1), np.uint32(0x85EBCA77)
-#: The kernel the GPU backend translates (renderers/gpu/codegen.py ``gt_glsl``), in double precision.
-GLSL_DOUBLE_ROOTS = ("sample_offset",)
-
-
-@njit(cache=True, inline="always")
-def _lowbias32(x):
-    """Wellons' lowbias32 hash of a uint32 (every step modulo 2^32)."""
-    x = np.uint32(x ^ (x >> 16))
-    x = np.uint32(x * HASH_M1)
-    x = np.uint32(x ^ (x >> 15))
-    x = np.uint32(x * HASH_M2)
-    return np.uint32(x ^ (x >> 16))
-
-
-@njit(cache=True, inline="always")
-def sample_offset(px, py, s, side):
-    """Sub-pixel position ``(ox, oy)`` in [0, 1) of sample ``s`` of pixel ``(px, py)``: stratum ``s`` of a
-    ``side`` x ``side`` grid, jittered inside it by an integer hash of (pixel, sample index)."""
-    h = _lowbias32(np.uint32(np.uint32(px) * HASH_X) ^ _lowbias32(np.uint32(py) ^ _lowbias32(np.uint32(s))))
-    h2 = _lowbias32(h ^ HASH_Y)
-    return (s % side + (h >> 8) / 16777216.0) / side, (int(s / side) + (h2 >> 8) / 16777216.0) / side
-
-
-@njit(cache=True, parallel=True)
-def _sample_offsets(px, py, side, ox, oy):
-    for q in prange(px.size):
-        for s in range(ox.shape[1]):
-            ox[q, s], oy[q, s] = sample_offset(px[q], py[q], s, side)
-
-
 def gt_sample_offsets(px, py, spp: int):
     """Sub-pixel positions ``(ox, oy)`` in [0, 1) of the ``spp`` samples of pixels ``(px, py)``, shape
-    ``px.shape + (spp,)``: a ``sqrt(spp)`` x ``sqrt(spp)`` grid of strata, each sample jittered inside its stratum
-    by an integer hash of (pixel, sample index) (:func:`sample_offset`), so both backends place the samples
-    identically."""
+    ``px.shape + (spp,)``: :func:`._gt.sample_offset` (a ``sqrt(spp)`` x ``sqrt(spp)`` grid of strata, each
+    sample jittered inside its stratum by an integer hash of (pixel, sample index))."""
     px, py = np.broadcast_arrays(np.asarray(px, dtype=np.int64), np.asarray(py, dtype=np.int64))
-    ox = np.empty(px.shape + (spp,))
-    oy = np.empty_like(ox)
-    _sample_offsets(px.ravel(), py.ravel(), math.isqrt(spp), ox.reshape(-1, spp), oy.reshape(-1, spp))
-    return ox, oy
+    ox, oy = np.empty((px.size, spp)), np.empty((px.size, spp))
+    _gt.sample_offsets(px.ravel(), py.ravel(), spp, math.isqrt(spp), ox, oy)
+    return ox.reshape(px.shape + (spp,)), oy.reshape(px.shape + (spp,))
 
 
 def resolve_samples(rad, ox, oy, r0: int, r1: int, pixel_filter: str) -> np.ndarray:
     """Pixels of rows ``[r0, r1)`` from samples ``rad`` (rows, W, spp, 3) at offsets ``ox, oy`` (rows, W, spp):
     ``box`` averages each pixel's samples; ``tent`` weights the samples of the 3 x 3 neighbouring pixels by
-    ``(1 - |dx|)(1 - |dy|)`` (distance to the pixel centre, radius 1 px) and normalises."""
-    if pixel_filter == "box":
-        return rad[r0:r1].mean(axis=2)
-    R, W = rad.shape[:2]
-    num = np.zeros((r1 - r0, W, 3))
-    den = np.zeros((r1 - r0, W))
-    for dy in (-1, 0, 1):
-        a, b = max(r0, -dy), min(r1, R - dy)
-        for dx in (-1, 0, 1):
-            c, d = max(0, -dx), min(W, W - dx)
-            w = (np.maximum(0.0, 1.0 - np.abs(dx + ox[a + dy:b + dy, c + dx:d + dx] - 0.5))
-                 * np.maximum(0.0, 1.0 - np.abs(dy + oy[a + dy:b + dy, c + dx:d + dx] - 0.5)))
-            num[a - r0:b - r0, c:d] += np.einsum("rws,rwsk->rwk", w, rad[a + dy:b + dy, c + dx:d + dx])
-            den[a - r0:b - r0, c:d] += w.sum(axis=2)
-    return (num / den[..., None]).astype(np.float32)
+    ``(1 - |dx|)(1 - |dy|)`` (distance to the pixel centre, radius 1 px) and normalises (:func:`._gt.resolve_pixel`)."""
+    out = np.empty((r1 - r0, rad.shape[1], 3), dtype=np.float32)
+    _gt.resolve(np.ascontiguousarray(rad, dtype=np.float32), np.ascontiguousarray(ox), np.ascontiguousarray(oy),
+                r0, r1, int(pixel_filter == "tent"), out)
+    return out
 
 
 class LPLayout:

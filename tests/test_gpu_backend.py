@@ -82,14 +82,14 @@ def test_broken_shader_one_line_naming_it(tmp_path, monkeypatch, capsys):
     shaders.mkdir()
     for f in context.SHADER_DIR.iterdir():
         (shaders / f.name).write_text(f.read_text())
-    (shaders / "shade.comp").write_text((shaders / "shade.comp").read_text().replace(
+    (shaders / "samples.comp").write_text((shaders / "samples.comp").read_text().replace(
         "cnt_add(C_SHADING_POINTS, 1u);", "cnt_add(C_SHADING_POINTS, undefined_count);"))
     monkeypatch.setattr(context, "SHADER_DIR", shaders)
     monkeypatch.setattr(context.get_device(), "_programs", {})
     rc = main(["render", "--scene", "cornell", "--renderer", "gt", "--width", "8", "--height", "6",
                "--backend", "gpu", "--out", str(tmp_path / "a.png")])
     assert rc == 2
-    line = _one_error_line(capsys.readouterr().err, "GPU shader shade.comp failed to compile", "undefined_count",
+    line = _one_error_line(capsys.readouterr().err, "GPU shader samples.comp failed to compile", "undefined_count",
                            "use --backend cpu")
     assert "error" in line
 

@@ -168,6 +168,39 @@ def test_generated_glossy_lobe_is_the_cpus():
     np.testing.assert_allclose(got, want, rtol=1e-3, atol=1e-4)
 
 
+def test_generated_gt_sample_offsets_are_the_cpus():
+    """gt_gen.glsl's sample_offset (renderers/_gt.py: lowbias32 on numba's uint32 values, wrapping products, the
+    strata in double precision) places every GT sample where the CPU does, bit for bit, at any pixel (large
+    coordinates: the hash's wrap-around) and spp (1: the centre)."""
+    from renderers import _gt
+    from renderers.gpu.context import get_device
+
+    rng = np.random.default_rng(5)
+    n = 2048
+    side = rng.integers(1, 17, n)
+    x = np.column_stack([rng.integers(0, 1 << 16, (n, 2)), rng.integers(0, 1 << 30, n) % (side * side),
+                         side * side, side])
+    src = _HEAD.replace('#include "shade_gen.glsl"\n', "") + """uniform int u_s0, u_width;
+float outbuf[1];      // the pixel filter's samples (unused here)
+double gt_part[8];
+#define SPP 1
+#define SPP_SIDE 1
+#include "gt_gen.glsl"
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i < uint(u_n)) {
+        uint b = 5u * i;
+        dvec2 o = gt_sample_offset(int(v[b]), int(v[b + 1u]), int(v[b + 2u]), int(v[b + 3u]), int(v[b + 4u]));
+        r[2u * i] = o.x;
+        r[2u * i + 1u] = o.y;
+    }
+}"""
+    got = _run(get_device(), src, x, 2)
+    want = np.array([_gt.sample_offset(*map(int, t)) for t in x])
+    assert ((want > 0) & (want < 1)).all() and len(np.unique(want)) > n
+    assert np.array_equal(got, want)
+
+
 def _copy_of_shade(tmp_path, name: str, edits: list[tuple[str, str]]):
     """renderers/_shade.py with ``edits`` applied, imported as a package module of its own (relative imports
     resolved against ``renderers``)."""
@@ -194,7 +227,10 @@ def _copy_of_shade(tmp_path, name: str, edits: list[tuple[str, str]]):
     ("    cos_t = nx * wx", "    half = nx\n    cos_t = half * wx",
      "irradiance_factor: name 'half' is reserved in GLSL"),
     ("    cos_t = nx * wx", "    q = np.uint32(nx)\n    cos_t = nx * wx", "irradiance_factor: np.uint32 of a float"),
-], ids=["for-over-tuple", "int64-product", "list", "5-tuple", "numpy-call", "glsl-keyword", "uint32-of-float"])
+    ("    return LUMA_R * r + LUMA_G * g + LUMA_B * b", "    return np.uint32(int(r)) * 3",
+     "luminance: uint32 operation Mult outside np.uint32(...)"),
+], ids=["for-over-tuple", "int64-product", "list", "5-tuple", "numpy-call", "glsl-keyword", "uint32-of-float",
+        "uint32-product"])
 def test_generator_names_what_it_cannot_translate(tmp_path, old, new, message):
     mod = _copy_of_shade(tmp_path, "_shade_bad", [(old, new)])
     try:
@@ -247,7 +283,7 @@ def test_the_pixel_kernels_of_the_lp_passes_are_the_cpus_filters():
     assert "vec3 lp_inverse_pixel(int x, float y)" in codegen.lp_glsl("inverse")
     assert "void lp_fill_row(int j, int w)" in codegen.lp_glsl("fill")
     assert "float aa_foveal_pixel(" in codegen.antialias_glsl("foveal")
-    assert "dvec2 gt_sample_offset(int px, int py, int s, int side)" in codegen.gt_glsl()
+    assert "dvec2 gt_sample_offset(int px, int py, int s, int spp, int side)" in codegen.gt_glsl()
 
 
 def test_a_kernel_change_moves_both_backends_together(tmp_path, monkeypatch):

@@ -33,8 +33,8 @@
   :mod:`renderers.antialias` (scipy's separable ``correlate1d`` at a pixel; the foveal Gaussian's band and pixel;
   FXAA's luma), prefixed ``aa_``. The images they read are bound to macros or image loads of the including shader
   (``img[y, x, ch]`` -> ``px_at(y, x)[ch]``), an image they write to a store (``Translator.stores``).
-* :func:`gt_glsl` translates GT's sample jitter (:func:`renderers.pipeline.sample_offset`: the lowbias32 hash
-  in numba's ``np.uint32``, GLSL ``uint``), prefixed ``gt_``.
+* :func:`gt_glsl` translates the GT sample positions and pixel filter of :mod:`renderers._gt` (double), prefixed
+  ``gt_``; the samples and their positions are bound to the sample shader's buffers.
 * :func:`constants_glsl` emits the shared constant table :mod:`renderers.constants`; :func:`int64_glsl` the
   64-bit integer helpers.
 
@@ -60,10 +60,12 @@ Further:
   result converted to float, an int argument given as a uint64 counter ``uvec2(uint(x), 0u)``); other calls across
   precisions are refused;
 * ``<<``, ``>>`` on ints; ``Translator.binding_types`` also types bound scalars (``n_leaves`` -> ``int``).
-* ``uint`` for numba's ``np.uint32`` (every product wrapped in ``np.uint32(...)`` on the CPU, where numba widens
-  to 64 bits); the casts ``np.float32``/``np.float64`` (to the closure's precision: numba's ``float()`` of a float32
-  stays float32); calls of another translated module's kernels (``Translator.externals``: ``point`` ->
-  ``fov_point``); image stores as assignment targets (``Translator.stores``).
+* numba's ``np.uint32`` arithmetic as GLSL ``uint`` (``+``, ``-``, ``*``, ``<<`` only inside ``np.uint32(...)``,
+  which truncates numba's 64-bit result as GLSL wraps; integer constants above 2^31 - 1 are ``uint``), integer
+  ``//`` (Python's floor, exact through double), the casts ``np.float32``/``np.float64`` (to the closure's
+  precision: numba's ``float()`` of a float32 stays float32); calls of another translated module's kernels
+  (``Translator.externals``: ``point`` -> ``fov_point``); image stores as assignment targets
+  (``Translator.stores``).
 """
 
 from __future__ import annotations
@@ -313,10 +315,10 @@ class Translator:
         if name in self.u64_consts:
             return "u64"
         if name in self.u32_consts:
-            return "uint"
+            return "u32"
         v = self.consts.get(name)
         if v is not None:
-            return "int" if isinstance(v, int) else "float"
+            return ("u32" if v > 0x7FFFFFFF else "int") if isinstance(v, int) else "float"
         return "float"
 
     def etype(self, fn, e) -> str:
@@ -332,8 +334,8 @@ class Translator:
                 return "int" if isinstance(e.op, ast.BitAnd) else "i64"
             if "u64" in (a, b):
                 return "u64"
-            if "uint" in (a, b) and {a, b} <= {"int", "uint"}:
-                return "uint"
+            if "u32" in (a, b):
+                return "u32" if {a, b} <= {"u32", "int"} else "float"
             if a == b == "f32" and isinstance(e.op, (ast.Add, ast.Sub, ast.Mult)):
                 return "f32"   # numba: float32 op float32 stays float32; with a float64 or an int it is float64
             if type(e.op) in (ast.LShift, ast.RShift, ast.BitAnd, ast.BitOr, ast.BitXor):
@@ -353,8 +355,8 @@ class Translator:
         if isinstance(e, ast.Call):
             f = e.func
             if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
-                    and f.attr in ("int64", "uint64", "uint32"):
-                return {"int64": "i64", "uint64": "u64", "uint32": "uint"}[f.attr]
+                    and f.attr in ("int64", "uint64", "uint32", "float32", "float64"):
+                return {"int64": "i64", "uint64": "u64", "uint32": "u32", "float32": "float", "float64": "float"}[f.attr]
             if isinstance(f, ast.Name):
                 if f.id == "int":
                     return "int"
@@ -384,7 +386,8 @@ class Translator:
             if k in self.shared:
                 continue
             if isinstance(v, int):
-                out.append(f"const int {self.const_name(k)} = {v};")
+                out.append(f"const uint {self.const_name(k)} = {v}u;" if v > 0x7FFFFFFF
+                           else f"const int {self.const_name(k)} = {v};")
             else:
                 out.append(f"const float {self.const_name(k)} = {_flt(v)};")
         out.append("")
@@ -520,6 +523,8 @@ class Translator:
             return "float"
         if t in ("i64", "u64"):
             return "uvec2"
+        if t == "u32":
+            return "uint"
         if fn.real == "double" and (t == "float" or t.startswith("vec")):
             return "double" if t == "float" else "d" + t
         return t
@@ -527,8 +532,10 @@ class Translator:
     def cast(self, fn, e, want: str) -> str:
         text = self.expr(fn, e)
         have = self.etype(fn, e)
-        if want == "float" and have in ("int", "f32", "uint"):
+        if want == "float" and have in ("int", "f32", "u32"):
             return f"{fn.real}({text})"
+        if want != have and "u32" in (want, have):
+            raise NotImplementedError(f"{fn.name}: {have} used as {want}")
         if want == "i64" and have == "int":
             return f"i64_from({text})"
         if want == "u64" and have == "int":   # a non-negative int (a sample slot) as a uint64 counter
@@ -593,6 +600,10 @@ class Translator:
                 return self.i64_op(fn, e)
             if "u64" in (self.etype(fn, e.left), self.etype(fn, e.right)):
                 return self.u64_op(fn, e)
+            if self.etype(fn, e) == "u32":
+                return self.u32_op(fn, e, wrapped=False)
+            if isinstance(e.op, ast.FloorDiv) and self.etype(fn, e) == "int":   # Python floors; exact in double
+                return f"int(floor(double({a}) / double({b})))"
             if isinstance(e.op, ast.Mod) and "float" in (self.etype(fn, e.left), self.etype(fn, e.right)):
                 return f"mod({self.cast(fn, e.left, 'float')}, {self.cast(fn, e.right, 'float')})"  # Python's sign
             if isinstance(e.op, ast.Pow):
@@ -604,10 +615,7 @@ class Translator:
             if type(e.op) not in _BINOPS:
                 raise NotImplementedError(f"{fn.name}: operator {type(e.op).__name__}")
             ta, tb = self.etype(fn, e.left), self.etype(fn, e.right)
-            if "uint" in (ta, tb) and {ta, tb} <= {"int", "uint"}:   # uint arithmetic wraps modulo 2^32
-                a = f"uint({a})" if ta == "int" else a
-                b = f"uint({b})" if tb == "int" else b
-            elif ta != tb:  # GLSL converts implicitly, but say it (and keep int/float mixing visible)
+            if ta != tb:  # GLSL converts implicitly, but say it (and keep int/float mixing visible)
                 a = f"{fn.real}({a})" if ta in ("int", "f32") else a
                 b = f"{fn.real}({b})" if tb in ("int", "f32") else b
             return f"({a} {_BINOPS[type(e.op)]} {b})"
@@ -678,8 +686,34 @@ class Translator:
             return f"{callee.real}({self.expr(fn, a)})"
         return self.cast(fn, a, want)
 
+    def u32_op(self, fn, e, wrapped: bool) -> str:
+        """numba's arithmetic on ``np.uint32`` values (the GT sample hash) as GLSL ``uint``: ``^``, ``&``, ``|``,
+        ``>>``, ``%`` anywhere; ``+``, ``-``, ``*``, ``<<`` only ``wrapped`` in ``np.uint32(...)`` (numba widens them
+        to 64 bits, GLSL wraps modulo 2^32: the same value only once truncated). Integer operands become ``uint``."""
+        ops = {ast.BitXor: "^", ast.BitAnd: "&", ast.BitOr: "|", ast.RShift: ">>", ast.Mod: "%"}
+        wide = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.LShift: "<<"}
+        if type(e.op) not in ops and not (wrapped and type(e.op) in wide):
+            raise NotImplementedError(f"{fn.name}: uint32 operation {type(e.op).__name__}"
+                                      + ("" if type(e.op) not in wide else " outside np.uint32(...)"))
+
+        def operand(x):
+            c = _const_int(x)
+            if c is not None and not isinstance(x, ast.Call):
+                return f"{c}u"
+            return self.expr(fn, x) if self.etype(fn, x) == "u32" else f"uint({self.expr(fn, x)})"
+
+        return f"({operand(e.left)} {({**ops, **wide})[type(e.op)]} {operand(e.right)})"
+
     def call(self, fn, e) -> str:
         f = e.func
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
+                and f.attr == "uint32":   # truncation to 32 bits: GLSL's uint arithmetic wraps by itself
+            a = e.args[0]
+            if isinstance(a, ast.BinOp) and self.etype(fn, a) == "u32":
+                return self.u32_op(fn, a, wrapped=True)
+            if self.etype(fn, a) in ("int", "u32"):
+                return self.expr(fn, a) if self.etype(fn, a) == "u32" else f"uint({self.expr(fn, a)})"
+            raise NotImplementedError(f"{fn.name}: np.uint32 of a {self.etype(fn, a)}")
         if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
                 and f.attr == "int64":
             return f"i64_from(int({self.expr(fn, e.args[0])}))"
@@ -690,11 +724,6 @@ class Translator:
             if self.etype(fn, e.args[0]) == "u64":
                 return self.expr(fn, e.args[0])
             raise NotImplementedError(f"{fn.name}: np.uint64 of a {self.etype(fn, e.args[0])}")
-        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
-                and f.attr == "uint32":   # numba's uint32 of a wider product: its low 32 bits, as GLSL's uint
-            if self.etype(fn, e.args[0]) not in ("int", "uint"):
-                raise NotImplementedError(f"{fn.name}: np.uint32 of a {self.etype(fn, e.args[0])}")
-            return f"uint({self.expr(fn, e.args[0])})"
         if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "np" \
                 and f.attr in ("float32", "float64"):   # in a double closure float32 rounds, as on the CPU
             x = self.cast(fn, e.args[0], "float")
@@ -864,7 +893,7 @@ def lights_glsl(module=None, roots: str = "GLSL_LIGHT_ROOTS") -> str:
     length; ``GLSL_POINT_ROOTS``: a shading point's light loop), prefixed ``shade_`` like the kernels of
     ``shade_gen.glsl`` they call. The tables are the shader's images (``scene.glsl``: ``material(m, c)`` is column
     ``c`` of ``mat_f``; 3 texels per light: position | kind, intensity | cast, direction); the hit's outputs its
-    record ``hit_surf``; a point's per-light outputs shade.comp's arrays ``contrib``, ``lum``.
+    record ``hit_surf``; a point's per-light outputs samples.comp's arrays ``contrib``, ``lum``.
     ``module``: another module of the same kernels (tests translate a changed copy)."""
     if module is None:
         return _lights_glsl_cached(roots)
@@ -1140,16 +1169,21 @@ def antialias_glsl(part: str = "gauss") -> str:
 
 @functools.lru_cache(maxsize=None)
 def gt_glsl() -> str:
-    """GLSL of the GT sample jitter of :mod:`renderers.pipeline`: ``gt_sample_offset(px, py, s, side)`` (dvec2,
-    the lowbias32 hash in uint, the offset in double precision like the CPU's float64)."""
-    from .. import pipeline
+    """GLSL of the GT kernels of :mod:`renderers._gt` in double precision, prefixed ``gt_``: the sample positions
+    ``gt_sample_offset(px, py, s, spp, side)`` and the pixel filter ``gt_resolve_pixel(x, y, width, rows, spp,
+    tent)`` (box or tent, numpy's summation order), which reads sample ``s`` of pixel ``(x, u_s0 + y)`` from the
+    sample pipeline's output buffer ``outbuf`` (``samples.glsl``, rows of ``u_width`` pixels), its position from
+    ``gt_sample_offset`` and keeps its 8 running sums in the shader's array ``gt_part``."""
+    from .. import _gt
 
-    tr = Translator(pipeline, "gt_")
-    names = tr.closure(pipeline.GLSL_DOUBLE_ROOTS)
+    offset = "gt_sample_offset({1}, u_s0 + ({0}), {2}, SPP, SPP_SIDE)"
+    tr = Translator(_gt, "gt_", bindings={"rad": "outbuf[3 * ((({0}) * u_width + ({1})) * SPP + ({2})) + ({3})]",
+                                          "ox": offset + ".x", "oy": offset + ".y", "part": "gt_part[{0}]"})
+    names = tr.closure(_gt.GLSL_DOUBLE_ROOTS)
     for n in names:
         tr.fns[n].real = "double"
-    tr.infer(names, {"sample_offset": dict.fromkeys(("px", "py", "s", "side"), "int")})
-    return "// Generated from renderers/pipeline.py by renderers/gpu/codegen.py: do not edit.\n" \
+    tr.infer(names, {r: {p: "int" for p in tr.fns[r].params if p not in tr.bindings} for r in _gt.GLSL_DOUBLE_ROOTS})
+    return "// Generated from renderers/_gt.py by renderers/gpu/codegen.py: do not edit.\n" \
         + tr.emit(names, helpers=False)
 
 

@@ -1,9 +1,11 @@
 """One frame on the GPU: buffers, dispatches, stage timing and the counters of the stats record.
 
-The sample pipeline is the CPU's (renderers/tracer.py) cut into passes: ``trace`` (primary visibility),
-``shade`` (contributions, culling, the lights left to shadow-test), ``shadow`` (occlusion rays) and ``gather``
-(radiance into each sample's output slot). Work counts are summed per workgroup on the GPU into a small
-counter buffer and read back once per frame into :class:`~renderers.tracer.Counters`.
+The sample pipeline is the CPU's (renderers/tracer.py) cut into passes of one shader (``shaders/samples.comp``,
+:data:`SAMPLE_PASSES`): ``trace`` (primary visibility), ``shade`` (contributions, culling, the lights left to
+shadow-test), ``shadow`` (occlusion rays) and ``gather`` (radiance into each sample's output slot), after the
+passes that make the samples (``gen_gt``, ``gbuffer`` and ``gen_deferred``) and before ``resolve`` (GT pixels).
+Work counts are summed per workgroup on the GPU into a small counter buffer and read back once per frame into
+:class:`~renderers.tracer.Counters`.
 """
 
 from __future__ import annotations
@@ -25,6 +27,10 @@ _COUNTER_DEFINES = {"COUNTERS": len(COUNTERS), **{f"C_{n.upper()}": i for n, i i
 _DEFAULT_DEFINES = {"OUT_IMAGE": 0, "USE_TABLE": 0, "METHOD": 0, "PAD": 1}
 #: Samples per batch: bounds the per-sample buffers (16 B each of direction and radiance, 8 B hit, mask words).
 BATCH = 1 << 20
+#: The passes of ``shaders/samples.comp`` (``PASS``, each name defined as its number); from ``trace`` on they
+#: read the traced samples.
+SAMPLE_PASSES = ("gbuffer", "gen_gt", "gen_deferred", "resolve", "trace", "shade", "shadow", "gather")
+_PASS_DEFINES = {name.upper(): k for k, name in enumerate(SAMPLE_PASSES)}
 #: Binding points of the sample pipeline (shaders/samples.glsl).
 B_SAMPLES, B_HITS, B_MASKS, B_PARTIAL, B_OUT = 6, 7, 8, 9, 10
 
@@ -115,6 +121,13 @@ class Frame:
         self.dev.dispatch(prog, n, local)
         self.dev.barrier()
 
+    def run_pass(self, name: str, n: int, buffers: dict | None = None, uniforms: dict | None = None,
+                 defines: dict | None = None, images: dict | None = None) -> None:
+        """:meth:`run` pass ``name`` of the sample pipeline (:data:`SAMPLE_PASSES`) over ``n`` invocations (the
+        count of counter ``u_count_at`` when given)."""
+        self.run("samples.comp", n, buffers, {"u_count_at": -1, **(uniforms or {})},
+                 {**(defines or {}), **_PASS_DEFINES, "PASS": _PASS_DEFINES[name.upper()]}, images)
+
     def check_cancel(self) -> None:
         """Stop the render if its ``cancel`` hook says so (the live window's Escape): llvmpipe runs each dispatch
         to its end in this thread, so between dispatches is where a frame can stop. The window's drawing state is
@@ -177,13 +190,13 @@ class Frame:
         size = capacity if n is None else n
         if not traced:
             with self.timer("visibility"):
-                self.run("trace.comp", size, bufs, uni, defines, images)
+                self.run_pass("trace", size, bufs, uni, defines, images)
         with self.timer("shading"):
-            self.run("shade.comp", size, bufs, uni, defines, images)
+            self.run_pass("shade", size, bufs, uni, defines, images)
         with self.timer("visibility"):
-            self.run("shadow.comp", size, bufs, uni, defines, images)
+            self.run_pass("shadow", size, bufs, uni, defines, images)
         with self.timer("shading"):
-            self.run("gather.comp", size, bufs, uni, defines, images)
+            self.run_pass("gather", size, bufs, uni, defines, images)
 
     # -- end of frame -----------------------------------------------------------------------------------------
     def close(self) -> dict:

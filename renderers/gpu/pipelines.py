@@ -40,8 +40,8 @@ def render_gt(fr: Frame, camera, width: int, height: int, spp: int = 1, pixel_fi
         for y0 in range(0, height, rows):
             n = (min(height, y0 + rows) - y0) * width
             with fr.timer("visibility"):
-                fr.run("gen_gt.comp", n, fr.sample_buffers(n), {**cam, "u_y0": y0, "u_width": width,
-                                                                 "u_slot_base": y0 * width}, defines)
+                fr.run_pass("gen_gt", n, fr.sample_buffers(n), {**cam, "u_y0": y0, "u_width": width,
+                                                                "u_slot_base": y0 * width}, defines)
             fr.shade_batch(origin, n, img, n=n)
             fr.drain_counters()
         return img
@@ -57,11 +57,11 @@ def render_gt(fr: Frame, camera, width: int, height: int, spp: int = 1, pixel_fi
             fr.dev.ctx.copy_buffer(buf, prev, (n0 - s0) * row_bytes, read_offset=prev_rows * row_bytes)
         n = (s1 - n0) * width * spp
         with fr.timer("visibility"):
-            fr.run("gen_gt.comp", n, fr.sample_buffers(n), {**cam, "u_y0": n0, "u_width": width,
-                                                             "u_slot_base": (n0 - s0) * width * spp}, defines)
+            fr.run_pass("gen_gt", n, fr.sample_buffers(n), {**cam, "u_y0": n0, "u_width": width,
+                                                            "u_slot_base": (n0 - s0) * width * spp}, defines)
         fr.shade_batch(origin, n, buf, n=n)
         with fr.timer("antialias"):
-            fr.run("resolve_gt.comp", (y1 - y0) * width, {B_OUT: buf, 15: img},
+            fr.run_pass("resolve", (y1 - y0) * width, {B_OUT: buf, 15: img},
                    {"u_width": width, "u_y0": y0, "u_s0": s0, "u_s1": s1, "u_tent": int(halo)}, defines)
         prev_rows = s1 - s0 - 2 * halo
         fr.drain_counters()
@@ -192,11 +192,11 @@ def render_lp(fr: Frame, tables: LPTables, camera, width: int, height: int, gaze
     if pipeline == "deferred":
         gbuf = fr.pool.get("gbuffer", 8 * width * height)
         with fr.timer("visibility"):
-            fr.run("gbuffer.comp", width * height, {15: gbuf}, {**cam, "u_origin": tuple(camera.position),
+            fr.run_pass("gbuffer", width * height, {15: gbuf}, {**cam, "u_origin": tuple(camera.position),
                                                                "u_width": width})
-            fr.run("gen_deferred.comp", tables.n_mask, {**fr.sample_buffers(tables.n_mask), **tables.buffers,
+            fr.run_pass("gen_deferred", tables.n_mask, {**fr.sample_buffers(tables.n_mask), **tables.buffers,
                                                        15: gbuf}, {**uni, "u_count_at": C["samples"]}, out,
-                   tables.images)
+                        tables.images)
     fr.shade_batch(camera.position, tables.n_mask, lp, count_at=C["samples"], traced=pipeline == "deferred",
                    uniforms={"u_out_w": w}, defines=out)
     return lp

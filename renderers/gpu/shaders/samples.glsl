@@ -1,6 +1,6 @@
-// A batch of samples: one ray each from u_origin, traced (trace.comp), shaded (shade.comp), shadow-tested
-// (shadow.comp) and written to its output slot (gather.comp). The batch size is u_n, or the value of counter
-// u_count_at when the batch was built on the GPU (lp_mark.comp, rep_holes.comp).
+// A batch of samples: one ray each from u_origin, traced, shaded, shadow-tested and written to its output slot
+// (samples.comp). The batch size is u_n, or the value of counter u_count_at when the batch was built on the GPU
+// (lp_mark.comp, rep_holes.comp).
 layout(std430, binding = 6) buffer Samples { vec4 samples[]; };   // direction | output slot (int bits)
 layout(std430, binding = 7) buffer Hits { vec2 hits[]; };         // triangle (int bits; -1: miss) | t
 layout(std430, binding = 8) buffer Masks { uint masks[]; };       // MASK_WORDS per sample: lights to test
