@@ -1,6 +1,4 @@
-#version 430
 // renderers/pipeline.py fill_unshaded: lp_fill_row (generated from renderers/_lp.py fill_row) on each LP row.
-layout(local_size_x = 64) in;
 #include "common.glsl"
 layout(binding = 4, rgba32f) uniform restrict image2D lp;
 layout(std430, binding = 14) readonly buffer Flags { uint flags[]; };

@@ -1,7 +1,5 @@
-#version 430
 // LMFR's post anti-aliasing (renderers/antialias.py foveal_gaussian): aa_foveal_pixel, generated from antialias.py,
 // with the band of the eccentricity e = atan(c_r r) (seed 001 Eq 3) and the CPU's weights (FOVEAL_WEIGHTS).
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "screen_out.glsl"
 layout(binding = 4, rgba32f) uniform restrict readonly image2D src;

@@ -1,9 +1,7 @@
-#version 430
 // The passes of the FPSM (renderers/gpu/fpsm.py; seed 003 §3.1, Eq 1-8), after the G-buffer: the per-pixel
 // formulas are renderers/lightcuts/fpsm.py's, generated (fpsm_gen.glsl); here only the images they read, the
 // frame's extreme finite rho (Eq 8) and the controls. PASS: 1 fb' upsampled, 2-3 pyramid levels 1-2, 4 features,
 // 5 rho (READING 0 derived, 1 blur; 2 retained: the map), 6 controls (READING 3: the AFSM, fb_st).
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "lc_buffers.glsl"
 layout(std430, binding = 14) buffer FpPix { vec4 fp_px[]; };   // luminance of fb' upsampled | fb_st | fb_l | rho

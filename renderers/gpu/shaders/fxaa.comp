@@ -1,7 +1,5 @@
-#version 430
 // FXAA 3.11 in the LP buffer: renderers/antialias.py fxaa_pixel, generated (fxaa_gen.glsl), on the padded LP
 // buffer (lp_pad.glsl). Only the rows the inverse mapping reads (j < n[c], c < w_eff) are filtered.
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "lp_cols.glsl"
 #include "lp_pad.glsl"

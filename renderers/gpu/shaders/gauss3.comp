@@ -1,7 +1,5 @@
-#version 430
 // LMFR's internal anti-aliasing (renderers/antialias.py lp_filter "gaussian3"): aa_gauss_pixel, generated from
 // antialias.gauss_pixel, over the LP buffer padded around the seam (lp_pad.glsl); u_w: antialias._gauss1d.
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "constants_gen.glsl"
 #include "lp_cols.glsl"

@@ -1,6 +1,4 @@
-#version 430
 // Screen image from the LP buffer: lp_inverse_pixel, generated from renderers/_lp.py inverse_pixel.
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "lp_cols.glsl"
 #include "lp_map.glsl"

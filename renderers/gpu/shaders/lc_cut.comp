@@ -1,7 +1,5 @@
-#version 430
 // Cuts (seed 003 §3.1 "refine the lightcuts until the number of nodes becomes #L"): the generated
 // _kernels.cut_pixel for each pixel of the tile (lc_cut), its nodes copied to the tile's sample list.
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "scene.glsl"
 #include "lightcuts.glsl"

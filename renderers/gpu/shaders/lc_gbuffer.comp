@@ -1,10 +1,8 @@
-#version 430
 // G-buffer of the lightcuts renderers (renderers/lightcuts/plugin.py Hits) for the rays through pixel positions
 // (i + 0.5, j + 0.5) u_step: the pixel centres (step 1) or, for the low-resolution pass of seed 003 Algorithm 1
 // line 7, the centres of the w/8 x h/8 pixels on the screen. Hit position, normal facing the viewer, textured
 // albedo (0 for metallic), specular colour and exponent, glossy flag, emission + ambient (background on a miss).
 // The frame's pass (u_full) also counts the shading points and bounds the hit points (the shadow-ray offset).
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "scene.glsl"
 #include "camera.glsl"

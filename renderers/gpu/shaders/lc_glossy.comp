@@ -1,4 +1,3 @@
-#version 430
 // The one-bounce glossy pass (seed 003 Algorithm 1 lines 16-17, FoveatedPT; renderers/lightcuts/glossy.py):
 // for every glossy pixel its rays of slots [u_r0, u_r1) (of u_rspp, or ctl.y per pixel), each a Blinn-Phong
 // half-vector sample weighted k_s (s + 8)(n.w_i)(v.h) / ((s + 1) count) (glossy.lobe_ray, generated:
@@ -6,7 +5,6 @@
 // u_bounce_lspp nodes (CUT_MAX) with shadow rays (the hit's own gloss is not followed). Rays below the surface or
 // of zero weight are not traced. Random numbers: slots 2^24 + 2r, 2^24 + 2r + 1 of the pixel for the lobe; the
 // bounce's lightcuts use stream u_bounce_seed and pixel id (pixel << 20) + r, as on the CPU.
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "scene.glsl"
 #include "camera.glsl"

@@ -1,7 +1,5 @@
-#version 430
 // LS' of seed 003 Algorithm 2 (the generated multires.sort_pixel): each low-resolution pixel's samples with a light
 // sorted by leaf offset; the count goes to pix.w.
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "scene.glsl"
 #include "lightcuts.glsl"

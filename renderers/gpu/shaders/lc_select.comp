@@ -1,7 +1,5 @@
-#version 430
 // One light per cut node (seed 003 Algorithm 2): the generated multires.select_pixel with MULTIRES (the reuse of
 // LS' of the low-resolution pixel under this one), else _kernels.sample_pixel (hierarchical importance sampling).
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "scene.glsl"
 #include "lightcuts.glsl"

@@ -1,10 +1,8 @@
-#version 430
 // Shading of the selected lights (seed 003 Algorithm 1 line 15; sampling.shade_tile): the generated
 // _kernels.shade_pixel sums the Lambertian estimates of the samples [u_s0, u_s1) of the pixel's cut whose shadow ray
 // (lc_blocked, cast for every contributing sample and counted, as on the CPU) is free, into the pixel's diffuse
 // radiance (added to it with u_accumulate: sl_gt's passes). A dispatch shades a slice of each cut: llvmpipe cuts an
 // invocation's loops short past 65,535 iterations (common.glsl).
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "scene.glsl"
 #include "lightcuts.glsl"

@@ -1,6 +1,4 @@
-#version 430
 // Set flag bit 2 on the LP pixels of a list (the border footprint the CPU marks per gaze).
-layout(local_size_x = 64) in;
 #include "common.glsl"
 layout(std430, binding = 13) readonly buffer List { int list[]; };
 layout(std430, binding = 14) buffer Flags { uint flags[]; };

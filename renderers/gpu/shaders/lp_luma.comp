@@ -1,6 +1,4 @@
-#version 430
 // FXAA's luma of every LP pixel: aa_luma, generated from renderers/antialias.py luma.
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "constants_gen.glsl"
 #include "luma_gen.glsl"

@@ -1,9 +1,7 @@
-#version 430
 // Which LP pixels are shaded (renderers/pipeline.py LPLayout.shaded_pixels): those of the mask (j < n[c])
 // that lp_needed (generated from renderers/_lp.py needed) takes: on the display, or read by a border pixel's
 // bilinear fetch (flag bit 2, set from the CPU's list by lp_flags.comp). They are appended to the sample list
 // (counter C_SAMPLES) with their camera ray; flags become 1 (shaded) or 0, and unshaded LP pixels are zeroed.
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "camera.glsl"
 #include "samples.glsl"

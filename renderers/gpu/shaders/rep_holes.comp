@@ -1,7 +1,5 @@
-#version 430
 // Needed right LP pixels that received nothing become the re-shading list (counter C_HOLES; rays from the
 // right eye); the other uncovered pixels are zeroed.
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "camera.glsl"
 #include "samples.glsl"

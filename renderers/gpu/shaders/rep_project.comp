@@ -1,9 +1,7 @@
-#version 430
 // Project each left sample's hit point (a miss: its direction at infinity) into the right view, map it into
 // the LP buffer (u by the forward mapping, phi the polar angle) and splat its depth into the LP pixel holding
 // it (renderers/pipeline.py LPLayout.lp_coords; camera.glsl is the right camera, the screen position
 // renderers/projection.py plane_to_screen).
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "samples.glsl"
 #include "lp_cols.glsl"

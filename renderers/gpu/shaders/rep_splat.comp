@@ -1,8 +1,6 @@
-#version 430
 // The splats' colours: each left sample whose depth is the minimum at its target LP pixel writes its colour
 // there, unless a warped triangle was nearer by the margin. PHASE 1 claims the pixel (rep.glsl winner: the
 // largest sample index among equal depths), PHASE 2 writes the winner's colour.
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "rep.glsl"
 layout(binding = 5, rgba32f) uniform restrict readonly image2D left_lp;

@@ -1,11 +1,9 @@
-#version 430
 // Forward grid warping in the LP buffer (Wissmann et al. 2020): renderers/_warp.py warp_quad, generated
 // (warp_gen.glsl). Each quad of neighbouring left samples without a depth discontinuity is split into two
 // triangles, rasterised at the LP pixel centres in the right view's LP coordinates. The fragments are the GPU's
 // own (the CPU depth-tests in order, here threads race): PHASE 1 takes the depth minimum of the triangles nearer
 // than the splats by the margin (atomicMin), PHASE 2 claims the pixel for the triangle of largest id among those
 // whose depth is that minimum (rep.glsl winner), PHASE 3 writes that triangle's colour.
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "lp_cols.glsl"
 #include "rep.glsl"

@@ -1,4 +1,3 @@
-#version 430
 // The sample pipeline (renderers/gpu/frame.py SAMPLE_PASSES: renderers/pipeline.py and tracer.py cut into passes),
 // one invocation per pixel or sample. PASS is one of
 //   GBUFFER       deferred visibility (seed 001 §3.4) of every screen pixel centre: triangle and t
@@ -13,7 +12,6 @@
 //   SHADOW        shadow rays (Embree OCCLUDED): one per light still in the mask; an occluded light leaves the mask
 //   GATHER        partial + the lights that passed, into the sample's output slot (_shade.py accumulate);
 //                 non-finite values are counted (the host refuses them)
-layout(local_size_x = 64) in;
 #include "common.glsl"
 #include "scene.glsl"
 #include "camera.glsl"
