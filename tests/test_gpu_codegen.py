@@ -136,8 +136,8 @@ def test_generated_shading_kernels_are_the_cpus():
 
 
 def test_generated_glossy_lobe_is_the_cpus():
-    """glossy_gen.glsl's lobe_ray (seed 003 Algorithm 1 lines 16-17's per-ray sampling) gives the numba kernel's
-    direction and weight to float32 rounding, rays below the surface included."""
+    """glossy_gen.glsl's lobe_ray (seed 003 Algorithm 1 lines 16-17's per-ray sampling, called by lobe_sample)
+    gives the numba kernel's direction and weight to float32 rounding, rays below the surface included."""
     from renderers.gpu.context import get_device
     from renderers.lightcuts import _kernels as K
     from renderers.lightcuts.glossy import lobe_ray
@@ -152,13 +152,18 @@ def test_generated_glossy_lobe_is_the_cpus():
     frames = np.array([np.concatenate(K.frame(*v)) for v in nrm])
     x = np.column_stack([nrm, frames, view, rng.uniform(0.0, 300.0, n), rng.uniform(0.0, 1.0, (n, 2)),
                          rng.integers(1, 9, n)])
-    src = _HEAD.replace("shade_gen.glsl", "glossy_gen.glsl") + """void main() {
+    # lobe_sample's frame and uniforms (lightcuts_gen.glsl's, tested with the lightcuts) are the inputs' here
+    head = """float x[18];
+vec3 lc_tangent(float a, float b, float c) { return vec3(x[3], x[4], x[5]); }
+vec3 lc_bitangent(float a, float b, float c) { return vec3(x[6], x[7], x[8]); }
+float lc_uniform_f(uvec2 seed, uvec2 pixel, int slot) { return x[13 + (slot & 1)]; }
+#include "glossy_gen.glsl"
+"""
+    src = _HEAD.replace('#include "shade_gen.glsl"', head) + """void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i < uint(u_n)) {
-        float x[18];
         for (int k = 0; k < 18; k++) x[k] = float(v[18u * i + uint(k)]);
-        vec4 ray = glossy_lobe_ray(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8], x[9], x[10], x[11], x[12],
-                                   x[13], x[14], int(x[15]));
+        vec4 ray = glossy_lobe_sample(uvec2(0u), uvec2(0u), 0, x[0], x[1], x[2], x[9], x[10], x[11], x[12], int(x[15]));
         for (int k = 0; k < 4; k++) r[4u * i + uint(k)] = double(ray[k]);
     }
 }"""

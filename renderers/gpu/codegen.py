@@ -942,7 +942,26 @@ def lightcuts_shade_glsl() -> str:
 
 
 @functools.lru_cache(maxsize=None)
-def _lightcuts():
+def lightcuts_bounce_glsl() -> str:
+    """``lc_bounce_gen.glsl``: the pixel kernels of :data:`LC_BOUNCE_ROOTS` (the CPU's bounce shading in
+    ``glossy.glossy_pass``, through ``sampling.stochastic_lightcuts``) for one glossy ray's hit of
+    ``lc_glossy.comp``, prefixed ``lcb_``: its point, id and samples are the shader's ``bn_*`` variables
+    (:data:`LC_BOUNCE`), its shadow ray ``lcb_blocked(s)``; their callees are ``lightcuts_gen.glsl``'s."""
+    tr, _ = _lightcuts(bounce=True)
+    return "// Generated from renderers/lightcuts/_kernels.py by renderers/gpu/codegen.py: do not edit.\n" \
+        + "".join(tr.emit_fn(tr.fns[n]) for n in LC_BOUNCE_ROOTS)
+
+
+#: The per-pixel kernels the glossy pass's bounce runs (cut, one light per live node, the shadowed estimate) ...
+LC_BOUNCE_ROOTS = ("cut_pixel", "sample_pixel", "shade_pixel")
+#: ... and their pixel arrays in lc_glossy.comp: the one point (the ray's hit) of the shader's ``bn_*`` globals
+LC_BOUNCE = {"pos": "bn_p", "nrm": "bn_n", "albedo": "bn_a", "pix_id": "bn_id", "budgets": "u_bounce_lspp",
+             "sizes": "bn_m", "cuts": "lc_cut[{1}]", "leaves": "bn_leaf[{1}]", "pdfs": "bn_pdf[{1}]",
+             "blocked": "lcb_blocked({1})"}
+
+
+@functools.lru_cache(maxsize=None)
+def _lightcuts(bounce: bool = False):
     """The lightcuts kernels of :mod:`renderers.lightcuts._kernels` and :mod:`~renderers.lightcuts.multires`
     translated, prefixed ``lc_`` (the translator and the functions in order): the counter-based random numbers
     ``lc_uniform(seed, pixel, slot)`` (splitmix64 in uint64 on 32-bit halves, the result in double precision, equal
@@ -950,7 +969,8 @@ def _lightcuts():
     the cut-refinement error, hierarchical importance sampling, the Lambertian estimate and the per-pixel bodies of
     the passes (``lc_cut_pixel``, ``lc_sample_pixel`` / ``lc_select_pixel``, ``lc_sort_pixel``,
     ``lc_shade_pixel``). The tree's arrays are the shader's tree image, the pixel arrays its storage buffers
-    (``lc_buffers_gen.glsl``): pixel ``i`` of a tile is entry ``u_first + i``, its samples ``i * CUT_MAX + s``."""
+    (``lc_buffers_gen.glsl``): pixel ``i`` of a tile is entry ``u_first + i``, its samples ``i * CUT_MAX + s``;
+    with ``bounce``, the glossy bounce's one point instead (:data:`LC_BOUNCE`)."""
     from ..lightcuts import _kernels, multires
 
     tile, lr, ls = "smp[{0} * CUT_MAX + {1}].", "lr_ls[{0} * CUT_MAX + {1}].", "lr_ls[(u_first + {0}) * CUT_MAX + {1}]."
@@ -971,7 +991,10 @@ def _lightcuts():
                               "cuts": tile + "node", "leaves": tile + "leaf", "pdfs": tile + "pdf",
                               "lr_leaves": lr + "leaf", "lr_nodes": lr + "node", "lr_pdfs": lr + "pdf",
                               "lr_depths": lr + "depth", "lr_counts": "lr_pix[{0}].w", "ls_leaves": ls + "leaf",
-                              "ls_nodes": ls + "node", "ls_pdfs": ls + "pdf", "ls_depths": ls + "depth"})
+                              "ls_nodes": ls + "node", "ls_pdfs": ls + "pdf", "ls_depths": ls + "depth",
+                              **(LC_BOUNCE if bounce else {})})
+    if bounce:   # the roots under their own names, their callees lightcuts_gen.glsl's
+        tr.glsl_name = lambda name: ("lcb_" if name in LC_BOUNCE_ROOTS else "lc_") + name.lstrip("_")
     tr.binding_types.update({"pos": "vec3", "nrm": "vec3", "albedo": "vec3", "blocked": "bool", "pix_id": "u64",
                              **{k: "int" for k in ("n_leaves", "levels", "lr_width", "lr_height", "cut", "sizes",
                                                    "budgets", "cuts", "leaves", "lr_leaves", "lr_nodes", "lr_depths",
@@ -1002,8 +1025,11 @@ def glossy_glsl() -> str:
     from ..lightcuts import glossy
 
     tr = Translator(glossy, "glossy_")
+    # the frame and the random numbers are lightcuts_gen.glsl's
+    tr.externals = {"tangent": ("lc_tangent", "vec3"), "bitangent": ("lc_bitangent", "vec3"),
+                    "uniform_f": ("lc_uniform_f", "float")}
     names = tr.closure(glossy.GLSL_FLOAT_ROOTS)
-    tr.infer(names, {"lobe_ray": {"count": "int"}})
+    tr.infer(names, {"lobe_sample": {"seed": "u64", "pix": "u64", "r": "int", "count": "int"}})
     return "// Generated from renderers/lightcuts/glossy.py by renderers/gpu/codegen.py: do not edit.\n" \
         + tr.emit(names, helpers=False)
 

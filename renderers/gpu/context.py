@@ -332,10 +332,11 @@ def generated_source(fname: str) -> str | None:
         from .codegen import int64_glsl
 
         return int64_glsl()
-    if fname in ("lightcuts_gen.glsl", "lc_shade_gen.glsl"):
-        from .codegen import lightcuts_glsl, lightcuts_shade_glsl
+    if fname in ("lightcuts_gen.glsl", "lc_shade_gen.glsl", "lc_bounce_gen.glsl"):
+        from .codegen import lightcuts_bounce_glsl, lightcuts_glsl, lightcuts_shade_glsl
 
-        return lightcuts_glsl() if fname == "lightcuts_gen.glsl" else lightcuts_shade_glsl()
+        return {"lightcuts_gen.glsl": lightcuts_glsl, "lc_shade_gen.glsl": lightcuts_shade_glsl,
+                "lc_bounce_gen.glsl": lightcuts_bounce_glsl}[fname]()
     if fname in ("lc_buffers_gen.glsl", "lc_tree_gen.glsl"):
         from .lightcuts import buffers_glsl, tree_glsl
 

@@ -47,6 +47,12 @@ def uniform(seed, pixel, slot):
 
 
 @njit(cache=True)
+def uniform_f(seed, pixel, slot):
+    """:func:`uniform` capped at ``ONE_MINUS``: no float64 uniform changes; the GPU's float32 one stays below 1."""
+    return min(uniform(seed, pixel, slot), ONE_MINUS)
+
+
+@njit(cache=True)
 def tangent(n0, n1, n2):
     """Tangent T of a unit normal's orthonormal frame (T, B, N) (Duff et al. 2017)."""
     sgn = 1.0 if n2 >= 0.0 else -1.0
@@ -318,8 +324,8 @@ def node_live(p, n, t, b, bmin, bmax, inten, k):
 @njit(cache=True)
 def sample_pixel(i, seed, pos, nrm, pix_id, cuts, sizes, bmin, bmax, inten, n_leaves, clamp2, leaves, pdfs):
     """Pixel ``i`` of ``sample_cuts``: a light ``leaves[i, s]`` drawn with probability ``pdfs[i, s]`` for each of
-    its cut nodes ``cuts[i, s]`` (random slot ``2 s``), -1 and 0 where the node cannot contribute. The minimum
-    with ``ONE_MINUS`` changes no float64 uniform; it keeps the GPU's float32 one below 1."""
+    its cut nodes ``cuts[i, s]`` (random slot ``2 s``, :func:`uniform_f`), -1 and 0 where the node cannot
+    contribute."""
     p = pos[i]
     nn = nrm[i]
     t = tangent(nn[0], nn[1], nn[2])
@@ -329,7 +335,7 @@ def sample_pixel(i, seed, pos, nrm, pix_id, cuts, sizes, bmin, bmax, inten, n_le
         leaves[i, s] = -1
         pdfs[i, s] = 0.0
         if node_live(p, nn, t, b, bmin, bmax, inten, k):
-            u = min(uniform(seed, pix_id[i], 2 * s), ONE_MINUS)
+            u = uniform_f(seed, pix_id[i], 2 * s)
             lf, pr = descend(p, nn, t, b, bmin, bmax, inten, n_leaves, k, u, clamp2)
             leaves[i, s] = lf
             pdfs[i, s] = pr

@@ -25,14 +25,14 @@ from numba import njit, prange
 
 from data_schema.errors import UserError
 
-from . import _kernels as K
+from ._kernels import bitangent, tangent, uniform_f
 from .sampling import stochastic_lightcuts
 
 _STREAM = 1 << 24  # slot offset: glossy random numbers never reuse the light-sampling slots
 
 
 #: The per-ray kernel that renderers/gpu/codegen.py translates into GLSL (``glossy_gen.glsl``, float32).
-GLSL_FLOAT_ROOTS = ("lobe_ray",)
+GLSL_FLOAT_ROOTS = ("lobe_sample",)
 
 
 @njit(cache=True, inline="always")
@@ -64,21 +64,29 @@ def lobe_ray(nx, ny, nz, tx, ty, tz, bx, by, bz, vx, vy, vz, s, u1, u2, count):
     return dx, dy, dz, (s + 8.0) * cos_i * voh / ((s + 1.0) * count)
 
 
+@njit(cache=True)
+def lobe_sample(seed, pix, r, nx, ny, nz, vx, vy, vz, s, count):
+    """Ray ``r`` of the ``count`` of a pixel with random id ``pix``, normal ``n``, view direction ``v`` and exponent
+    ``s``: :func:`lobe_ray` in the normal's frame with the uniforms of slots ``2^24 + 2r``, ``2^24 + 2r + 1``."""
+    t = tangent(nx, ny, nz)
+    b = bitangent(nx, ny, nz)
+    u1 = uniform_f(seed, pix, _STREAM + 2 * r)
+    u2 = uniform_f(seed, pix, _STREAM + 2 * r + 1)
+    return lobe_ray(nx, ny, nz, t[0], t[1], t[2], b[0], b[1], b[2], vx, vy, vz, s, u1, u2, count)
+
+
 @njit(cache=True, parallel=True)
 def sample_lobe(P, N, V, ks, s_exp, counts, first, pix_id, seed, offset, orig, dirs, weight):
-    """Fill the rays of every pixel ``i`` at ``first[i] .. first[i] + counts[i]`` (:func:`lobe_ray` each)."""
+    """Fill the rays of every pixel ``i`` at ``first[i] .. first[i] + counts[i]`` (:func:`lobe_sample` each)."""
     for i in prange(P.shape[0]):
         c = counts[i]
         if c == 0:
             continue
         n = N[i]
-        t, b = K.frame(n[0], n[1], n[2])
         for r in range(c):
             j = first[i] + r
-            u1 = K.uniform(seed, pix_id[i], _STREAM + 2 * r)
-            u2 = K.uniform(seed, pix_id[i], _STREAM + 2 * r + 1)
-            dirs[j, 0], dirs[j, 1], dirs[j, 2], g = lobe_ray(n[0], n[1], n[2], t[0], t[1], t[2], b[0], b[1], b[2],
-                                                              V[i, 0], V[i, 1], V[i, 2], s_exp[i], u1, u2, c)
+            dirs[j, 0], dirs[j, 1], dirs[j, 2], g = lobe_sample(seed, pix_id[i], r, n[0], n[1], n[2], V[i, 0], V[i, 1],
+                                                                 V[i, 2], s_exp[i], c)
             for a in range(3):
                 orig[j, a] = P[i, a] + offset * n[a]
                 weight[j, a] = ks[i, a] * g if g > 0.0 else 0.0

@@ -1,10 +1,10 @@
 // The one-bounce glossy pass (seed 003 Algorithm 1 lines 16-17, FoveatedPT; renderers/lightcuts/glossy.py):
 // for every glossy pixel its rays of slots [u_r0, u_r1) (of u_rspp, or ctl.y per pixel), each a Blinn-Phong
-// half-vector sample weighted k_s (s + 8)(n.w_i)(v.h) / ((s + 1) count) (glossy.lobe_ray, generated:
+// half-vector sample weighted k_s (s + 8)(n.w_i)(v.h) / ((s + 1) count) (glossy.lobe_sample, generated:
 // glossy_gen.glsl), traced to its first hit and shaded there with emission + ambient + stochastic lightcuts of
-// u_bounce_lspp nodes (CUT_MAX) with shadow rays (the hit's own gloss is not followed). Rays below the surface or
-// of zero weight are not traced. Random numbers: slots 2^24 + 2r, 2^24 + 2r + 1 of the pixel for the lobe; the
-// bounce's lightcuts use stream u_bounce_seed and pixel id (pixel << 20) + r, as on the CPU.
+// u_bounce_lspp nodes (CUT_MAX) with shadow rays by the CPU's pixel kernels (the hit's gloss is not followed).
+// Rays below the surface or of zero weight are not traced. Random numbers: slots 2^24 + 2r, 2^24 + 2r + 1 of the
+// pixel for the lobe; the bounce's lightcuts use stream u_bounce_seed and id (pixel << 20) + r, as on the CPU.
 #include "common.glsl"
 #include "scene.glsl"
 #include "camera.glsl"
@@ -20,6 +20,14 @@ uniform uvec2 u_bounce_seed;
 uniform int u_bounce_lspp;
 uniform int u_shadows;
 uniform float u_glossy_offset;
+// A bounce's point (the ray's hit), id, cut size and samples, read by the CPU's pixel kernels cut_pixel,
+// sample_pixel and shade_pixel (lc_bounce_gen.glsl); lcb_blocked(s) is shade_pixel's shadow ray of sample s.
+vec3 bn_p, bn_n, bn_a;
+uvec2 bn_id;
+int bn_m, bn_leaf[CUT_MAX];
+float bn_pdf[CUT_MAX], offset;
+bool lcb_blocked(int s) { return u_shadows != 0 && occluded(bn_p, bn_n, bn_leaf[s], offset); }
+#include "lc_bounce_gen.glsl"
 
 void main() {
     cnt_begin();
@@ -32,15 +40,11 @@ void main() {
         uint live = 0u, missed = 0u;
         if (c > u_r0) {
             vec3 P = g_pos[px].xyz, n = g_nrm[px].xyz, ks = g_ks[px].xyz;
-            vec3 t = lc_tangent(n.x, n.y, n.z), b = lc_bitangent(n.x, n.y, n.z);
             float s_exp = g_alb[px].w;
             vec3 V = -camera_ray_d(dvec2(double(px % u_width), double(px / u_width)) + 0.5LF);
-            float offset = ray_offset(bounds_lo(), bounds_hi());
+            offset = ray_offset(bounds_lo(), bounds_hi());
             for (int r = u_r0; r < min(u_r1, c); r++) {
-                float u1 = lc_uniform_f(u_seed, uvec2(uint(px), 0u), uint(GLOSSY_STREAM + 2 * r));
-                float u2 = lc_uniform_f(u_seed, uvec2(uint(px), 0u), uint(GLOSSY_STREAM + 2 * r + 1));
-                vec4 ray = glossy_lobe_ray(n.x, n.y, n.z, t.x, t.y, t.z, b.x, b.y, b.z, V.x, V.y, V.z, s_exp, u1, u2,
-                                           c);
+                vec4 ray = glossy_lobe_sample(u_seed, uvec2(uint(px), 0u), r, n.x, n.y, n.z, V.x, V.y, V.z, s_exp, c);
                 vec3 dir = ray.xyz, w = ks * ray.w;
                 if (!any(greaterThan(w, vec3(0.0)))) continue;
                 live++;
@@ -52,19 +56,10 @@ void main() {
                     missed++;
                 } else {
                     Surf sf = surface(k, o, dir, th);
-                    radiance = sf.base;
-                    vec3 bt = lc_tangent(sf.n.x, sf.n.y, sf.n.z), bb = lc_bitangent(sf.n.x, sf.n.y, sf.n.z);
-                    int m = lc_refine_cut(sf.p, sf.n, bt, bb, u_bounce_lspp);
-                    uvec2 id = uvec2((uint(px) << 20) | uint(r), uint(px) >> 12);
-                    for (int s = 0; s < m; s++) {
-                        if (!lc_node_live(sf.p, sf.n, bt, bb, lc_cut[s])) continue;
-                        float u = lc_uniform_f(u_bounce_seed, id, uint(2 * s));
-                        vec2 lp = lc_descend(sf.p, sf.n, bt, bb, lc_cut[s], u);   // (leaf, pdf)
-                        int leaf = int(lp.x);
-                        vec3 v = lc_sample_estimate(sf.p, sf.n, sf.a, leaf, lp.y);
-                        if (v.x + v.y + v.z > 0.0 && (u_shadows == 0 || !occluded(sf.p, sf.n, leaf, offset)))
-                            radiance += v;
-                    }
+                    bn_p = sf.p, bn_n = sf.n, bn_a = sf.a, bn_id = uvec2((uint(px) << 20) | uint(r), uint(px) >> 12);
+                    bn_m = lcb_cut_pixel(0);
+                    lcb_sample_pixel(0, u_bounce_seed);
+                    radiance = sf.base + lcb_shade_pixel(0, 0, bn_m).xyz;
                 }
                 acc += w * radiance;
             }

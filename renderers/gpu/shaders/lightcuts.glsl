@@ -13,11 +13,6 @@ int lc_cut[CUT_MAX];
 float lc_err[CUT_MAX];
 #include "lightcuts_gen.glsl"
 
-// A uniform as a float32 below 1 (the CPU's min(uniform, ONE_MINUS) in float32), for lc_glossy.comp's lobe.
-float lc_uniform_f(uvec2 seed, uvec2 pixel, uint slot) {
-    return min(float(lc_uniform(seed, pixel, uvec2(slot, 0u))), LC_ONE_MINUS_F32);
-}
-
 // Shadow segment of visibility.EmbreeOccluder: from p offset along n towards the light, shortened to (1 - 1e-3)
 // of its length, any hit.
 bool occluded(vec3 p, vec3 n, int leaf, float offset) {
