@@ -12,9 +12,10 @@
 * :func:`lightcuts_glsl` translates the random numbers (double) and the bounds, cut error, branch probability,
   descent, Lambertian estimate and the per-pixel bodies of the sampling passes (float32) of
   :mod:`renderers.lightcuts._kernels` and :mod:`~renderers.lightcuts.multires`, prefixed ``lc_``; the tree's arrays
-  are bound to the shader's tree image, the pixel arrays to its storage buffers (``Translator.bindings``).
+  are bound to the shader's tree image, the pixel arrays to its storage buffers (``Translator.bindings``);
+  :func:`lightcuts_bounce_glsl` the same pixel kernels bound to one glossy ray's hit (``lc_glossy.comp``).
 * :func:`glossy_glsl` translates the glossy pass's per-ray lobe sampling of :mod:`renderers.lightcuts.glossy`,
-  prefixed ``glossy_``.
+  prefixed ``glossy_`` (its frame and uniforms are ``lightcuts_gen.glsl``'s: ``Translator.externals``).
 * :func:`fpsm_glsl` translates the per-pixel kernels of :mod:`renderers.lightcuts.fpsm` (seed 003 Eq 1-8: acuity,
   Sobel gradient, binomial blur, B-spline resampling, contrast, rho, map in float32; the budget in double), prefixed
   ``fpsm_``; the images they read are bound to the FPSM shader's buffers.

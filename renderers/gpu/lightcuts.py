@@ -19,11 +19,13 @@ as passes, each timed:
 
 The per-pixel bodies of the cuts, select, low_res and shade passes are the CPU's pixel kernels translated
 (``_kernels.cut_pixel``, ``sample_pixel``, ``shade_pixel``, ``multires.select_pixel``, ``sort_pixel``:
-:func:`renderers.gpu.codegen.lightcuts_glsl`), reading and writing the buffers of :data:`BUFFERS`; the shaders
-keep the plumbing (invocation index, tiles, counters) and the shadow rays through the BVH. The random numbers
-are the CPU's (counter-based: seed, pixel id, slot), so both backends draw the same samples up to the float32
-rounding of positions and probabilities: seed for seed the images agree closely, and over seeds their per-pixel
-means and variances (``benchmarks/bench_gpu_lightcuts.py --agreement``).
+:func:`renderers.gpu.codegen.lightcuts_glsl`), reading and writing the buffers of :data:`BUFFERS`; the glossy
+pass's bounce runs the same cut_pixel, sample_pixel and shade_pixel on each ray's hit
+(``lightcuts_bounce_glsl``), its lobe ``glossy.lobe_sample`` (``glossy_glsl``), as the CPU's ``glossy_pass``
+does; the shaders keep the plumbing (invocation index, tiles, counters) and the shadow rays through the BVH.
+The random numbers are the CPU's (counter-based: seed, pixel id, slot), so both backends draw the same samples
+up to the float32 rounding of positions and probabilities: seed for seed the images agree closely, and over
+seeds their per-pixel means and variances (``benchmarks/bench_gpu_lightcuts.py --agreement``).
 """
 
 from __future__ import annotations
