@@ -34,9 +34,10 @@ from .constants import (INV_PI, KIND_DIFFUSE, KIND_GLOSSY, KIND_METALLIC, LIGHT_
 GLSL_DOUBLE_ROOTS = ("texture_weight",)
 GLSL_FLOAT_ROOTS = ("material_lobes", "light_direction", "irradiance_factor", "specular_lobe", "luminance",
                     "facing_normal")
-#: The kernels that read the scene's tables (``L_*``, ``mat_f`` bound to the GPU's light and material images) and
-#: write a hit's record (``albedo``, ``base``, ``ks`` bound to the shader's ``hit_surf``): ``lights_gen.glsl``.
-GLSL_LIGHT_ROOTS = ("hit_material", "light_term", "shadow_direction")
+#: The kernels that read the scene's tables (``L_*``, ``mat_f``, ``mat_i`` bound to the GPU's light and material
+#: images) and write a hit's record (``P``, ``Ng``, ``albedo``, ``base``, ``ks``, ``exponent`` bound to the shader's
+#: ``hit_surf``): ``lights_gen.glsl``.
+GLSL_LIGHT_ROOTS = ("hit_material", "hit_surface", "light_term", "shadow_direction")
 #: The light loop of a shading point (``contrib``, ``lum`` bound to samples.comp's per-point arrays):
 #: ``light_loop_gen.glsl``.
 GLSL_POINT_ROOTS = ("light_loop",)
@@ -167,6 +168,15 @@ def hit_material(i, m, w, mat_f, ambient, albedo, base, ks):
         base[i, c] = mat_f[m, 6 + c] + (0.0 if metallic else ambient[c] * a)
         ks[i, c] = (a if metallic else mat_f[m, 11]) if gl else 0.0
     return gl
+
+
+@njit(cache=True, inline="always")
+def hit_surface(i, m, P, Ng, mat_f, mat_i, ambient, albedo, base, ks, exponent):
+    """The G-buffer's material record of hit ``i`` at ``P[i]`` (normal ``Ng[i]``) on material ``m``: the texture
+    weight, :func:`hit_material`'s terms and the Blinn-Phong ``exponent[i]``; returns the lobe flag."""
+    w = texture_weight(mat_i[m, 0], mat_f[m, 9], P[i, 0], P[i, 1], P[i, 2], Ng[i, 0], Ng[i, 1], Ng[i, 2])
+    exponent[i] = mat_f[m, 10]
+    return hit_material(i, m, w, mat_f, ambient, albedo, base, ks)
 
 
 @njit(cache=True, inline="always")

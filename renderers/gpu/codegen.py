@@ -914,8 +914,12 @@ def _lights_glsl(module, roots: str) -> str:
         "L_kind": f"int({light}).w)", "L_pos": f"{light})[{{1}}]", "L_int": f"{light} + 1)[{{1}}]",
         "L_dir": f"{light} + 2)[{{1}}]", "mat_f": "material({0}, {1})", "ambient": "u_ambient[{0}]",
         "albedo": "hit_surf.a[{1}]", "base": "hit_surf.base[{1}]", "ks": "hit_surf.ks[{1}]",
+        "P": "hit_surf.p[{1}]", "Ng": "hit_surf.n[{1}]", "exponent": "hit_surf.s_exp",
+        "mat_i": "int(material({0}, 14))",   # the texture kind (mat_i[m, 0]): column 14 of the material image
         "contrib": "contrib[{1}][{2}]", "lum": "lum[{0}]"})
-    tr.binding_types["L_kind"] = "int"
+    tr.binding_types.update({"L_kind": "int", "mat_i": "int"})
+    for n in tr.closure(module.GLSL_DOUBLE_ROOTS):   # shade_gen.glsl's textures: double, their results narrowed
+        tr.fns[n].real = "double"
     names = tr.closure(getattr(module, roots))
     tr.infer(names, {r: {"j": "int", "i": "int", "m": "int", "k": "int"} for r in getattr(module, roots)})
     # the callees are shade_gen.glsl's and lights_gen.glsl's (included before): only the roots are emitted here

@@ -34,7 +34,7 @@ import time
 import numpy as np
 from numba import njit, prange
 
-from renderers._shade import hit_material, texture_weight
+from renderers._shade import hit_surface
 from renderers.plugin_types import Param, RendererPlugin, StrengthSpec
 from renderers.projection import view_projection
 
@@ -126,10 +126,7 @@ def scene_occluder(scene) -> EmbreeOccluder | None:
 def _hit_materials(P, Ng, mid, mat_f, mat_i, ambient, albedo, base, ks, s_exp, glossy):
     """Per hit: diffuse albedo (0 for metallic), emission + ambient, specular colour, exponent, glossy flag."""
     for i in prange(P.shape[0]):
-        m = mid[i]
-        w = texture_weight(mat_i[m, 0], mat_f[m, 9], P[i, 0], P[i, 1], P[i, 2], Ng[i, 0], Ng[i, 1], Ng[i, 2])
-        glossy[i] = hit_material(i, m, w, mat_f, ambient, albedo, base, ks)
-        s_exp[i] = mat_f[m, 10]
+        glossy[i] = hit_surface(i, mid[i], P, Ng, mat_f, mat_i, ambient, albedo, base, ks, s_exp)
 
 
 class Hits:

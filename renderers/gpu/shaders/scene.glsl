@@ -107,7 +107,7 @@ struct Surf {
 };
 // Column c of the CPU's material table mat_f (renderers/tracer.py pack_scene; then the texture kind, column 14).
 #define material(m, c) fetchf(t_mats, 4 * (m) + (c) / 4)[(c) % 4]
-Surf hit_surf;   // the record surface() fills: shade_hit_material writes its a, ks, base
+Surf hit_surf;   // the record surface() fills: shade_hit_surface reads its p, n, writes a, ks, base, s_exp
 #include "lights_gen.glsl"
 
 // Unit geometric normal of triangle k facing the ray direction d.
@@ -117,16 +117,13 @@ vec3 facing_normal(int k, vec3 d) {
 }
 
 // Hit point, normal facing the ray and material of triangle k hit at o + t d (_shade.hit_geometry and
-// lightcuts/plugin._hit_materials; the albedo is 0 on metallic materials, ks 0 on diffuse ones).
+// _shade.hit_surface; the albedo is 0 on metallic materials, ks 0 on diffuse ones).
 Surf surface(int k, vec3 o, vec3 d, float t) {
     hit_surf.p = o + d * t;
     hit_surf.n = facing_normal(k, d);
     hit_surf.v = -d;
     int m = int(fetch(t_tris, 3 * k + 1).w);
-    vec3 p = hit_surf.p, n = hit_surf.n;
-    float w = float(shade_texture_weight(int(material(m, 14)), material(m, 9), p.x, p.y, p.z, n.x, n.y, n.z));
-    hit_surf.glossy = shade_hit_material(0, m, w);
-    hit_surf.s_exp = material(m, 10);
+    hit_surf.glossy = shade_hit_surface(0, m);   // a, ks, base, s_exp
     vec4 lobes = shade_material_lobes(material(m, 12), material(m, 13), hit_surf.s_exp);   // kd, -, -, norm
     hit_surf.kd = lobes.x;
     hit_surf.norm = lobes.w;
