@@ -364,6 +364,10 @@ def generated_source(fname: str) -> str | None:
         from .codegen import antialias_glsl
 
         return antialias_glsl(fname[:-9])
+    if fname.endswith("_decl_gen.glsl"):
+        from .bindings import FAMILIES, decl_glsl
+
+        return decl_glsl(fname[:-len("_decl_gen.glsl")]) if fname[:-len("_decl_gen.glsl")] in FAMILIES else None
     if fname == "constants_gen.glsl":
         from .codegen import constants_glsl
 

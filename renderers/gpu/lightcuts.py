@@ -76,7 +76,7 @@ SAMPLE_FIELDS = (("int", "node"), ("int", "leaf"), ("float", "pdf"), ("int", "de
 #: GLSL name -> binding point.
 BINDING = {name: b for b, (name, _, _) in BUFFERS.items()}
 #: Pooled buffers of a G-buffer.
-_GBUF = [BINDING[n] for n in ("g_pos", "g_nrm", "g_alb", "g_ks", "g_base", "pix", "rad")]
+_GBUF = ("g_pos", "g_nrm", "g_alb", "g_ks", "g_base", "pix", "rad")
 
 
 def buffers_glsl() -> str:
@@ -180,12 +180,12 @@ class GBuffer:
     def __init__(self, lc: LightcutsFrame, prefix: str, width: int, height: int):
         self.width, self.height, self.n = width, height, width * height
         self.lc = lc
-        self.buffers = {b: lc.fr.pool.get(f"lc_{prefix}_{BUFFERS[b][0]}", 16 * self.n) for b in _GBUF}
+        self.buffers = {b: lc.fr.pool.get(f"lc_{prefix}_{b}", 16 * self.n) for b in _GBUF}
 
-    def read(self, binding: int, dtype=np.float32) -> np.ndarray:
-        """Buffer ``binding`` as an ``(n, 4)`` array."""
+    def read(self, name: str, dtype=np.float32) -> np.ndarray:
+        """Buffer ``name`` as an ``(n, 4)`` array."""
         out = np.empty((self.n, 4), dtype=dtype)
-        self.buffers[binding].read_into(out, size=out.nbytes)
+        self.buffers[name].read_into(out, size=out.nbytes)
         return out
 
 
@@ -200,8 +200,7 @@ class LightcutsFrame:
         self.cam = camera_uniforms(ctx.camera, ctx.width, ctx.height)
         self.origin = tuple(float(x) for x in ctx.camera.position)
         self.shadows = int(bool(ctx.scene.shadows))
-        self.common = {BINDING["bounds"]: self.fr.upload("lc_bounds", _INF_KEYS),
-                       BINDING["ctl"]: self.fr.pool.get("lc_ctl", 16)}
+        self.common = {"bounds": self.fr.upload("lc_bounds", _INF_KEYS), "ctl": self.fr.pool.get("lc_ctl", 16)}
         self.lr_ls = self.lr_pix = None
         self.lr_size = (1, 1)
 
@@ -211,7 +210,7 @@ class LightcutsFrame:
     def run(self, shader: str, n: int, buffers: dict, uniforms: dict, cut_max: int = 1,
             defines: dict | None = None) -> None:
         self.fr.run(shader, n, {**self.common, **buffers}, {**self.tree.uniforms, **uniforms},
-                    {"CUT_MAX": cut_max, "MULTIRES": 0, **(defines or {})}, {TREE_UNIT: self.tree.texture})
+                    {"CUT_MAX": cut_max, "MULTIRES": 0, **(defines or {})}, {"t_tree": self.tree.texture})
 
     def gbuffer(self, prefix: str, width: int, height: int, full: bool) -> GBuffer:
         """Trace the G-buffer of ``width × height`` rays spread over the screen (the frame's when ``full``)."""
@@ -231,12 +230,12 @@ class LightcutsFrame:
         seeds = [seeds] if isinstance(seeds, int) else list(seeds)
         tile = max(1, min(g.n, TILE_BYTES // (16 * cut_max)))
         smp = self.fr.pool.get("lc_smp", 16 * tile * cut_max)
-        bufs = {**g.buffers, BINDING["smp"]: smp}
+        bufs = {**g.buffers, "smp": smp}
         if low_res:
             self.lr_ls = self.fr.pool.get("lc_lr_ls", 16 * g.n * cut_max)
-            self.lr_pix, self.lr_size = g.buffers[BINDING["pix"]], (g.width, g.height)
+            self.lr_pix, self.lr_size = g.buffers["pix"], (g.width, g.height)
         if multires:
-            bufs.update({BINDING["lr_ls"]: self.lr_ls, BINDING["lr_pix"]: self.lr_pix})
+            bufs.update({"lr_ls": self.lr_ls, "lr_pix": self.lr_pix})
         uni = {"u_id_base": int(id_base), "u_budget": -1 if budget is None else int(budget),
                "u_shadows": self.shadows, "u_width": g.width,
                "u_lr_scale": (self.lr_size[0] / g.width, self.lr_size[1] / g.height),
@@ -253,7 +252,7 @@ class LightcutsFrame:
                     for s0 in range(0, cut_max, SHADE_SLICE):
                         self.run("lc_shade.comp", m, bufs, {**u, "u_s0": s0, "u_s1": s0 + SHADE_SLICE}, cut_max)
                     if low_res:
-                        self.run("lc_low_res.comp", m, {**bufs, BINDING["lr_ls"]: self.lr_ls}, u, cut_max)
+                        self.run("lc_low_res.comp", m, {**bufs, "lr_ls": self.lr_ls}, u, cut_max)
                 self.fr.drain_counters()  # each pass's counts, well below 32 bits
 
     def glossy(self, g: GBuffer, rspp: int | None, max_rspp: int, seed: int, lspp_bounce: int):
@@ -269,7 +268,7 @@ class LightcutsFrame:
                    "u_glossy_offset": float(glossy_offset(self.tree.tree))}
             before = self.fr.totals["glossy_rays"]
             for r0 in range(0, max_rspp, GLOSSY_CHUNK):
-                self.run("lc_glossy.comp", g.n, {**g.buffers, BINDING["gloss"]: gloss}, {**uni, "u_r0": r0,
+                self.run("lc_glossy.comp", g.n, {**g.buffers, "gloss": gloss}, {**uni, "u_r0": r0,
                                                                         "u_r1": r0 + GLOSSY_CHUNK},
                          _check_cut("lspp_bounce", lspp_bounce))
                 self.fr.drain_counters()
@@ -280,10 +279,10 @@ class LightcutsFrame:
     def finish(self, g: GBuffer, diffuse: np.ndarray, glossy, rays: int) -> np.ndarray:
         """Read back, compose (:func:`renderers.lightcuts.plugin.frame_output`), count and time the frame."""
         ctx = self.ctx
-        base = g.read(BINDING["g_base"])[:, :3]
-        glossy_mask = (g.read(BINDING["g_pos"])[:, 3] > 0) & (g.read(BINDING["g_nrm"])[:, 3] > 0)
+        base = g.read("g_base")[:, :3]
+        glossy_mask = (g.read("g_pos")[:, 3] > 0) & (g.read("g_nrm")[:, 3] > 0)
         img = LC.frame_output(ctx, base, diffuse, glossy, glossy_mask, rays)
-        ctx.extra["spp"] = g.read(BINDING["pix"], np.int32)[:, 1].astype(np.int64).reshape(ctx.height, ctx.width)
+        ctx.extra["spp"] = g.read("pix", np.int32)[:, 1].astype(np.int64).reshape(ctx.height, ctx.width)
         steps = self.fr.timer.seconds()
         totals = self.fr.close()
         c = ctx.tracer.counters
@@ -308,7 +307,7 @@ def _begin(ctx, name: str, cut: int):
 def _end(lc: LightcutsFrame, g: GBuffer, rspp: int | None, max_rspp: int, lspp_bounce: int = 1,
          passes: int = 1) -> np.ndarray:
     """The diffuse radiance (the mean of ``passes``), the glossy pass and the frame."""
-    diffuse = g.read(BINDING["rad"])[:, :3] / passes
+    diffuse = g.read("rad")[:, :3] / passes
     glossy, rays = lc.glossy(g, rspp, max_rspp, lc.ctx.params["seed"], lspp_bounce)
     return lc.finish(g, diffuse, glossy, rays)
 
@@ -345,7 +344,7 @@ def run_fsl(ctx):
         fpsm_controls(lc, g, low, check_reading(p["fpsm_reading"]), check_alpha(p["alpha"]), p["max_lspp"],
                       p["max_rspp"])
     lc.lightcuts(g, None, cut, p["seed"], multires=bool(p["multires"]))
-    reused = int(g.read(BINDING["pix"], np.int32)[:, 2].sum())
+    reused = int(g.read("pix", np.int32)[:, 2].sum())
     ctx.extra.update(fpsm=read_map(lc, g), reused=reused, fpsm_reading=p["fpsm_reading"])
     return _end(lc, g, None, p["max_rspp"])
 

@@ -11,15 +11,6 @@
 #include "lightcuts.glsl"
 #include "lc_buffers.glsl"
 #include "glossy_gen.glsl"
-uniform int u_width;
-uniform vec3 u_origin;
-uniform int u_rspp;
-uniform int u_r0;
-uniform int u_r1;
-uniform uvec2 u_bounce_seed;
-uniform int u_bounce_lspp;
-uniform int u_shadows;
-uniform float u_glossy_offset;
 
 void main() {
     cnt_begin();
