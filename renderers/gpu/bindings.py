@@ -143,7 +143,8 @@ FAMILIES: dict[str, dict[str, Buffer | Image | Uniform]] = {
     # rep.glsl: reprojection (pipelines.py reproject). Depths are float bits (positive floats order like their
     # bits, so atomicMin is a depth test). Of the writers whose depth is the minimum at a pixel, the one with the
     # largest id + 1 writes its colour (winner; 0: none yet): racing threads would leave a different colour from
-    # run to run.
+    # run to run (a fronto-parallel wall gives many equal float depths). A pixel's writers are all splats or all
+    # triangles (rep_splat.comp).
     "rep": {
         "warp": Buffer(0, "vec4", note="u, phi, z (INF: miss or behind), target"),
         "zbuf": Buffer(1, "uint", note="splats' depth"),

@@ -85,10 +85,12 @@ def set_uniforms(prog, values: dict) -> None:
 def bind(buffers: dict | None, images: dict | None = None) -> None:
     """Bind storage buffers {name: buffer} and images {name: texture} at the points :mod:`.bindings` gives their
     names (an unknown name is refused)."""
-    for name, b in (buffers or {}).items():
-        b.bind_to_storage_buffer(buffer_binding(name))
-    for name, tex in (images or {}).items():
-        tex.bind_to_image(image_unit(name), read=True, write=True)
+    points = [(buffer_binding(name), b) for name, b in (buffers or {}).items()]
+    units = [(image_unit(name), tex) for name, tex in (images or {}).items()]
+    for binding, b in points:
+        b.bind_to_storage_buffer(binding)
+    for unit, tex in units:
+        tex.bind_to_image(unit, read=True, write=True)
 
 
 class Frame:

@@ -56,8 +56,8 @@ GLOSSY_CHUNK = 8
 SHADE_SLICE = 64
 #: The storage buffers of the lightcuts passes, the one home of their binding points: binding -> (GLSL name, element
 #: type, what an entry holds). Pixel p of a G-buffer is entry p; a tile's sample lists are at (p - u_first) * CUT_MAX
-#: + s. The shaders' declarations (``lc_buffers_gen.glsl``, :func:`buffers_glsl`) and the host's bindings are made
-#: from it; shaders use only the ones they need (inactive blocks take no binding).
+#: + s. The shaders' declarations (``lc_buffers_gen.glsl``, :func:`buffers_glsl`) are made from it and the host binds
+#: by these names (:func:`renderers.gpu.bindings.buffer_binding`); their uniforms: ``bindings.FAMILIES["lightcuts"]``.
 BUFFERS = {0: ("g_pos", "vec4", "hit position | valid (1 or 0)"),
            1: ("g_nrm", "vec4", "unit normal facing the viewer | glossy (1 or 0)"),
            2: ("g_alb", "vec4", "diffuse albedo (0 when metallic) | exponent"),

@@ -1,4 +1,5 @@
-// Storage buffers of the lightcuts passes (generated from the table renderers/gpu/lightcuts.py:BUFFERS).
+// Storage buffers of the lightcuts passes (generated from the table renderers/gpu/lightcuts.py:BUFFERS) and their
+// uniforms (renderers/gpu/bindings.py FAMILIES["lightcuts"]).
 #include "lc_buffers_gen.glsl"
 #include "lightcuts_decl_gen.glsl"
 
