@@ -378,7 +378,7 @@ def test_shader_resources_have_one_home():
     assert "layout(binding = 4, rgba32f) uniform restrict writeonly image2D out_img;" in samples
     assert "uniform float u_w[33];" in context.generated_source("filters_decl_gen.glsl")
     assert context.generated_source("nothing_decl_gen.glsl") is None
-    assert bindings.buffer_binding("hits") == 7 and bindings.buffer_binding("ctl") == 7  # lightcuts.py's BUFFERS
+    assert bindings.buffer_binding("hits") == 7 and bindings.buffer_binding("ctl") == 7  # lc_buffers
     assert bindings.image_unit("t_offs") == 6
     with pytest.raises(KeyError, match="'hitz'"):
         bind({"hitz": None})

@@ -8,8 +8,8 @@ binding point or a uniform's type is written once. A name is declared by one fam
 families it uses (``#include`` expands a file once, so shared helpers may include the same family). Storage
 blocks count against the compute stage's limit (16 on llvmpipe) even when a shader does not use them, so buffers
 are split into the families of the shaders that use them; unused images and uniforms cost nothing. The
-lightcuts passes' buffers and light tree are tabled in :mod:`renderers.gpu.lightcuts` (``BUFFERS``,
-``TREE_UNIFORMS``); the host's look-ups here know them too.
+lightcuts passes' light tree is an image whose texel layout (:data:`TREE_TEXELS`) gives both the shaders'
+accessors (``lc_tree_gen.glsl``) and the host's packing (``renderers.gpu.lightcuts.tree_table``).
 """
 
 from __future__ import annotations
@@ -178,7 +178,32 @@ FAMILIES: dict[str, dict[str, Buffer | Image | Uniform]] = {
         "u_vp": Uniform("mat4", "world -> clip of this frame's camera"),
         "u_vp_prev": Uniform("mat4", "and of the previous one"),
     },
-    # The lightcuts passes' uniforms (renderers/gpu/lightcuts.py; buffers: its BUFFERS).
+    # The storage buffers of the lightcuts passes (renderers/gpu/lightcuts.py). Pixel p of a G-buffer is entry p; a
+    # tile's sample lists are at (p - u_first) * CUT_MAX + s. LcSample: SAMPLE_FIELDS.
+    "lc_buffers": {
+        "g_pos": Buffer(0, "vec4", note="hit position | valid (1 or 0)"),
+        "g_nrm": Buffer(1, "vec4", note="unit normal facing the viewer | glossy (1 or 0)"),
+        "g_alb": Buffer(2, "vec4", note="diffuse albedo (0 when metallic) | exponent"),
+        "g_ks": Buffer(3, "vec4", note="specular colour (0 unless glossy/metallic) | 0"),
+        "g_base": Buffer(4, "vec4", note="emission + ambient; the background on a miss"),
+        "bounds": Buffer(6, "uint", note="G-buffer points' box: min xyz, max xyz (ordered bits)"),
+        "ctl": Buffer(7, "ivec4", note="cut budget #L | glossy rays | FPSM map (bits) | 0"),
+        "smp": Buffer(8, "LcSample", note="a tile's samples: cut node, light (leaf node, -1: none), pdf"),
+        "pix": Buffer(9, "ivec4", note="cut size | light samples | reused | LS' count"),
+        "lr_ls": Buffer(10, "LcSample", note="LS': each low-resolution pixel's samples sorted by leaf, with depth"),
+        "lr_pix": Buffer(11, "ivec4", note="the low-resolution G-buffer's pix"),
+        "rad": Buffer(12, "vec4", note="direct diffuse radiance"),
+        "gloss": Buffer(13, "vec4", note="glossy radiance"),
+    },
+    # The light tree (renderers/gpu/lightcuts.py DeviceTree; its texels: TREE_TEXELS).
+    "lc_tree": {
+        "t_tree": Image(4, "rgba32ui", "readonly", "6 N texels for N leaves (TREE_TEXELS)"),
+        "u_n_leaves": Uniform("int", "N"),
+        "u_levels": Uniform("int", "log2 N + 1 (the n of seed 003 Eq 9)"),
+        "u_clamp2": Uniform("float", "(0.001 scene light radius)^2 (sampling.clamp2)"),
+        "u_one_sided": Uniform("int", "the tree has emitter normals"),
+    },
+    # The lightcuts passes' uniforms (renderers/gpu/lightcuts.py).
     "lightcuts": {
         "u_first": Uniform("int", "first pixel of the tile"),
         "u_seed": Uniform("uvec2", "random stream (64 bits: lo, hi)"),
@@ -236,37 +261,52 @@ def decl_glsl(family: str) -> str:
     return "\n".join(out) + "\n"
 
 
-def _lightcuts():
-    from . import lightcuts
+#: The fields of a lightcuts light sample (``LcSample``, 16 bytes; buffers ``smp``, ``lr_ls``).
+SAMPLE_FIELDS = (("int", "node"), ("int", "leaf"), ("float", "pdf"), ("int", "depth"))
+#: The light tree's texels (image ``t_tree``), read by the shaders' accessors (:func:`tree_glsl`) and packed by
+#: ``renderers.gpu.lightcuts.tree_table``: accessor -> (first texel / N, texels per entry, texel in the entry,
+#: components). Node k (1 <= k < 2N): (bmin, intensity), (bmax, 0); leaf j (0 <= j < N): (RGB intensity, 0),
+#: (emitter normal, 0); a leaf's light sits at its node's box (``light_pos(j)``: bmin = bmax of node N + j).
+TREE_TEXELS = {"node_min": (0, 2, 0, "xyz"), "node_inten": (0, 2, 0, "w"), "node_max": (0, 2, 1, "xyz"),
+               "light_pos": (2, 2, 0, "xyz"), "light_rgb": (4, 2, 0, "xyz"), "light_nrm": (4, 2, 1, "xyz")}
+#: The tree's uniforms, in the order ``DeviceTree`` gives their values.
+TREE_UNIFORMS = tuple(k for k, e in FAMILIES["lc_tree"].items() if isinstance(e, Uniform))
 
-    return lightcuts
+
+def lc_buffers_glsl() -> str:
+    """The lightcuts passes' sample struct and buffers (``lc_buffers_gen.glsl``)."""
+    fields = " ".join(f"{t} {n};" for t, n in SAMPLE_FIELDS)
+    return f"struct LcSample {{ {fields} }};\n" + decl_glsl("lc_buffers")
+
+
+def tree_glsl() -> str:
+    """The light tree's image, uniforms and the accessors of :data:`TREE_TEXELS` (``lc_tree_gen.glsl``)."""
+    out = [decl_glsl("lc_tree").rstrip("\n")]
+    for name, (first, step, texel, comps) in TREE_TEXELS.items():
+        index = "".join([f"{first} * u_n_leaves + " if first else "", f"{step} * k", f" + {texel}" if texel else ""])
+        out.append(f"{'float' if len(comps) == 1 else f'vec{len(comps)}'} {name}(int k) "
+                   f"{{ return fetchf(t_tree, {index}).{comps}; }}")
+    return "\n".join(out) + "\n"
 
 
 def buffer_binding(name: str) -> int:
     """The binding point of storage buffer ``name``; an unknown name is refused, naming it."""
     if name in BUFFERS:
         return BUFFERS[name].binding
-    lc = _lightcuts().BINDING
-    if name in lc:
-        return lc[name]
-    raise KeyError(f"no GPU storage buffer is named {name!r} (renderers/gpu/bindings.py FAMILIES, "
-                   f"renderers/gpu/lightcuts.py BUFFERS)")
+    raise KeyError(f"no GPU storage buffer is named {name!r} (renderers/gpu/bindings.py FAMILIES)")
 
 
 def image_unit(name: str) -> int:
     """The image unit of image ``name``; an unknown name is refused, naming it."""
     if name in IMAGES:
         return IMAGES[name].unit
-    lc = _lightcuts()
-    if name == "t_tree":
-        return lc.TREE_UNIT
     raise KeyError(f"no GPU image is named {name!r} (renderers/gpu/bindings.py FAMILIES)")
 
 
 def check_uniforms(values: dict) -> None:
     """Refuse a uniform that no table declares, naming it (a misspelt name would otherwise be skipped as one the
     shader does not use)."""
-    unknown = [k for k in values if k not in UNIFORMS and k not in _lightcuts().TREE_UNIFORMS]
+    unknown = [k for k in values if k not in UNIFORMS]
     if unknown:
         raise KeyError(f"no GPU uniform is named {', '.join(map(repr, unknown))} (renderers/gpu/bindings.py "
                        f"FAMILIES)")

@@ -337,9 +337,9 @@ def generated_source(fname: str) -> str | None:
 
         return lightcuts_glsl() if fname == "lightcuts_gen.glsl" else lightcuts_shade_glsl()
     if fname in ("lc_buffers_gen.glsl", "lc_tree_gen.glsl"):
-        from .lightcuts import buffers_glsl, tree_glsl
+        from .bindings import lc_buffers_glsl, tree_glsl
 
-        return buffers_glsl() if fname == "lc_buffers_gen.glsl" else tree_glsl()
+        return lc_buffers_glsl() if fname == "lc_buffers_gen.glsl" else tree_glsl()
     if fname == "shade_gen.glsl":
         from .codegen import shade_glsl
 

@@ -19,7 +19,7 @@ as passes, each timed:
 
 The per-pixel bodies of the cuts, select, low_res and shade passes are the CPU's pixel kernels translated
 (``_kernels.cut_pixel``, ``sample_pixel``, ``shade_pixel``, ``multires.select_pixel``, ``sort_pixel``:
-:func:`renderers.gpu.codegen.lightcuts_glsl`), reading and writing the buffers of :data:`BUFFERS`; the shaders
+:func:`renderers.gpu.codegen.lightcuts_glsl`), reading and writing the buffers of ``bindings.FAMILIES["lc_buffers"]``; the shaders
 keep the plumbing (invocation index, tiles, counters) and the shadow rays through the BVH. The random numbers
 are the CPU's (counter-based: seed, pixel id, slot), so both backends draw the same samples up to the float32
 rounding of positions and probabilities: seed for seed the images agree closely, and over seeds their per-pixel
@@ -38,6 +38,7 @@ from ..lightcuts import plugin as LC
 from ..lightcuts.fpsm import check_alpha, check_reading
 from ..lightcuts.glossy import glossy_offset
 from ..lightcuts.sampling import clamp2
+from .bindings import TREE_TEXELS, TREE_UNIFORMS
 from .context import WAY_OUT
 from .fpsm import fpsm_controls, read_map
 from .frame import Frame
@@ -54,55 +55,13 @@ MAX_CUT = 256
 GLOSSY_CHUNK = 8
 #: Samples of each cut shaded in one dispatch, a shadow ray each (a 256-node cut reached the limit on yard).
 SHADE_SLICE = 64
-#: The storage buffers of the lightcuts passes, the one home of their binding points: binding -> (GLSL name, element
-#: type, what an entry holds). Pixel p of a G-buffer is entry p; a tile's sample lists are at (p - u_first) * CUT_MAX
-#: + s. The shaders' declarations (``lc_buffers_gen.glsl``, :func:`buffers_glsl`) are made from it and the host binds
-#: by these names (:func:`renderers.gpu.bindings.buffer_binding`); their uniforms: ``bindings.FAMILIES["lightcuts"]``.
-BUFFERS = {0: ("g_pos", "vec4", "hit position | valid (1 or 0)"),
-           1: ("g_nrm", "vec4", "unit normal facing the viewer | glossy (1 or 0)"),
-           2: ("g_alb", "vec4", "diffuse albedo (0 when metallic) | exponent"),
-           3: ("g_ks", "vec4", "specular colour (0 unless glossy/metallic) | 0"),
-           4: ("g_base", "vec4", "emission + ambient; the background on a miss"),
-           6: ("bounds", "uint", "G-buffer points' box: min xyz, max xyz (ordered bits)"),
-           7: ("ctl", "ivec4", "cut budget #L | glossy rays | FPSM map (bits) | 0"),
-           8: ("smp", "LcSample", "a tile's samples: cut node, light (leaf node, -1: none), pdf"),
-           9: ("pix", "ivec4", "cut size | light samples | reused | LS' count"),
-           10: ("lr_ls", "LcSample", "LS': each low-resolution pixel's samples sorted by leaf, with node depth"),
-           11: ("lr_pix", "ivec4", "the low-resolution G-buffer's pix"),
-           12: ("rad", "vec4", "direct diffuse radiance"),
-           13: ("gloss", "vec4", "glossy radiance")}
-#: The fields of a light sample (``LcSample``, 16 bytes).
-SAMPLE_FIELDS = (("int", "node"), ("int", "leaf"), ("float", "pdf"), ("int", "depth"))
-#: GLSL name -> binding point.
-BINDING = {name: b for b, (name, _, _) in BUFFERS.items()}
 #: Pooled buffers of a G-buffer.
 _GBUF = ("g_pos", "g_nrm", "g_alb", "g_ks", "g_base", "pix", "rad")
 
 
-def buffers_glsl() -> str:
-    """The declarations of :data:`BUFFERS` (``lc_buffers_gen.glsl``)."""
-    fields = " ".join(f"{t} {n};" for t, n in SAMPLE_FIELDS)
-    return ("// Generated from renderers/gpu/lightcuts.py (BUFFERS) by renderers/gpu/lightcuts.py: do not edit.\n"
-            f"struct LcSample {{ {fields} }};\n"
-            + "".join(f"layout(std430, binding = {b}) buffer B_{name} {{ {t} {name}[]; }};  // {what}\n"
-                      for b, (name, t, what) in BUFFERS.items()))
 #: ``bounds``: the G-buffer points' box (min xyz, max xyz) and the FPSM's extreme rho, as ordered bits of +inf
 #: (for the minima) and -inf (maxima).
 _INF_KEYS = np.array([0xFF800000] * 3 + [0x007FFFFF] * 3 + [0xFF800000, 0x007FFFFF], dtype=np.uint32)
-
-
-#: The light tree in an RGBA32UI image (image unit ``TREE_UNIT``, ``6 N`` texels for ``N`` leaves), read by the
-#: shaders' accessors (``lc_tree_gen.glsl``, :func:`tree_glsl`) and filled by :func:`tree_table`: accessor ->
-#: (first texel / N, texels per entry, texel in the entry, components). Node k (1 <= k < 2N): (bmin, intensity),
-#: (bmax, 0); leaf j (0 <= j < N): (RGB intensity, 0), (emitter normal, 0); a leaf's light sits at its node's box
-#: (``light_pos(j)``: bmin = bmax of node N + j).
-TREE_TEXELS = {"node_min": (0, 2, 0, "xyz"), "node_inten": (0, 2, 0, "w"), "node_max": (0, 2, 1, "xyz"),
-               "light_pos": (2, 2, 0, "xyz"), "light_rgb": (4, 2, 0, "xyz"), "light_nrm": (4, 2, 1, "xyz")}
-TREE_UNIT = 4
-#: The tree's uniforms (:class:`DeviceTree`): name -> (GLSL type, meaning).
-TREE_UNIFORMS = {"u_n_leaves": ("int", "N"), "u_levels": ("int", "log2 N + 1 (the n of seed 003 Eq 9)"),
-                 "u_clamp2": ("float", "(0.001 scene light radius)^2 (sampling.clamp2)"),
-                 "u_one_sided": ("int", "the tree has emitter normals")}
 
 
 def tree_table(tree) -> np.ndarray:
@@ -118,18 +77,6 @@ def tree_table(tree) -> np.ndarray:
             rows = slice(first * n + texel, first * n + texel + step * len(arr), step)
             t[rows, c0:c0 + len(comps)] = np.reshape(arr, (len(arr), len(comps)))
     return t
-
-
-def tree_glsl() -> str:
-    """The tree image, its uniforms and accessors of :data:`TREE_TEXELS` (``lc_tree_gen.glsl``)."""
-    out = ["// Generated from renderers/gpu/lightcuts.py (TREE_TEXELS) by renderers/gpu/lightcuts.py: do not edit.",
-           f"layout(binding = {TREE_UNIT}, rgba32ui) uniform restrict readonly uimage2D t_tree;"]
-    out += [f"uniform {t} {name};  // {what}" for name, (t, what) in TREE_UNIFORMS.items()]
-    for name, (first, step, texel, comps) in TREE_TEXELS.items():
-        index = "".join([f"{first} * u_n_leaves + " if first else "", f"{step} * k", f" + {texel}" if texel else ""])
-        out.append(f"{'float' if len(comps) == 1 else f'vec{len(comps)}'} {name}(int k) "
-                   f"{{ return fetchf(t_tree, {index}).{comps}; }}")
-    return "\n".join(out) + "\n"
 
 
 class DeviceTree:
