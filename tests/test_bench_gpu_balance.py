@@ -45,6 +45,9 @@ def test_the_grid_ab_uses_full_rows_then_restores_the_fitted_grid(monkeypatch):
         def __setitem__(self, name, value):
             self.prog[name] = value
 
+        def __getitem__(self, name):
+            return self.prog[name]
+
         def run(self, gx, gy, gz):
             seen.append((C.grid_shape is fitted, gx, gy))
             self.prog.run(gx, gy, gz)

@@ -115,12 +115,13 @@ def test_generated_foveation_glsl_matches_the_cpu_kernels():
     """The GPU evaluates the forward and inverse mappings from the CPU's parameter vector with GLSL generated
     from renderers/foveation/_kernels.py: same values (float32) for all three methods."""
     from renderers.foveation import make_mapping
+    from renderers.gpu.bindings import buffer_binding
     from renderers.gpu.context import get_device
 
     dev = get_device()
     src = """#version 430
 layout(local_size_x = 64) in;
-layout(std430, binding = 11) readonly buffer FovParams { float FP[]; };
+#include "lp_map_decl_gen.glsl"
 #include "foveation_gen.glsl"
 layout(std430, binding = 1) readonly buffer In { vec2 pts[]; };
 layout(std430, binding = 2) writeonly buffer Out { vec4 res[]; };
@@ -146,7 +147,8 @@ void main() {
         out = dev.buffer(reserve=16 * 512)
         res = []
         for pts in (pin_f, pin_i):
-            fp.bind_to_storage_buffer(11), pts.bind_to_storage_buffer(1), out.bind_to_storage_buffer(2)
+            fp.bind_to_storage_buffer(buffer_binding("FP"))
+            pts.bind_to_storage_buffer(1), out.bind_to_storage_buffer(2)
             prog["u_n"] = 512
             prog.run(8)
             dev.finish()
@@ -356,3 +358,31 @@ def test_a_frame_with_loops_cut_short_is_refused():
         fr.close()
     assert str(err.value).startswith("3 GPU shader invocations reached llvmpipe's limit of 65,535 loop iterations")
     assert "\n" not in str(err.value)
+
+
+def test_shader_resources_have_one_home():
+    """Binding points, image units and uniform types are written once (renderers/gpu/bindings.py): the shader files
+    declare none themselves, the generated declarations carry the table's numbers and types, and the host refuses a
+    name no table declares, naming it."""
+    import re
+
+    from renderers.gpu import bindings, context
+    from renderers.gpu.frame import bind, set_uniforms
+
+    for f in sorted(context.SHADER_DIR.iterdir()):
+        hand = [line for line in f.read_text().splitlines()
+                if re.match(r"\s*(layout\(.*binding|uniform\s)", line)]
+        assert not hand, (f.name, hand)
+    samples = context.generated_source("samples_decl_gen.glsl")
+    assert "layout(std430, binding = 6) buffer B_samples { vec4 samples[]; };" in samples
+    assert "layout(binding = 4, rgba32f) uniform restrict writeonly image2D out_img;" in samples
+    assert "uniform float u_w[33];" in context.generated_source("filters_decl_gen.glsl")
+    assert context.generated_source("nothing_decl_gen.glsl") is None
+    assert bindings.buffer_binding("hits") == 7 and bindings.buffer_binding("ctl") == 7  # lc_buffers
+    assert bindings.image_unit("t_offs") == 6
+    with pytest.raises(KeyError, match="'hitz'"):
+        bind({"hitz": None})
+    with pytest.raises(KeyError, match="'t_ofs'"):
+        bind(None, {"t_ofs": None})
+    with pytest.raises(KeyError, match="'u_widht'"):
+        set_uniforms(None, {"u_width": 1, "u_widht": 2})

@@ -338,9 +338,9 @@ def generated_source(fname: str) -> str | None:
         return {"lightcuts_gen.glsl": lightcuts_glsl, "lc_shade_gen.glsl": lightcuts_shade_glsl,
                 "lc_bounce_gen.glsl": lightcuts_bounce_glsl}[fname]()
     if fname in ("lc_buffers_gen.glsl", "lc_tree_gen.glsl"):
-        from .lightcuts import buffers_glsl, tree_glsl
+        from .bindings import lc_buffers_glsl, tree_glsl
 
-        return buffers_glsl() if fname == "lc_buffers_gen.glsl" else tree_glsl()
+        return lc_buffers_glsl() if fname == "lc_buffers_gen.glsl" else tree_glsl()
     if fname == "shade_gen.glsl":
         from .codegen import shade_glsl
 
@@ -365,6 +365,10 @@ def generated_source(fname: str) -> str | None:
         from .codegen import antialias_glsl
 
         return antialias_glsl(fname[:-9])
+    if fname.endswith("_decl_gen.glsl"):
+        from .bindings import FAMILIES, decl_glsl
+
+        return decl_glsl(fname[:-len("_decl_gen.glsl")]) if fname[:-len("_decl_gen.glsl")] in FAMILIES else None
     if fname == "constants_gen.glsl":
         from .codegen import constants_glsl
 

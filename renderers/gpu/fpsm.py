@@ -45,28 +45,27 @@ def fpsm_controls(lc, g, low, reading: str, alpha: float, max_lspp: int, max_rsp
         uni["u_vp"] = tuple(view_projection(ctx.camera, w, h).T.reshape(-1))
         uni["u_vp_prev"] = tuple(view_projection(ctx.previous_camera, w, h).T.reshape(-1))
     px = lc.fr.pool.get("lc_fp_px", 16 * g.n)
-    bufs = {**g.buffers, 14: px}
+    bufs = {**g.buffers, "fp_px": px}
     defines = {"READING": READINGS[reading], "LUMINANCE": int(low is not None)}
 
     def run(n: int, pass_: int) -> None:
         lc.run("fpsm.comp", n, bufs, uni, defines={**defines, "PASS": pass_})
 
     if low is not None:
-        lum = low.read(12)[:, :3].astype(np.float64).reshape(low.height, low.width, 3) @ LUMA
+        lum = low.read("rad")[:, :3].astype(np.float64).reshape(low.height, low.width, 3) @ LUMA
         coef, lo, hi = upsampling(lum, 3, floor=0.0)
         coef = coef.astype(np.float32)
         g1, g2 = (_half(w), _half(h)), (_half(_half(w)), _half(_half(h)))
         at1 = coef.size
         at2 = at1 + g1[0] * g1[1]
-        bufs[15] = low_buf = lc.fr.pool.get("lc_fp_low", 4 * (at2 + g2[0] * g2[1]))
+        bufs["fp_low"] = low_buf = lc.fr.pool.get("lc_fp_low", 4 * (at2 + g2[0] * g2[1]))
         low_buf.write(coef.tobytes())
         uni.update(u_coef=(coef.shape[1], coef.shape[0]), u_scale=(low.width / w, low.height / h),
                    u_range=(lo, hi), u_g1=g1, u_g2=g2, u_g1_at=at1, u_g2_at=at2)
         run(g.n, 1)
         run(g1[0] * g1[1], 2)
         run(g2[0] * g2[1], 3)
-    bufs[7] = lc.fr.pool.get("lc_ctl", 16 * g.n)
-    lc.common[7] = bufs[7]
+    bufs["ctl"] = lc.common["ctl"] = lc.fr.pool.get("lc_ctl", 16 * g.n)
     run(g.n, 4)
     if reading != "afsm":
         run(g.n, 5)
@@ -76,5 +75,5 @@ def fpsm_controls(lc, g, low, reading: str, alpha: float, max_lspp: int, max_rsp
 def read_map(lc, g) -> np.ndarray:
     """The map of the controls (``(h, w)`` float32)."""
     ctl = np.empty((g.n, 4), dtype=np.int32)
-    lc.common[7].read_into(ctl, size=ctl.nbytes)
+    lc.common["ctl"].read_into(ctl, size=ctl.nbytes)
     return ctl[:, 2].copy().view(np.float32).reshape(g.height, g.width)

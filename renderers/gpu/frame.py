@@ -15,6 +15,7 @@ import time
 import numpy as np
 
 from ..plugin_types import RenderCancelled
+from .bindings import buffer_binding, check_uniforms, image_unit
 from .context import LOCAL_SIZE, WAY_OUT, StageTimer
 
 #: GPU counters (index = position). Those named like a Counters field are added to it at the end of a frame.
@@ -31,8 +32,6 @@ BATCH = 1 << 20
 #: read the traced samples.
 SAMPLE_PASSES = ("gbuffer", "gen_gt", "gen_deferred", "resolve", "trace", "shade", "shadow", "gather")
 _PASS_DEFINES = {name.upper(): k for k, name in enumerate(SAMPLE_PASSES)}
-#: Binding points of the sample pipeline (shaders/samples.glsl).
-B_SAMPLES, B_HITS, B_MASKS, B_PARTIAL, B_OUT = 6, 7, 8, 9, 10
 
 
 class Pool:
@@ -72,7 +71,8 @@ def pool_of(device) -> Pool:
 
 def set_uniforms(prog, values: dict) -> None:
     """Set the uniforms ``prog`` uses (the compiler drops unused ones; those are skipped, and an array's unused
-    trailing elements: the leading values are set)."""
+    trailing elements: the leading values are set); a name no table declares is refused (:mod:`.bindings`)."""
+    check_uniforms(values)
     for k, v in values.items():
         if k in prog:
             u = prog[k]
@@ -83,10 +83,13 @@ def set_uniforms(prog, values: dict) -> None:
 
 
 def bind(buffers: dict | None, images: dict | None = None) -> None:
-    """Bind storage buffers {binding point: buffer} and images {image unit: texture} (separate namespaces)."""
-    for binding, b in (buffers or {}).items():
+    """Bind storage buffers {name: buffer} and images {name: texture} at the points :mod:`.bindings` gives their
+    names (an unknown name is refused)."""
+    points = [(buffer_binding(name), b) for name, b in (buffers or {}).items()]
+    units = [(image_unit(name), tex) for name, tex in (images or {}).items()]
+    for binding, b in points:
         b.bind_to_storage_buffer(binding)
-    for unit, tex in (images or {}).items():
+    for unit, tex in units:
         tex.bind_to_image(unit, read=True, write=True)
 
 
@@ -109,13 +112,13 @@ class Frame:
 
     def run(self, name: str, n: int, buffers: dict | None = None, uniforms: dict | None = None,
             defines: dict | None = None, images: dict | None = None, local: int = LOCAL_SIZE) -> None:
-        """Dispatch ``shaders/<name>`` over ``n`` invocations with storage ``buffers`` {binding point: buffer}
-        and ``images`` {image unit: texture} bound next to the scene (image units 0-3) and the counters.
+        """Dispatch ``shaders/<name>`` over ``n`` invocations with storage ``buffers`` {name: buffer} and
+        ``images`` {name: texture} (:mod:`.bindings`) bound next to the scene and the counters.
         A render that can be cancelled is asked first (:meth:`check_cancel`)."""
         self.check_cancel()
         prog = self.dev.program(name, self.defines(defines))
         self.ds.bind_scene()
-        self.counter_buf.bind_to_storage_buffer(5)
+        self.counter_buf.bind_to_storage_buffer(buffer_binding("counters"))
         bind(buffers, images)
         set_uniforms(prog, {**self.ds.scene_uniforms(), **(uniforms or {})})
         self.dev.dispatch(prog, n, local)
@@ -167,9 +170,8 @@ class Frame:
     # -- the sample pipeline ----------------------------------------------------------------------------------
     def sample_buffers(self, capacity: int) -> dict:
         w = self.ds.mask_words
-        return {B_SAMPLES: self.pool.get("samples", 16 * capacity), B_HITS: self.pool.get("hits", 8 * capacity),
-                B_MASKS: self.pool.get("masks", 4 * w * capacity),
-                B_PARTIAL: self.pool.get("partial", 16 * capacity)}
+        return {"samples": self.pool.get("samples", 16 * capacity), "hits": self.pool.get("hits", 8 * capacity),
+                "masks": self.pool.get("masks", 4 * w * capacity), "partial": self.pool.get("partial", 16 * capacity)}
 
     def shade_batch(self, origin, capacity: int, out, *, count_at: int = -1, n: int | None = None,
                     traced: bool = False, uniforms: dict | None = None, defines: dict | None = None,
@@ -183,9 +185,9 @@ class Frame:
         bufs = self.sample_buffers(capacity)
         images = dict(images or {})
         if out_image:
-            images[4] = out
+            images["out_img"] = out
         else:
-            bufs[B_OUT] = out
+            bufs["outbuf"] = out
         uni = {"u_origin": tuple(float(x) for x in origin), "u_count_at": int(count_at), **(uniforms or {})}
         size = capacity if n is None else n
         if not traced:

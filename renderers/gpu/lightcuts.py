@@ -19,13 +19,14 @@ as passes, each timed:
 
 The per-pixel bodies of the cuts, select, low_res and shade passes are the CPU's pixel kernels translated
 (``_kernels.cut_pixel``, ``sample_pixel``, ``shade_pixel``, ``multires.select_pixel``, ``sort_pixel``:
-:func:`renderers.gpu.codegen.lightcuts_glsl`), reading and writing the buffers of :data:`BUFFERS`; the glossy
-pass's bounce runs the same cut_pixel, sample_pixel and shade_pixel on each ray's hit
-(``lightcuts_bounce_glsl``), its lobe ``glossy.lobe_sample`` (``glossy_glsl``), as the CPU's ``glossy_pass``
-does; the shaders keep the plumbing (invocation index, tiles, counters) and the shadow rays through the BVH.
-The random numbers are the CPU's (counter-based: seed, pixel id, slot), so both backends draw the same samples
-up to the float32 rounding of positions and probabilities: seed for seed the images agree closely, and over
-seeds their per-pixel means and variances (``benchmarks/bench_gpu_lightcuts.py --agreement``).
+:func:`renderers.gpu.codegen.lightcuts_glsl`), reading and writing the buffers of
+``bindings.FAMILIES["lc_buffers"]``; the glossy pass's bounce runs the same cut_pixel, sample_pixel and
+shade_pixel on each ray's hit (``lightcuts_bounce_glsl``), its lobe ``glossy.lobe_sample`` (``glossy_glsl``),
+as the CPU's ``glossy_pass`` does; the shaders keep the plumbing (invocation index, tiles, counters) and the
+shadow rays through the BVH. The random numbers are the CPU's (counter-based: seed, pixel id, slot), so both
+backends draw the same samples up to the float32 rounding of positions and probabilities: seed for seed the
+images agree closely, and over seeds their per-pixel means and variances
+(``benchmarks/bench_gpu_lightcuts.py --agreement``).
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from ..lightcuts import plugin as LC
 from ..lightcuts.fpsm import check_alpha, check_reading
 from ..lightcuts.glossy import glossy_offset
 from ..lightcuts.sampling import clamp2
+from .bindings import TREE_TEXELS, TREE_UNIFORMS
 from .context import WAY_OUT
 from .fpsm import fpsm_controls, read_map
 from .frame import Frame
@@ -56,55 +58,13 @@ MAX_CUT = 256
 GLOSSY_CHUNK = 8
 #: Samples of each cut shaded in one dispatch, a shadow ray each (a 256-node cut reached the limit on yard).
 SHADE_SLICE = 64
-#: The storage buffers of the lightcuts passes, the one home of their binding points: binding -> (GLSL name, element
-#: type, what an entry holds). Pixel p of a G-buffer is entry p; a tile's sample lists are at (p - u_first) * CUT_MAX
-#: + s. The shaders' declarations (``lc_buffers_gen.glsl``, :func:`buffers_glsl`) and the host's bindings are made
-#: from it; shaders use only the ones they need (inactive blocks take no binding).
-BUFFERS = {0: ("g_pos", "vec4", "hit position | valid (1 or 0)"),
-           1: ("g_nrm", "vec4", "unit normal facing the viewer | glossy (1 or 0)"),
-           2: ("g_alb", "vec4", "diffuse albedo (0 when metallic) | exponent"),
-           3: ("g_ks", "vec4", "specular colour (0 unless glossy/metallic) | 0"),
-           4: ("g_base", "vec4", "emission + ambient; the background on a miss"),
-           6: ("bounds", "uint", "G-buffer points' box: min xyz, max xyz (ordered bits)"),
-           7: ("ctl", "ivec4", "cut budget #L | glossy rays | FPSM map (bits) | 0"),
-           8: ("smp", "LcSample", "a tile's samples: cut node, light (leaf node, -1: none), pdf"),
-           9: ("pix", "ivec4", "cut size | light samples | reused | LS' count"),
-           10: ("lr_ls", "LcSample", "LS': each low-resolution pixel's samples sorted by leaf, with node depth"),
-           11: ("lr_pix", "ivec4", "the low-resolution G-buffer's pix"),
-           12: ("rad", "vec4", "direct diffuse radiance"),
-           13: ("gloss", "vec4", "glossy radiance")}
-#: The fields of a light sample (``LcSample``, 16 bytes).
-SAMPLE_FIELDS = (("int", "node"), ("int", "leaf"), ("float", "pdf"), ("int", "depth"))
-#: GLSL name -> binding point.
-BINDING = {name: b for b, (name, _, _) in BUFFERS.items()}
 #: Pooled buffers of a G-buffer.
-_GBUF = [BINDING[n] for n in ("g_pos", "g_nrm", "g_alb", "g_ks", "g_base", "pix", "rad")]
+_GBUF = ("g_pos", "g_nrm", "g_alb", "g_ks", "g_base", "pix", "rad")
 
 
-def buffers_glsl() -> str:
-    """The declarations of :data:`BUFFERS` (``lc_buffers_gen.glsl``)."""
-    fields = " ".join(f"{t} {n};" for t, n in SAMPLE_FIELDS)
-    return ("// Generated from renderers/gpu/lightcuts.py (BUFFERS) by renderers/gpu/lightcuts.py: do not edit.\n"
-            f"struct LcSample {{ {fields} }};\n"
-            + "".join(f"layout(std430, binding = {b}) buffer B_{name} {{ {t} {name}[]; }};  // {what}\n"
-                      for b, (name, t, what) in BUFFERS.items()))
 #: ``bounds``: the G-buffer points' box (min xyz, max xyz) and the FPSM's extreme rho, as ordered bits of +inf
 #: (for the minima) and -inf (maxima).
 _INF_KEYS = np.array([0xFF800000] * 3 + [0x007FFFFF] * 3 + [0xFF800000, 0x007FFFFF], dtype=np.uint32)
-
-
-#: The light tree in an RGBA32UI image (image unit ``TREE_UNIT``, ``6 N`` texels for ``N`` leaves), read by the
-#: shaders' accessors (``lc_tree_gen.glsl``, :func:`tree_glsl`) and filled by :func:`tree_table`: accessor ->
-#: (first texel / N, texels per entry, texel in the entry, components). Node k (1 <= k < 2N): (bmin, intensity),
-#: (bmax, 0); leaf j (0 <= j < N): (RGB intensity, 0), (emitter normal, 0); a leaf's light sits at its node's box
-#: (``light_pos(j)``: bmin = bmax of node N + j).
-TREE_TEXELS = {"node_min": (0, 2, 0, "xyz"), "node_inten": (0, 2, 0, "w"), "node_max": (0, 2, 1, "xyz"),
-               "light_pos": (2, 2, 0, "xyz"), "light_rgb": (4, 2, 0, "xyz"), "light_nrm": (4, 2, 1, "xyz")}
-TREE_UNIT = 4
-#: The tree's uniforms (:class:`DeviceTree`): name -> (GLSL type, meaning).
-TREE_UNIFORMS = {"u_n_leaves": ("int", "N"), "u_levels": ("int", "log2 N + 1 (the n of seed 003 Eq 9)"),
-                 "u_clamp2": ("float", "(0.001 scene light radius)^2 (sampling.clamp2)"),
-                 "u_one_sided": ("int", "the tree has emitter normals")}
 
 
 def tree_table(tree) -> np.ndarray:
@@ -120,18 +80,6 @@ def tree_table(tree) -> np.ndarray:
             rows = slice(first * n + texel, first * n + texel + step * len(arr), step)
             t[rows, c0:c0 + len(comps)] = np.reshape(arr, (len(arr), len(comps)))
     return t
-
-
-def tree_glsl() -> str:
-    """The tree image, its uniforms and accessors of :data:`TREE_TEXELS` (``lc_tree_gen.glsl``)."""
-    out = ["// Generated from renderers/gpu/lightcuts.py (TREE_TEXELS) by renderers/gpu/lightcuts.py: do not edit.",
-           f"layout(binding = {TREE_UNIT}, rgba32ui) uniform restrict readonly uimage2D t_tree;"]
-    out += [f"uniform {t} {name};  // {what}" for name, (t, what) in TREE_UNIFORMS.items()]
-    for name, (first, step, texel, comps) in TREE_TEXELS.items():
-        index = "".join([f"{first} * u_n_leaves + " if first else "", f"{step} * k", f" + {texel}" if texel else ""])
-        out.append(f"{'float' if len(comps) == 1 else f'vec{len(comps)}'} {name}(int k) "
-                   f"{{ return fetchf(t_tree, {index}).{comps}; }}")
-    return "\n".join(out) + "\n"
 
 
 class DeviceTree:
@@ -182,12 +130,12 @@ class GBuffer:
     def __init__(self, lc: LightcutsFrame, prefix: str, width: int, height: int):
         self.width, self.height, self.n = width, height, width * height
         self.lc = lc
-        self.buffers = {b: lc.fr.pool.get(f"lc_{prefix}_{BUFFERS[b][0]}", 16 * self.n) for b in _GBUF}
+        self.buffers = {b: lc.fr.pool.get(f"lc_{prefix}_{b}", 16 * self.n) for b in _GBUF}
 
-    def read(self, binding: int, dtype=np.float32) -> np.ndarray:
-        """Buffer ``binding`` as an ``(n, 4)`` array."""
+    def read(self, name: str, dtype=np.float32) -> np.ndarray:
+        """Buffer ``name`` as an ``(n, 4)`` array."""
         out = np.empty((self.n, 4), dtype=dtype)
-        self.buffers[binding].read_into(out, size=out.nbytes)
+        self.buffers[name].read_into(out, size=out.nbytes)
         return out
 
 
@@ -202,8 +150,7 @@ class LightcutsFrame:
         self.cam = camera_uniforms(ctx.camera, ctx.width, ctx.height)
         self.origin = tuple(float(x) for x in ctx.camera.position)
         self.shadows = int(bool(ctx.scene.shadows))
-        self.common = {BINDING["bounds"]: self.fr.upload("lc_bounds", _INF_KEYS),
-                       BINDING["ctl"]: self.fr.pool.get("lc_ctl", 16)}
+        self.common = {"bounds": self.fr.upload("lc_bounds", _INF_KEYS), "ctl": self.fr.pool.get("lc_ctl", 16)}
         self.lr_ls = self.lr_pix = None
         self.lr_size = (1, 1)
 
@@ -213,7 +160,7 @@ class LightcutsFrame:
     def run(self, shader: str, n: int, buffers: dict, uniforms: dict, cut_max: int = 1,
             defines: dict | None = None) -> None:
         self.fr.run(shader, n, {**self.common, **buffers}, {**self.tree.uniforms, **uniforms},
-                    {"CUT_MAX": cut_max, "MULTIRES": 0, **(defines or {})}, {TREE_UNIT: self.tree.texture})
+                    {"CUT_MAX": cut_max, "MULTIRES": 0, **(defines or {})}, {"t_tree": self.tree.texture})
 
     def gbuffer(self, prefix: str, width: int, height: int, full: bool) -> GBuffer:
         """Trace the G-buffer of ``width × height`` rays spread over the screen (the frame's when ``full``)."""
@@ -233,12 +180,12 @@ class LightcutsFrame:
         seeds = [seeds] if isinstance(seeds, int) else list(seeds)
         tile = max(1, min(g.n, TILE_BYTES // (16 * cut_max)))
         smp = self.fr.pool.get("lc_smp", 16 * tile * cut_max)
-        bufs = {**g.buffers, BINDING["smp"]: smp}
+        bufs = {**g.buffers, "smp": smp}
         if low_res:
             self.lr_ls = self.fr.pool.get("lc_lr_ls", 16 * g.n * cut_max)
-            self.lr_pix, self.lr_size = g.buffers[BINDING["pix"]], (g.width, g.height)
+            self.lr_pix, self.lr_size = g.buffers["pix"], (g.width, g.height)
         if multires:
-            bufs.update({BINDING["lr_ls"]: self.lr_ls, BINDING["lr_pix"]: self.lr_pix})
+            bufs.update({"lr_ls": self.lr_ls, "lr_pix": self.lr_pix})
         uni = {"u_id_base": int(id_base), "u_budget": -1 if budget is None else int(budget),
                "u_shadows": self.shadows, "u_width": g.width,
                "u_lr_scale": (self.lr_size[0] / g.width, self.lr_size[1] / g.height),
@@ -255,7 +202,7 @@ class LightcutsFrame:
                     for s0 in range(0, cut_max, SHADE_SLICE):
                         self.run("lc_shade.comp", m, bufs, {**u, "u_s0": s0, "u_s1": s0 + SHADE_SLICE}, cut_max)
                     if low_res:
-                        self.run("lc_low_res.comp", m, {**bufs, BINDING["lr_ls"]: self.lr_ls}, u, cut_max)
+                        self.run("lc_low_res.comp", m, {**bufs, "lr_ls": self.lr_ls}, u, cut_max)
                 self.fr.drain_counters()  # each pass's counts, well below 32 bits
 
     def glossy(self, g: GBuffer, rspp: int | None, max_rspp: int, seed: int, lspp_bounce: int):
@@ -271,7 +218,7 @@ class LightcutsFrame:
                    "u_glossy_offset": float(glossy_offset(self.tree.tree))}
             before = self.fr.totals["glossy_rays"]
             for r0 in range(0, max_rspp, GLOSSY_CHUNK):
-                self.run("lc_glossy.comp", g.n, {**g.buffers, BINDING["gloss"]: gloss}, {**uni, "u_r0": r0,
+                self.run("lc_glossy.comp", g.n, {**g.buffers, "gloss": gloss}, {**uni, "u_r0": r0,
                                                                         "u_r1": r0 + GLOSSY_CHUNK},
                          _check_cut("lspp_bounce", lspp_bounce))
                 self.fr.drain_counters()
@@ -282,10 +229,10 @@ class LightcutsFrame:
     def finish(self, g: GBuffer, diffuse: np.ndarray, glossy, rays: int) -> np.ndarray:
         """Read back, compose (:func:`renderers.lightcuts.plugin.frame_output`), count and time the frame."""
         ctx = self.ctx
-        base = g.read(BINDING["g_base"])[:, :3]
-        glossy_mask = (g.read(BINDING["g_pos"])[:, 3] > 0) & (g.read(BINDING["g_nrm"])[:, 3] > 0)
+        base = g.read("g_base")[:, :3]
+        glossy_mask = (g.read("g_pos")[:, 3] > 0) & (g.read("g_nrm")[:, 3] > 0)
         img = LC.frame_output(ctx, base, diffuse, glossy, glossy_mask, rays)
-        ctx.extra["spp"] = g.read(BINDING["pix"], np.int32)[:, 1].astype(np.int64).reshape(ctx.height, ctx.width)
+        ctx.extra["spp"] = g.read("pix", np.int32)[:, 1].astype(np.int64).reshape(ctx.height, ctx.width)
         steps = self.fr.timer.seconds()
         totals = self.fr.close()
         c = ctx.tracer.counters
@@ -310,7 +257,7 @@ def _begin(ctx, name: str, cut: int):
 def _end(lc: LightcutsFrame, g: GBuffer, rspp: int | None, max_rspp: int, lspp_bounce: int = 1,
          passes: int = 1) -> np.ndarray:
     """The diffuse radiance (the mean of ``passes``), the glossy pass and the frame."""
-    diffuse = g.read(BINDING["rad"])[:, :3] / passes
+    diffuse = g.read("rad")[:, :3] / passes
     glossy, rays = lc.glossy(g, rspp, max_rspp, lc.ctx.params["seed"], lspp_bounce)
     return lc.finish(g, diffuse, glossy, rays)
 
@@ -347,7 +294,7 @@ def run_fsl(ctx):
         fpsm_controls(lc, g, low, check_reading(p["fpsm_reading"]), check_alpha(p["alpha"]), p["max_lspp"],
                       p["max_rspp"])
     lc.lightcuts(g, None, cut, p["seed"], multires=bool(p["multires"]))
-    reused = int(g.read(BINDING["pix"], np.int32)[:, 2].sum())
+    reused = int(g.read("pix", np.int32)[:, 2].sum())
     ctx.extra.update(fpsm=read_map(lc, g), reused=reused, fpsm_reading=p["fpsm_reading"])
     return _end(lc, g, None, p["max_rspp"])
 

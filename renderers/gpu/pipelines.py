@@ -13,7 +13,8 @@ import numpy as np
 
 from .. import pipeline as cpu
 from ..constants import LP_GAUSS_RADIUS, LP_GAUSS_SIGMA, LP_PAD_FXAA, LP_PAD_GAUSS
-from .frame import B_OUT, C, Frame
+from .bindings import UNIFORMS
+from .frame import C, Frame
 from .upload import camera_uniforms
 
 
@@ -61,11 +62,19 @@ def render_gt(fr: Frame, camera, width: int, height: int, spp: int = 1, pixel_fi
                                                             "u_slot_base": (n0 - s0) * width * spp}, defines)
         fr.shade_batch(origin, n, buf, n=n)
         with fr.timer("antialias"):
-            fr.run_pass("resolve", (y1 - y0) * width, {B_OUT: buf, 15: img},
+            fr.run_pass("resolve", (y1 - y0) * width, {"outbuf": buf, "img": img},
                    {"u_width": width, "u_y0": y0, "u_s0": s0, "u_s1": s1, "u_tent": int(halo)}, defines)
         prev_rows = s1 - s0 - 2 * halo
         fr.drain_counters()
     return img
+
+
+def _weights(w) -> tuple:
+    """Filter weights as the uniform array ``u_w`` (:data:`renderers.gpu.bindings.UNIFORMS`), zero-padded."""
+    size = int(UNIFORMS["u_w"].type.split("[")[1].rstrip("]"))
+    if len(w) > size:
+        raise ValueError(f"{len(w)} filter weights do not fit the shaders' u_w[{size}]")
+    return tuple(float(x) for x in w) + (0.0,) * (size - len(w))
 
 
 # -- the LP buffer -------------------------------------------------------------------------------------------------
@@ -104,13 +113,13 @@ class LPTables:
         cols = np.column_stack([r, layout.L / (2 * math.pi), layout.n, layout.L]).astype(np.float32)
         dev = fr.dev
         vafr = self.method == "vafr"
-        self.buffers = {11: dev.buffer(layout.P.astype(np.float32)),
-                        12: dev.buffer(np.ones(self.w) if vafr else r)}
-        self.images = {7: dev.float_texture("LP columns", cols),
-                       6: offsets if offsets is not None else self.offset_table(fr, layout)}
+        self.buffers = {"FP": dev.buffer(layout.P.astype(np.float32)),
+                        "col_scale": dev.buffer(np.ones(self.w) if vafr else r)}
+        self.images = {"t_cols": dev.float_texture("LP columns", cols),
+                       "t_offs": offsets if offsets is not None else self.offset_table(fr, layout)}
         self.use_table = hasattr(layout, "utab")
         if self.use_table:
-            self.buffers[13] = dev.buffer(np.column_stack([layout.utab, layout.exact]).astype(np.float32))
+            self.buffers["utab"] = dev.buffer(np.column_stack([layout.utab, layout.exact]).astype(np.float32))
             self.inv_step, self.kmax = float(layout.inv_step), int(layout.utab.size - 2)
 
     @staticmethod
@@ -141,9 +150,9 @@ class LPTables:
     def release(self, dev, keep_offsets: bool = False) -> None:
         for b in self.buffers.values():
             dev.release(b)
-        dev.release(self.images[7])
+        dev.release(self.images["t_cols"])
         if not keep_offsets:
-            dev.release(self.images[6])
+            dev.release(self.images["t_offs"])
 
 
 def lp_tables(fr: Frame, method: str, mapping_params: dict, geometry):
@@ -163,7 +172,7 @@ def lp_tables(fr: Frame, method: str, mapping_params: dict, geometry):
         if not vafr:  # keep only the latest gaze of a kernel method; its row vectors do not depend on the gaze
             for k in [k for k in tables if k[:5] == key[:5]]:
                 old = tables.pop(k)
-                offsets = old.images[6]
+                offsets = old.images["t_offs"]
                 old.release(fr.dev, keep_offsets=True)
         t = LPTables(fr, cpu.LPLayout(mapping, table=vafr), mapping, offsets)
         tables[key] = t
@@ -186,16 +195,16 @@ def render_lp(fr: Frame, tables: LPTables, camera, width: int, height: int, gaze
     fr.reset_counter("samples")
     with fr.timer("visibility"):
         if marks.size:
-            fr.run("lp_flags.comp", marks.size, {13: fr.upload("marks", marks), 14: flags})
-        fr.run("lp_mark.comp", w * h, {**fr.sample_buffers(tables.n_mask), **tables.buffers, 14: flags}, uni, out,
-               {**tables.images, 4: lp})
+            fr.run("lp_flags.comp", marks.size, {"marks": fr.upload("marks", marks), "flags": flags})
+        fr.run("lp_mark.comp", w * h, {**fr.sample_buffers(tables.n_mask), **tables.buffers, "flags": flags}, uni,
+               out, {**tables.images, "out_img": lp})
     if pipeline == "deferred":
         gbuf = fr.pool.get("gbuffer", 8 * width * height)
         with fr.timer("visibility"):
-            fr.run_pass("gbuffer", width * height, {15: gbuf}, {**cam, "u_origin": tuple(camera.position),
+            fr.run_pass("gbuffer", width * height, {"gbuf": gbuf}, {**cam, "u_origin": tuple(camera.position),
                                                                "u_width": width})
             fr.run_pass("gen_deferred", tables.n_mask, {**fr.sample_buffers(tables.n_mask), **tables.buffers,
-                                                       15: gbuf}, {**uni, "u_count_at": C["samples"]}, out,
+                                                       "gbuf": gbuf}, {**uni, "u_count_at": C["samples"]}, out,
                         tables.images)
     fr.shade_batch(camera.position, tables.n_mask, lp, count_at=C["samples"], traced=pipeline == "deferred",
                    uniforms={"u_out_w": w}, defines=out)
@@ -214,32 +223,33 @@ def finish_lp(fr: Frame, tables: LPTables, lp, params: dict, width: int, height:
     src = lp
     with fr.timer("antialias"):
         if lp_aa:
-            fr.run("fill_rows.comp", h, {14: fr.pool.get("flags", 4 * w * h)}, {"u_lp_w": w}, images={4: lp})
+            fr.run("fill_rows.comp", h, {"flags": fr.pool.get("flags", 4 * w * h)}, {"u_lp_w": w}, images={"lp": lp})
             src = fr.pool.image("lp2", (w, h))
             if vafr:
                 luma = fr.pool.image("luma", (w, h), 1)
                 fr.run("lp_luma.comp", w * h, None, {"u_lp_w": w, "u_exposure": float(exposure)},
-                       images={4: lp, 6: luma})
+                       images={"src": lp, "luma": luma})
                 fr.run("fxaa.comp", w * h, tables.buffers,
                        {**uni, "u_subpix": 0.75, "u_edge_threshold": 0.166, "u_edge_threshold_min": 0.0833},
-                       {"PAD": LP_PAD_FXAA}, {**tables.images, 4: lp, 6: luma, 5: src})
+                       {"PAD": LP_PAD_FXAA}, {**tables.images, "src": lp, "luma": luma, "dst": src})
             else:
                 fr.run("gauss3.comp", w * h, tables.buffers,
-                       {**uni, "u_w": tuple(float(x) for x in AA._gauss1d(LP_GAUSS_SIGMA, LP_GAUSS_RADIUS))},
+                       {**uni, "u_w": _weights(AA._gauss1d(LP_GAUSS_SIGMA, LP_GAUSS_RADIUS))},
                        {"PAD": LP_PAD_GAUSS},
-                       {**tables.images, 4: lp, 5: src})
+                       {**tables.images, "src": lp, "dst": src})
     img = fr.pool.get("image", 12 * width * height)
     post = lp_aa and not vafr
     mid = fr.pool.image("screen", (width, height)) if post else img
     with fr.timer("inverse_map"):
-        fr.run("inverse_map.comp", width * height, {**tables.buffers, **({} if post else {15: mid})}, uni,
-               {**tables.defines(), "OUT_IMAGE": int(post)}, {**tables.images, 4: src, **({5: mid} if post else {})})
+        fr.run("inverse_map.comp", width * height, {**tables.buffers, **({} if post else {"dst_buf": mid})}, uni,
+               {**tables.defines(), "OUT_IMAGE": int(post)},
+               {**tables.images, "src": src, **({"dst_img": mid} if post else {})})
     if post:
         with fr.timer("antialias"):
-            fr.run("foveal.comp", width * height, {15: img},
+            fr.run("foveal.comp", width * height, {"dst_buf": img},
                    {**uni, "u_c_r": tables.c_r, "u_edges": tuple(float(e) for e in AA.FOVEAL_BANDS_DEG),
-                    "u_radii": tuple(AA.FOVEAL_RADII), "u_w": tuple(float(x) for x in AA.FOVEAL_WEIGHTS)},
-                   {"OUT_IMAGE": 0}, {4: mid})
+                    "u_radii": tuple(AA.FOVEAL_RADII), "u_w": _weights(AA.FOVEAL_WEIGHTS)},
+                   {"OUT_IMAGE": 0}, {"src": mid})
     return img
 
 
@@ -260,14 +270,14 @@ def reproject(fr: Frame, tables: LPTables, left_lp, left, right, width: int, hei
     covered.clear()
     winner = fr.pool.get("winner", 4 * w * h)
     winner.clear()
-    rep = {0: fr.pool.get("warp", 16 * w * h), 1: zbuf, 2: covered, 3: ztri, 14: fr.pool.get("flags", 4 * w * h),
-           15: winner, **tables.buffers}
+    rep = {"warp": fr.pool.get("warp", 16 * w * h), "zbuf": zbuf, "covered": covered, "ztri": ztri,
+           "flags": fr.pool.get("flags", 4 * w * h), "winner": winner, **tables.buffers}
     cam = camera_uniforms(right, width, height)
     uni = {**tables.uniforms(gaze), **cam, "u_left_pos": tuple(left.position), "u_right_pos": tuple(right.position),
            "u_out_w": w,
            "u_max_ratio": cpu.GRID_WARP_MAX_DEPTH_RATIO, "u_max_extent": cpu.GRID_WARP_MAX_EXTENT,
            "u_splat_margin": cpu.GRID_WARP_SPLAT_MARGIN}
-    images = {**tables.images, 5: left_lp, 4: right_lp}
+    images = {**tables.images, "left_lp": left_lp, "right_lp": right_lp}
     fr.reset_counter("holes")
     with fr.timer("shading"):
         fr.run("rep_project.comp", tables.n_mask, {**fr.sample_buffers(tables.n_mask), **rep},
@@ -278,7 +288,8 @@ def reproject(fr: Frame, tables: LPTables, left_lp, left, right, width: int, hei
                 fr.run("rep_warp.comp", quads, rep, uni, {"PHASE": phase}, images)
         for phase in (1, 2):
             fr.run("rep_splat.comp", w * h, rep, uni, {"PHASE": phase}, images)
-        fr.run("rep_holes.comp", w * h, {**fr.sample_buffers(tables.n_mask), **rep}, uni, {"OUT_IMAGE": 1}, images)
+        fr.run("rep_holes.comp", w * h, {**fr.sample_buffers(tables.n_mask), **rep}, uni, {"OUT_IMAGE": 1},
+               {**images, "out_img": right_lp})
     fr.shade_batch(right.position, tables.n_mask, right_lp, count_at=C["holes"], uniforms={"u_out_w": w},
                    defines={"OUT_IMAGE": 1})
     return right_lp

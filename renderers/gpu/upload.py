@@ -16,6 +16,7 @@ import numpy as np
 from ..projection import tan_half_fov
 from ..tracer import Counters, pack_scene
 from . import bvh as B
+from .bindings import image_unit
 from .context import TEX_WIDTH, WAY_OUT, Device, get_device
 
 #: The built-in GPU renderers keep the per-light contributions of a point in registers: scenes with more lights
@@ -124,8 +125,8 @@ class DeviceScene:
                             f"fsl, sl_*, sl_gt sample a light tree): {WAY_OUT}")
 
     def bind_scene(self) -> None:
-        for unit, tex in enumerate(self.upload.textures):
-            tex.bind_to_image(unit, read=True, write=False)
+        for name, tex in zip(("t_nodes", "t_tris", "t_mats", "t_lights"), self.upload.textures):
+            tex.bind_to_image(image_unit(name), read=True, write=False)
 
     def scene_uniforms(self) -> dict:
         return {"u_ambient": self.upload.ambient, "u_background": self.upload.background,

@@ -2,11 +2,7 @@
 // (projection_gen.glsl), in float64 with the CPU's order of operations, rounded to float32 once at the end (as the
 // CPU's float64 rays are for Embree), so that both backends trace the same float32 rays.
 #include "projection_gen.glsl"
-uniform dvec3 u_cam_f;
-uniform dvec3 u_cam_r;
-uniform dvec3 u_cam_u;
-uniform double u_tan;
-uniform vec2 u_screen;   // W, H
+#include "camera_decl_gen.glsl"
 
 vec3 camera_ray_d(dvec2 xy) {
     dvec2 s = proj_plane_offsets(xy.x, xy.y, double(u_screen.x), double(u_screen.y), u_tan);

@@ -1,9 +1,6 @@
 // Shared by every compute shader: the 1-D invocation index and the per-workgroup counter reduction.
 // COUNTERS (the number of counters) and the C_* indices are defined by the host (renderers/gpu/frame.py).
-uniform int u_groups_x;
-uniform int u_group_rows;
-uniform int u_stripes;
-uniform int u_n;
+#include "common_decl_gen.glsl"
 
 // Workgroup g (in dispatch order) takes block (g % rows) * stripes + g / rows of the problem's blocks of
 // gl_WorkGroupSize.x invocations, the host dispatching rows * stripes groups (renderers/gpu/context.py STRIPES):
@@ -18,7 +15,7 @@ uint gid() {
 }
 
 #ifdef COUNTERS
-layout(std430, binding = 5) buffer Counters { uint counters[]; };
+#include "counters_decl_gen.glsl"
 // Counts add up in shared memory and reach the global buffer once per workgroup: millions of atomics on one
 // address would serialise on a GPU. Call cnt_begin() and cnt_end() in uniform control flow (no early return).
 shared uint s_cnt[COUNTERS];
@@ -34,7 +31,6 @@ void cnt_add(int k, uint v) {
 // past that point is silently wrong. The host sets u_loop_probe to 2 (renderers/gpu/context.py): this loop then
 // runs twice unless the limit was reached, which C_LOOP_LIMIT counts and the host refuses (frame.py). GPUs have
 // no such limit; there the check costs two iterations.
-uniform int u_loop_probe;
 void cnt_end() {
     int probe = 0;
     for (int q = 0; q < u_loop_probe; q++) probe++;

@@ -1,8 +1,7 @@
 // renderers/pipeline.py fill_unshaded: lp_fill_row (generated from renderers/_lp.py fill_row) on each LP row.
 #include "common.glsl"
-layout(binding = 4, rgba32f) uniform restrict image2D lp;
-layout(std430, binding = 14) readonly buffer Flags { uint flags[]; };
-uniform int u_lp_w;
+#include "filters_decl_gen.glsl"
+#include "flags_decl_gen.glsl"
 #include "lp_fill_gen.glsl"
 
 void main() {

@@ -2,13 +2,7 @@
 // with the band of the eccentricity e = atan(c_r r) (seed 001 Eq 3) and the CPU's weights (FOVEAL_WEIGHTS).
 #include "common.glsl"
 #include "screen_out.glsl"
-layout(binding = 4, rgba32f) uniform restrict readonly image2D src;
-uniform int u_height;
-uniform vec2 u_gaze;
-uniform float u_c_r;
-uniform float u_edges[3];
-uniform int u_radii[4];
-uniform float u_w[33];
+#include "filters_decl_gen.glsl"
 #define px_at(y, x) imageLoad(src, ivec2(x, y))
 #include "gauss_gen.glsl"
 #include "foveal_gen.glsl"

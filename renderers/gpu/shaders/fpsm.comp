@@ -4,16 +4,7 @@
 // 5 rho (READING 0 derived, 1 blur; 2 retained: the map), 6 controls (READING 3: the AFSM, fb_st).
 #include "common.glsl"
 #include "lc_buffers.glsl"
-layout(std430, binding = 14) buffer FpPix { vec4 fp_px[]; };   // luminance of fb' upsampled | fb_st | fb_l | rho
-layout(std430, binding = 15) buffer FpLow { float fp_low[]; }; // bicubic coefficients | pyramid levels 1, 2
-uniform int u_width, u_height;
-uniform ivec2 u_coef, u_g1, u_g2;   // sizes of the coefficients (fb' padded), pyramid levels 1 and 2 in fp_low
-uniform int u_g1_at, u_g2_at;       // their offsets (the coefficients' is 0)
-uniform vec2 u_scale, u_range;      // (w' / w, h' / h); fb''s luminance range, clipped at 0
-uniform vec2 u_gaze;
-uniform float u_c_r, u_eps, u_alpha;
-uniform int u_moving, u_max_lspp, u_max_rspp;
-uniform mat4 u_vp, u_vp_prev;       // world -> clip of this frame's camera and of the previous one
+#include "fpsm_decl_gen.glsl"
 const int RHO_LO = 6, RHO_HI = 7;   // keys of the smallest and largest finite rho after the G-buffer's bounds
 
 // fpsm.blur5's img[c, k]: fb' upsampled (level 0), level 1, or fb_st | fb_l.

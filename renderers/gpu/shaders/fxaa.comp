@@ -3,10 +3,6 @@
 #include "common.glsl"
 #include "lp_cols.glsl"
 #include "lp_pad.glsl"
-layout(binding = 6, r32f) uniform restrict readonly image2D luma;
-uniform double u_subpix;
-uniform double u_edge_threshold;
-uniform double u_edge_threshold_min;
 
 // The CPU's FXAA image (padded rows, channels r, g, b, luma) and its size, read by the generated kernel.
 float aa_img(int y, int x, int ch);

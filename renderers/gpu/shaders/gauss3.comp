@@ -4,7 +4,6 @@
 #include "constants_gen.glsl"
 #include "lp_cols.glsl"
 #include "lp_pad.glsl"
-uniform float u_w[2 * LP_GAUSS_RADIUS + 1];
 #define px_at(y, x) imageLoad(src, pad_texel(x, y))
 #include "gauss_gen.glsl"
 

@@ -3,7 +3,7 @@
 #include "lp_cols.glsl"
 #include "lp_map.glsl"
 #include "screen_out.glsl"
-layout(binding = 4, rgba32f) uniform restrict readonly image2D src;
+#include "filters_decl_gen.glsl"
 #include "lp_inverse_gen.glsl"
 
 void main() {

@@ -1,8 +1,7 @@
-// Storage buffers of the lightcuts passes (generated from the table renderers/gpu/lightcuts.py:BUFFERS).
+// Storage buffers of the lightcuts passes (generated from the table renderers/gpu/lightcuts.py:BUFFERS) and their
+// uniforms (renderers/gpu/bindings.py FAMILIES["lightcuts"]).
 #include "lc_buffers_gen.glsl"
-uniform int u_first;       // first pixel of the tile
-uniform uvec2 u_seed;      // random stream (64 bits: lo, hi)
-uniform uint u_id_base;    // pixel ids of this pass start here (the low-resolution pass: after the frame's)
+#include "lightcuts_decl_gen.glsl"
 
 // Ordered bits of a float: a < b iff key(a) < key(b) (for atomicMin / atomicMax).
 uint float_key(float f) {

@@ -7,10 +7,6 @@
 #include "scene.glsl"
 #include "camera.glsl"
 #include "lc_buffers.glsl"
-uniform vec3 u_origin;
-uniform int u_width;
-uniform dvec2 u_step;
-uniform int u_full;
 shared uint s_lo[3];
 shared uint s_hi[3];
 

@@ -11,15 +11,6 @@
 #include "lightcuts.glsl"
 #include "lc_buffers.glsl"
 #include "glossy_gen.glsl"
-uniform int u_width;
-uniform vec3 u_origin;
-uniform int u_rspp;
-uniform int u_r0;
-uniform int u_r1;
-uniform uvec2 u_bounce_seed;
-uniform int u_bounce_lspp;
-uniform int u_shadows;
-uniform float u_glossy_offset;
 // A bounce's point (the ray's hit), id, cut size and samples, read by the CPU's pixel kernels cut_pixel,
 // sample_pixel and shade_pixel (lc_bounce_gen.glsl); lcb_blocked(s) is shade_pixel's shadow ray of sample s.
 vec3 bn_p, bn_n, bn_a;

@@ -3,7 +3,6 @@
 #include "common.glsl"
 #include "scene.glsl"
 #include "lightcuts.glsl"
-uniform int u_width;       // of the frame
 
 void main() {
     cnt_begin();

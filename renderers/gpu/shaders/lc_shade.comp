@@ -6,10 +6,6 @@
 #include "common.glsl"
 #include "scene.glsl"
 #include "lightcuts.glsl"
-uniform int u_shadows;
-uniform int u_accumulate;
-uniform int u_s0;
-uniform int u_s1;
 uint rays = 0u;
 float offset;
 

@@ -3,10 +3,6 @@
 // and multires.py (lightcuts_gen.glsl), with the CPU's random numbers. Needs scene.glsl (fetchf, trace).
 #include "lc_buffers.glsl"
 #include "lc_tree_gen.glsl"
-uniform int u_budget;      // lc_cut.comp: the cut size of every pixel, or -1: each pixel's ctl.x
-uniform dvec2 u_lr_scale;  // lc_select.comp: (w' / w, h' / h) and the size of the low-resolution image
-uniform int u_lr_width;
-uniform int u_lr_height;
 
 // lc_refine_cut's cut (CUT_MAX node ids, sorted by heap offset) and scratch.
 int lc_cut[CUT_MAX];

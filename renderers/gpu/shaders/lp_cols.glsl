@@ -1,12 +1,8 @@
 // The LP buffer's columns (renderers/pipeline.py LPLayout): per column c the screen distance of its centre
 // from the gaze r(c + 0.5) (the mapping's inverse, evaluated by the CPU code), L[c] / 2 pi, the row count n[c]
 // and the angular period L[c] (seed 001 Eq 8-9: row j is the angle 2 pi (j + 0.5) / L[c]).
-layout(binding = 7, rgba32f) uniform restrict readonly image2D t_cols;   // TEX_WIDTH columns per row
+#include "lp_decl_gen.glsl"
 #define cols(c) imageLoad(t_cols, ivec2((c) % TEX_WIDTH, (c) / TEX_WIDTH))
-uniform vec2 u_gaze;
-uniform int u_lp_w;
-uniform int u_lp_h;
-uniform int u_w_eff;
 
 int col_n(int c) { return int(cols(c).z); }
 
@@ -15,9 +11,6 @@ int col_n(int c) { return int(cols(c).z); }
 // kernels give t_offs (VaFR: the offset itself, scale 1; LMFR/LaFR: the row's (cos, sin), scale r(i + 0.5)),
 // then the gaze is added. Only then is it rounded to float32, so that the display test agrees with the CPU's to
 // the last bit (a float32 position is 1e-4 px off at 2000 px: enough to flip a pixel at the display's edge).
-layout(binding = 6, rgba32ui) uniform restrict readonly uimage2D t_offs;       // two doubles per LP pixel
-layout(std430, binding = 12) readonly buffer ColScale { double col_scale[]; };
-uniform dvec2 u_gaze_d;
 
 dvec2 lp_position_d(int i, int j) {
     uvec4 q = imageLoad(t_offs, ivec2(i, j));

@@ -1,9 +1,9 @@
 // Set flag bit 2 on the LP pixels of a list (the border footprint the CPU marks per gaze).
 #include "common.glsl"
-layout(std430, binding = 13) readonly buffer List { int list[]; };
-layout(std430, binding = 14) buffer Flags { uint flags[]; };
+#include "marks_decl_gen.glsl"
+#include "flags_decl_gen.glsl"
 
 void main() {
     uint i = gid();
-    if (i < uint(u_n)) flags[list[i]] |= 2u;
+    if (i < uint(u_n)) flags[marks[i]] |= 2u;
 }

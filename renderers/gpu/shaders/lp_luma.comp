@@ -2,10 +2,7 @@
 #include "common.glsl"
 #include "constants_gen.glsl"
 #include "luma_gen.glsl"
-layout(binding = 4, rgba32f) uniform restrict readonly image2D src;
-layout(binding = 6, r32f) uniform restrict writeonly image2D luma;
-uniform int u_lp_w;
-uniform float u_exposure;
+#include "filters_decl_gen.glsl"
 
 void main() {
     uint i = gid();

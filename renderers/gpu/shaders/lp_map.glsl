@@ -1,17 +1,14 @@
 // The forward mapping (screen -> LP column u) of the method METHOD: lp_table_u, generated from renderers/_lp.py
 // (the CPU's u(r) table, USE_TABLE, else the kernel fov_point with the CPU's parameter vector P = FP).
-layout(std430, binding = 11) readonly buffer FovParams { float FP[]; };
+#include "lp_map_decl_gen.glsl"
 #include "foveation_gen.glsl"
 #if USE_TABLE
-layout(std430, binding = 13) readonly buffer UTab { vec2 utab[]; };   // u(k / step), exact-kernel flag
 #define lp_utab(k) utab[k].x
 #define lp_exact(k) int(utab[k].y)
 #else
 #define lp_utab(k) 0.0
 #define lp_exact(k) 1
 #endif
-uniform float u_inv_step;
-uniform int u_kmax;
 #include "lp_u_gen.glsl"
 float lp_u(float dx, float dy) { return lp_table_u(dx, dy); }
 

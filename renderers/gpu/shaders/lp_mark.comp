@@ -6,7 +6,7 @@
 #include "camera.glsl"
 #include "samples.glsl"
 #include "lp_cols.glsl"
-layout(std430, binding = 14) buffer Flags { uint flags[]; };
+#include "flags_decl_gen.glsl"
 #include "lp_needed_gen.glsl"
 
 void main() {

@@ -1,8 +1,7 @@
 // The LP buffer as renderers/antialias.py lp_filter sees it: rows continued around the angular seam by PAD
 // rows on each side (renderers/_lp.py wrap_pad: padded row y of column c is LP row (y - PAD) mod n[c]), and
 // clamped at the padded buffer's edges like the CPU filters' edge handling.
-layout(binding = 4, rgba32f) uniform restrict readonly image2D src;
-layout(binding = 5, rgba32f) uniform restrict writeonly image2D dst;
+#include "filters_decl_gen.glsl"
 
 // LP texel of padded row y (clamped to [0, h + 2 PAD)), column c (clamped to [0, w)).
 ivec2 pad_texel(int c, int y) {

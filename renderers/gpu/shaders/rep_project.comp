@@ -8,8 +8,6 @@
 #include "lp_map.glsl"
 #include "rep.glsl"
 #include "camera.glsl"
-uniform vec3 u_left_pos;
-uniform vec3 u_right_pos;
 
 void main() {
     cnt_begin();

@@ -3,10 +3,6 @@
 // largest sample index among equal depths), PHASE 2 writes the winner's colour.
 #include "common.glsl"
 #include "rep.glsl"
-layout(binding = 5, rgba32f) uniform restrict readonly image2D left_lp;
-layout(binding = 4, rgba32f) uniform restrict writeonly image2D right_lp;
-uniform int u_lp_w;
-uniform int u_lp_h;
 
 void main() {
     uint idx = gid();

@@ -7,10 +7,6 @@
 #include "common.glsl"
 #include "lp_cols.glsl"
 #include "rep.glsl"
-layout(binding = 5, rgba32f) uniform restrict readonly image2D left_lp;
-layout(binding = 4, rgba32f) uniform restrict writeonly image2D right_lp;
-uniform float u_max_ratio;
-uniform float u_max_extent;
 
 vec3 left_col(int k) { return imageLoad(left_lp, ivec2(k % u_lp_w, k / u_lp_w)).xyz; }
 

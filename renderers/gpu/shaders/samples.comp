@@ -16,13 +16,7 @@
 #include "scene.glsl"
 #include "camera.glsl"
 #include "samples.glsl"
-uniform int u_width, u_y0, u_slot_base, u_s0, u_s1, u_tent;
-uniform float u_offset, u_far;
-#if PASS == RESOLVE
-layout(std430, binding = 15) writeonly buffer Img { float img[]; };   // 3 floats per pixel
-#else
-layout(std430, binding = 15) buffer GBuf { vec2 gbuf[]; };            // triangle (int bits; -1: miss) | t
-#endif
+#include "passes_decl_gen.glsl"
 #if PASS == GEN_DEFERRED
 #include "lp_cols.glsl"
 #elif PASS == SHADE

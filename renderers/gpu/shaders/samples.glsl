@@ -1,21 +1,12 @@
 // A batch of samples: one ray each from u_origin, traced, shaded, shadow-tested and written to its output slot
 // (samples.comp). The batch size is u_n, or the value of counter u_count_at when the batch was built on the GPU
 // (lp_mark.comp, rep_holes.comp).
-layout(std430, binding = 6) buffer Samples { vec4 samples[]; };   // direction | output slot (int bits)
-layout(std430, binding = 7) buffer Hits { vec2 hits[]; };         // triangle (int bits; -1: miss) | t
-layout(std430, binding = 8) buffer Masks { uint masks[]; };       // MASK_WORDS per sample: lights to test
-layout(std430, binding = 9) buffer Partial { vec4 partial[]; };   // radiance without the shadowed lights
+#include "samples_decl_gen.glsl"
 #if OUT_IMAGE
-// Output slot k is texel (k mod u_out_w, k / u_out_w) of an RGBA32F image (the LP buffer).
-layout(binding = 4, rgba32f) uniform restrict writeonly image2D out_img;
-uniform int u_out_w;
 void store_out(int k, vec3 c) { imageStore(out_img, ivec2(k % u_out_w, k / u_out_w), vec4(c, 0.0)); }
 #else
-layout(std430, binding = 10) buffer Out { float outbuf[]; };      // 3 floats per output slot
 void store_out(int k, vec3 c) { outbuf[3 * k] = c.x; outbuf[3 * k + 1] = c.y; outbuf[3 * k + 2] = c.z; }
 #endif
-uniform vec3 u_origin;
-uniform int u_count_at;
 
 uint sample_count() {
     return u_count_at >= 0 ? counters[u_count_at] : uint(u_n);

@@ -6,10 +6,7 @@
 // Scene tables live in RGBA32UI images, TEX_WIDTH texels per row, read with imageLoad: on llvmpipe that is
 // ~10x faster than a storage-buffer load (and ~2x a texelFetch). Floats are stored as their bits (no
 // denormal flushing of the integer fields). Image units 0-3; LP passes use 4-6 (8 is OpenGL 4.3's minimum).
-layout(binding = 0, rgba32ui) uniform restrict readonly uimage2D t_nodes;   // 2 per node (bvh.py)
-layout(binding = 1, rgba32ui) uniform restrict readonly uimage2D t_tris;    // v0|prim, e1|material, e2|0
-layout(binding = 2, rgba32ui) uniform restrict readonly uimage2D t_mats;    // 4 per material (see Surf below)
-layout(binding = 3, rgba32ui) uniform restrict readonly uimage2D t_lights;  // pos|kind, int.|cast, dir|0
+#include "scene_decl_gen.glsl"
 #define fetch(t, k) imageLoad(t, ivec2((k) % TEX_WIDTH, (k) / TEX_WIDTH))
 #define fetchf(t, k) uintBitsToFloat(fetch(t, k))
 
@@ -96,9 +93,6 @@ int trace(vec3 o, vec3 d, float tmax, bool any_hit, out float t_hit) {
 }
 
 // -- shading: the data plumbing around the kernels generated from renderers/_shade.py (shade_gen.glsl) --------
-uniform vec3 u_ambient;
-uniform vec3 u_background;
-uniform float u_light_cull;
 
 struct Surf {
     vec3 p, n, v, a, ks, base;
