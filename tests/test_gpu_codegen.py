@@ -455,3 +455,26 @@ def test_generated_camera_rays_are_the_cpus_to_the_bit():
         got = _run(dev, src, xy, 3)
         want = camera_rays(cam, w, h, xy[:, 0], xy[:, 1]).astype(np.float32)
         assert np.array_equal(got.astype(np.float32), want)
+
+
+def test_integer_remainder_keeps_pythons_sign(tmp_path):
+    """``a % b`` of ints is Python's (the divisor's sign) on the GPU too: GLSL leaves ``%`` of negative operands
+    undefined (the wrapped LP rows, the warp's rows and the GT strata go through it)."""
+    from renderers.gpu.context import get_device
+
+    path = tmp_path / "imod_kernels.py"
+    path.write_text("def rem(a, b):\n    r = a % b\n    r %= b\n    return r\n")
+    spec = importlib.util.spec_from_file_location("imod_kernels", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    tr = codegen.Translator(mod, "t_")
+    tr.infer(["rem"], {"rem": {"a": "int", "b": "int"}})
+    glsl = tr.emit(["rem"], helpers=False)
+    assert glsl.count("int py_imod(int a, int b)") == 1 and "%" not in glsl.split("#endif")[1]
+    src = _HEAD.replace('#include "shade_gen.glsl"', glsl) + """void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i < uint(u_n)) r[i] = double(t_rem(int(v[2u * i]), int(v[2u * i + 1u])));
+}"""
+    pairs = np.array([(a, b) for a in range(-9, 10) for b in (-7, -3, -1, 1, 2, 5)], dtype=np.float64)
+    got = _run(get_device(), src, pairs, 1)[:, 0]
+    assert np.array_equal(got, [(int(a) % int(b)) % int(b) for a, b in pairs])

@@ -392,9 +392,10 @@ class Translator:
             else:
                 out.append(f"const float {self.const_name(k)} = {_flt(v)};")
         out.append("")
-        for name in names:
-            out.append(self.emit_fn(self.fns[name]))
-        return "\n".join(out) + "\n"
+        body = [self.emit_fn(self.fns[name]) for name in names]
+        if any("py_imod(" in f for f in body):   # once per shader, whichever generated file comes first
+            out.insert(len(out) - 1, _IMOD_HELPER)
+        return "\n".join(out + body) + "\n"
 
     def emit_fn(self, fn: _Fn) -> str:
         for name in [*(p for p in fn.params if p not in self.bindings), *fn.var_types]:
@@ -452,7 +453,7 @@ class Translator:
                 return [f"{pad}{self.expr(fn, target)} = {self.cast(fn, value, self.etype(fn, target))};"]
             return [f"{pad}{target.id} = {self.cast(fn, value, self.vtype(fn, target.id))};"]
         if isinstance(st, ast.AugAssign):
-            if self.vtype(fn, st.target.id) in ("i64", "u64"):   # x op= y on (lo, hi) halves: x = x op y
+            if self.vtype(fn, st.target.id) in ("i64", "u64") or isinstance(st.op, ast.Mod):   # x = x op y
                 binop = ast.BinOp(left=ast.Name(id=st.target.id, ctx=ast.Load()), op=st.op, right=st.value)
                 return [f"{pad}{st.target.id} = {self.expr(fn, binop)};"]
             op = _BINOPS[type(st.op)]
@@ -605,6 +606,8 @@ class Translator:
                 return self.u32_op(fn, e, wrapped=False)
             if isinstance(e.op, ast.FloorDiv) and self.etype(fn, e) == "int":   # Python floors; exact in double
                 return f"int(floor(double({a}) / double({b})))"
+            if isinstance(e.op, ast.Mod) and self.etype(fn, e.left) == self.etype(fn, e.right) == "int":
+                return f"py_imod({a}, {b})"   # Python's sign (of the divisor); GLSL's % is undefined below 0
             if isinstance(e.op, ast.Mod) and "float" in (self.etype(fn, e.left), self.etype(fn, e.right)):
                 return f"mod({self.cast(fn, e.left, 'float')}, {self.cast(fn, e.right, 'float')})"  # Python's sign
             if isinstance(e.op, ast.Pow):
@@ -814,6 +817,17 @@ uvec2 u64_shr(uvec2 a, int s) {    // logical shift right, 0 < s < 32
 }
 double u64_to_double(uvec2 a) { return double(a.y) * 4294967296.0LF + double(a.x); }   // exact below 2^53
 """
+
+
+#: Python's integer ``%`` (the result has the divisor's sign; GLSL leaves ``%`` of negative operands undefined).
+_IMOD_HELPER = """#ifndef PY_IMOD
+#define PY_IMOD
+int py_imod(int a, int b) {
+    int r = abs(a) % abs(b);
+    r = a < 0 ? -r : r;
+    return (r != 0 && (r < 0) != (b < 0)) ? r + b : r;
+}
+#endif"""
 
 
 def _const_int(e) -> int | None:

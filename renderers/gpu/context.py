@@ -307,73 +307,30 @@ def _glsl_value(v) -> str:
 
 
 def generated_source(fname: str) -> str | None:
-    """GLSL generated from the CPU code (see :mod:`.codegen`), or None for a file in ``shaders/``."""
-    if fname == "foveation_gen.glsl":
-        from .codegen import foveation_glsl
+    """GLSL generated from the CPU code (:mod:`.codegen`) and from the resource tables (:mod:`.bindings`), or None
+    for a file in ``shaders/``. This table is the one list of the generated files (docs/gpu.md describes them)."""
+    from functools import partial
 
-        return foveation_glsl()
-    if fname == "fpsm_gen.glsl":
-        from .codegen import fpsm_glsl
+    from . import bindings, codegen
 
-        return fpsm_glsl()
-    if fname == "fxaa_gen.glsl":
-        from .codegen import fxaa_glsl
-
-        return fxaa_glsl()
-    if fname == "warp_gen.glsl":
-        from .codegen import warp_glsl
-
-        return warp_glsl()
-    if fname == "projection_gen.glsl":
-        from .codegen import projection_glsl
-
-        return projection_glsl()
-    if fname == "int64_gen.glsl":
-        from .codegen import int64_glsl
-
-        return int64_glsl()
-    if fname in ("lightcuts_gen.glsl", "lc_shade_gen.glsl", "lc_bounce_gen.glsl"):
-        from .codegen import lightcuts_bounce_glsl, lightcuts_glsl, lightcuts_shade_glsl
-
-        return {"lightcuts_gen.glsl": lightcuts_glsl, "lc_shade_gen.glsl": lightcuts_shade_glsl,
-                "lc_bounce_gen.glsl": lightcuts_bounce_glsl}[fname]()
-    if fname in ("lc_buffers_gen.glsl", "lc_tree_gen.glsl"):
-        from .bindings import lc_buffers_glsl, tree_glsl
-
-        return lc_buffers_glsl() if fname == "lc_buffers_gen.glsl" else tree_glsl()
-    if fname == "shade_gen.glsl":
-        from .codegen import shade_glsl
-
-        return shade_glsl()
-    if fname == "glossy_gen.glsl":
-        from .codegen import glossy_glsl
-
-        return glossy_glsl()
-    if fname in ("lights_gen.glsl", "light_loop_gen.glsl"):
-        from .codegen import lights_glsl
-
-        return lights_glsl(roots="GLSL_LIGHT_ROOTS" if fname == "lights_gen.glsl" else "GLSL_POINT_ROOTS")
-    if fname in ("lp_u_gen.glsl", "lp_inverse_gen.glsl", "lp_fill_gen.glsl", "lp_needed_gen.glsl"):
-        from .codegen import lp_glsl
-
-        return lp_glsl(fname[3:-9])
-    if fname == "gt_gen.glsl":
-        from .codegen import gt_glsl
-
-        return gt_glsl()
-    if fname in ("gauss_gen.glsl", "foveal_gen.glsl", "luma_gen.glsl"):
-        from .codegen import antialias_glsl
-
-        return antialias_glsl(fname[:-9])
-    if fname.endswith("_decl_gen.glsl"):
-        from .bindings import FAMILIES, decl_glsl
-
-        return decl_glsl(fname[:-len("_decl_gen.glsl")]) if fname[:-len("_decl_gen.glsl")] in FAMILIES else None
-    if fname == "constants_gen.glsl":
-        from .codegen import constants_glsl
-
-        return constants_glsl()
-    return None
+    makers = {
+        "constants_gen.glsl": codegen.constants_glsl, "int64_gen.glsl": codegen.int64_glsl,
+        "foveation_gen.glsl": codegen.foveation_glsl, "projection_gen.glsl": codegen.projection_glsl,
+        "shade_gen.glsl": codegen.shade_glsl, "lights_gen.glsl": partial(codegen.lights_glsl, roots="GLSL_LIGHT_ROOTS"),
+        "light_loop_gen.glsl": partial(codegen.lights_glsl, roots="GLSL_POINT_ROOTS"), "gt_gen.glsl": codegen.gt_glsl,
+        "lp_u_gen.glsl": partial(codegen.lp_glsl, "u"), "lp_inverse_gen.glsl": partial(codegen.lp_glsl, "inverse"),
+        "lp_fill_gen.glsl": partial(codegen.lp_glsl, "fill"), "lp_needed_gen.glsl": partial(codegen.lp_glsl, "needed"),
+        "gauss_gen.glsl": partial(codegen.antialias_glsl, "gauss"),
+        "foveal_gen.glsl": partial(codegen.antialias_glsl, "foveal"),
+        "luma_gen.glsl": partial(codegen.antialias_glsl, "luma"), "fxaa_gen.glsl": codegen.fxaa_glsl,
+        "warp_gen.glsl": codegen.warp_glsl, "lightcuts_gen.glsl": codegen.lightcuts_glsl,
+        "lc_shade_gen.glsl": codegen.lightcuts_shade_glsl, "lc_bounce_gen.glsl": codegen.lightcuts_bounce_glsl,
+        "glossy_gen.glsl": codegen.glossy_glsl, "fpsm_gen.glsl": codegen.fpsm_glsl,
+        "lc_buffers_gen.glsl": bindings.lc_buffers_glsl, "lc_tree_gen.glsl": bindings.tree_glsl,
+        **{f"{family}_decl_gen.glsl": partial(bindings.decl_glsl, family) for family in bindings.FAMILIES},
+    }
+    make = makers.get(fname)
+    return None if make is None else make()
 
 
 def get_device() -> Device:
