@@ -478,3 +478,17 @@ def test_integer_remainder_keeps_pythons_sign(tmp_path):
     pairs = np.array([(a, b) for a in range(-9, 10) for b in (-7, -3, -1, 1, 2, 5)], dtype=np.float64)
     got = _run(get_device(), src, pairs, 1)[:, 0]
     assert np.array_equal(got, [(int(a) % int(b)) % int(b) for a, b in pairs])
+
+
+def test_hand_maintained_glsl_is_at_most_half():
+    """Issue 29: the hand-maintained GLSL (shaders/*.glsl, *.comp) stays at most half of the 2,136 lines it was
+    before the per-pixel physics was generated (docs/gpu.md lists what is generated and what is not); every file
+    that the shaders include and that is not in shaders/ is generated."""
+    from renderers.gpu.context import SHADER_DIR, generated_source
+
+    files = sorted([*SHADER_DIR.glob("*.glsl"), *SHADER_DIR.glob("*.comp")])
+    lines = sum(len(f.read_text(encoding="utf-8").splitlines()) for f in files)
+    assert lines <= 2136 // 2, lines
+    included = {m for f in files for m in re.findall(r'#include "([^"]+)"', f.read_text(encoding="utf-8"))}
+    missing = [n for n in included if not (SHADER_DIR / n).exists() and generated_source(n) is None]
+    assert not missing and any(n.endswith("_gen.glsl") for n in included), missing
