@@ -149,7 +149,7 @@ def test_generated_glossy_lobe_is_the_cpus():
     view = rng.normal(size=(n, 3))
     view /= np.linalg.norm(view, axis=1, keepdims=True)
     view *= np.sign(np.einsum("ij,ij->i", nrm, view))[:, None]    # the viewer above the surface, as for a hit
-    frames = np.array([np.concatenate(K.frame(*v)) for v in nrm])
+    frames = np.array([np.concatenate((K.tangent(*v), K.bitangent(*v))) for v in nrm])
     x = np.column_stack([nrm, frames, view, rng.uniform(0.0, 300.0, n), rng.uniform(0.0, 1.0, (n, 2)),
                          rng.integers(1, 9, n)])
     # lobe_sample's frame and uniforms (lightcuts_gen.glsl's, tested with the lightcuts) are the inputs' here

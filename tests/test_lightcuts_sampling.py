@@ -39,7 +39,7 @@ def _moments(tree, g, budget, occ):
     var = np.zeros((g.n, 3))
     for i in range(g.n):
         p, n = g.position[i], g.normal[i]
-        t, b = K.frame(*n)
+        t, b = K.tangent(*n), K.bitangent(*n)
         lights = tree.light_pos[:tree.n_lights]
         d = lights - p
         cosnum = d @ n
@@ -99,7 +99,7 @@ def test_descend_pdf_matches_leaf_pdf_and_sums_to_one():
     c2 = clamp2(tree)
     for i in range(4):
         p, n = pos[i], nrm[i] / np.linalg.norm(nrm[i])
-        t, b = K.frame(*n)
+        t, b = K.tangent(*n), K.bitangent(*n)
         for node in (1, 2, 5):
             if not K.node_live(p, n, t, b, tree.bmin, tree.bmax, tree.intensity, node):
                 continue
@@ -120,7 +120,7 @@ def test_geometry_bound_is_an_upper_bound_of_cosine():
     N = tree.n_leaves
     for i in range(len(pos)):
         p, n = pos[i], nrm[i] / np.linalg.norm(nrm[i])
-        t, b = K.frame(*n)
+        t, b = K.tangent(*n), K.bitangent(*n)
         assert abs(np.dot(t, n)) < 1e-12 and abs(np.dot(b, n)) < 1e-12 and abs(np.dot(t, b)) < 1e-12
         d = tree.light_pos[:tree.n_lights] - p
         cos = d @ n / np.linalg.norm(d, axis=1)

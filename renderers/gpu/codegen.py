@@ -197,6 +197,16 @@ class Translator:
             visit(r)
         return order
 
+    def precision_closure(self, double_roots=(), float_roots=()) -> tuple[list[str], list[str]]:
+        """The closure of ``double_roots``, marked double precision (the CPU's float64 where float32 would change
+        a result: textures, random numbers, budgets, camera rays), and the rest of the closure of
+        ``float_roots`` (float32), each in declaration order."""
+        doubles = self.closure(double_roots)
+        floats = [n for n in self.closure(float_roots) if n not in doubles]
+        for n in doubles:
+            self.fns[n].real = "double"
+        return doubles, floats
+
     def infer(self, names, root_params: dict | None = None) -> None:
         """Fixed point of variable, parameter and return types. A parameter is ``int`` when every call site
         passes an integer expression (``root_params`` gives the types of the roots' parameters)."""
@@ -852,6 +862,11 @@ _BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Mod: "%", ast.BitAnd: 
 _CMPOPS = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!="}
 
 
+def _header(module) -> str:
+    """The first line of a file generated from ``module``."""
+    return f"// Generated from {module.__name__.replace('.', '/')}.py by renderers/gpu/codegen.py: do not edit.\n"
+
+
 def _flt(v: float) -> str:
     if math.isinf(v):
         return "(1.0 / 0.0)" if v > 0 else "(-1.0 / 0.0)"
@@ -867,7 +882,7 @@ def foveation_glsl() -> str:
     tr = Translator(_kernels, "fov_")
     names = tr.closure(FOVEATION_ROOTS)
     tr.infer(names, {"point": {"method": "int", "direction": "int"}})
-    return "// Generated from renderers/foveation/_kernels.py by renderers/gpu/codegen.py: do not edit.\n" \
+    return _header(_kernels) \
         + tr.emit(names)
 
 
@@ -890,16 +905,12 @@ def _shade_glsl_cached() -> str:
 def _shade_glsl(module) -> str:
     source = inspect.getsource(module)
     tr = Translator(module, "shade_", source=source)
-    doubles = tr.closure(module.GLSL_DOUBLE_ROOTS)
-    floats = [n for n in tr.closure(module.GLSL_FLOAT_ROOTS) if n not in doubles]
-    for n in doubles:
-        tr.fns[n].real = "double"
+    doubles, floats = tr.precision_closure(module.GLSL_DOUBLE_ROOTS, module.GLSL_FLOAT_ROOTS)
     int_params = {"texture_weight": {"kind": "int"}, "light_direction": {"kind": "int"},
                   "irradiance_factor": {"kind": "int"}}
     tr.infer(doubles + floats, {r: int_params.get(r, {}) for r in (*module.GLSL_DOUBLE_ROOTS,
                                                                        *module.GLSL_FLOAT_ROOTS)})
-    return (f"// Generated from {module.__name__.replace('.', '/')}.py by renderers/gpu/codegen.py: do not edit.\n"
-            '#include "constants_gen.glsl"\n' + tr.emit(doubles + floats, helpers=False))
+    return _header(module) + '#include "constants_gen.glsl"\n' + tr.emit(doubles + floats, helpers=False)
 
 
 def lights_glsl(module=None, roots: str = "GLSL_LIGHT_ROOTS") -> str:
@@ -932,13 +943,11 @@ def _lights_glsl(module, roots: str) -> str:
         "mat_i": "int(material({0}, 14))",   # the texture kind (mat_i[m, 0]): column 14 of the material image
         "contrib": "contrib[{1}][{2}]", "lum": "lum[{0}]"})
     tr.binding_types.update({"L_kind": "int", "mat_i": "int"})
-    for n in tr.closure(module.GLSL_DOUBLE_ROOTS):   # shade_gen.glsl's textures: double, their results narrowed
-        tr.fns[n].real = "double"
+    tr.precision_closure(module.GLSL_DOUBLE_ROOTS)   # shade_gen.glsl's textures: double, their results narrowed
     names = tr.closure(getattr(module, roots))
     tr.infer(names, {r: {"j": "int", "i": "int", "m": "int", "k": "int"} for r in getattr(module, roots)})
     # the callees are shade_gen.glsl's and lights_gen.glsl's (included before): only the roots are emitted here
-    return (f"// Generated from {module.__name__.replace('.', '/')}.py by renderers/gpu/codegen.py: do not edit.\n"
-            + "\n".join(tr.emit_fn(tr.fns[r]) for r in getattr(module, roots)))
+    return _header(module) + "\n".join(tr.emit_fn(tr.fns[r]) for r in getattr(module, roots))
 #: Lightcuts kernels emitted on their own (``lc_shade_gen.glsl``): they call functions the including shader defines
 #: (``shade_pixel``'s ``blocked``: lc_shade.comp's shadow rays).
 LC_OWN_FILE = ("shade_pixel",)
@@ -955,8 +964,10 @@ def lightcuts_glsl() -> str:
 @functools.lru_cache(maxsize=None)
 def lightcuts_shade_glsl() -> str:
     """``lc_shade_gen.glsl``: the kernels of :data:`LC_OWN_FILE` (their callees are in ``lightcuts_gen.glsl``)."""
+    from ..lightcuts import _kernels
+
     tr, _ = _lightcuts()
-    return "// Generated from renderers/lightcuts/_kernels.py by renderers/gpu/codegen.py: do not edit.\n" \
+    return _header(_kernels) \
         + "".join(tr.emit_fn(tr.fns[n]) for n in LC_OWN_FILE)
 
 
@@ -966,8 +977,10 @@ def lightcuts_bounce_glsl() -> str:
     ``glossy.glossy_pass``, through ``sampling.stochastic_lightcuts``) for one glossy ray's hit of
     ``lc_glossy.comp``, prefixed ``lcb_``: its point, id and samples are the shader's ``bn_*`` variables
     (:data:`LC_BOUNCE`), its shadow ray ``lcb_blocked(s)``; their callees are ``lightcuts_gen.glsl``'s."""
+    from ..lightcuts import _kernels
+
     tr, _ = _lightcuts(bounce=True)
-    return "// Generated from renderers/lightcuts/_kernels.py by renderers/gpu/codegen.py: do not edit.\n" \
+    return _header(_kernels) \
         + "".join(tr.emit_fn(tr.fns[n]) for n in LC_BOUNCE_ROOTS)
 
 
@@ -1022,10 +1035,7 @@ def _lightcuts(bounce: bool = False):
     # a parent's bound never below a leaf's cosine: the CPU's rounding of the sums
     tr.precise = {"box_terms", "dot_interval", "geom_bound", "sample_weight"}
     roots = (*_kernels.GLSL_FLOAT_ROOTS, *multires.GLSL_FLOAT_ROOTS)
-    doubles = tr.closure((*_kernels.GLSL_DOUBLE_ROOTS, *multires.GLSL_DOUBLE_ROOTS))
-    floats = [n for n in tr.closure(roots) if n not in doubles]
-    for n in doubles:
-        tr.fns[n].real = "double"
+    doubles, floats = tr.precision_closure((*_kernels.GLSL_DOUBLE_ROOTS, *multires.GLSL_DOUBLE_ROOTS), roots)
     point = {"p": "vec3", "n": "vec3", "t": "vec3", "b": "vec3", "k": "int", "node": "int", "j": "int",
              "one_sided": "bool", "budget": "int"}
     pixel = {"i": "int", "q": "int", "seed": "u64", "s0": "int", "s1": "int"}
@@ -1049,7 +1059,7 @@ def glossy_glsl() -> str:
                     "uniform_f": ("lc_uniform_f", "float")}
     names = tr.closure(glossy.GLSL_FLOAT_ROOTS)
     tr.infer(names, {"lobe_sample": {"seed": "u64", "pix": "u64", "r": "int", "count": "int"}})
-    return "// Generated from renderers/lightcuts/glossy.py by renderers/gpu/codegen.py: do not edit.\n" \
+    return _header(glossy) \
         + tr.emit(names, helpers=False)
 
 
@@ -1064,15 +1074,11 @@ def fpsm_glsl() -> str:
 
     tr = Translator(fpsm, "fpsm_", bindings={"img": "fp_img({0}, {1})", "gbuf": "fp_gbuf({0}, {1})",
                                              "coef": "fp_low[{0}]"})
-    doubles = tr.closure(fpsm.GLSL_DOUBLE_ROOTS)
-    floats = [n for n in tr.closure(fpsm.GLSL_FLOAT_ROOTS) if n not in doubles]
-    for n in doubles:
-        tr.fns[n].real = "double"
+    doubles, floats = tr.precision_closure(fpsm.GLSL_DOUBLE_ROOTS, fpsm.GLSL_FLOAT_ROOTS)
     ints = ("c", "x", "y", "w", "h", "at", "cw", "ch", "order", "channels", "reading", "most", "least")
     tr.infer(doubles + floats, {r: {p: "int" for p in tr.fns[r].params if p in ints}
                                 for r in (*fpsm.GLSL_DOUBLE_ROOTS, *fpsm.GLSL_FLOAT_ROOTS)})
-    return "// Generated from renderers/lightcuts/fpsm.py by renderers/gpu/codegen.py: do not edit.\n" \
-        '#include "constants_gen.glsl"\n' + tr.emit(doubles + floats, helpers=False)
+    return _header(fpsm) + '#include "constants_gen.glsl"\n' + tr.emit(doubles + floats, helpers=False)
 
 
 @functools.lru_cache(maxsize=None)
@@ -1088,14 +1094,13 @@ def fxaa_glsl() -> str:
     tr = Translator(antialias, "aa_", bindings={"img": "aa_img({0}, {1}, {2})", "img.shape": "aa_dim({0})",
                                                 "steps": "AA_STEPS[{0}]", "steps.size": str(len(steps))})
     tr.binding_types["img"] = "f32"
-    names = tr.closure(antialias.GLSL_DOUBLE_ROOTS)
-    for n in names:   # numba's types: float32 where the CPU adds image values, float64 elsewhere; no fused mul-add
-        tr.fns[n].real = "double"
+    # numba's types: float32 where the CPU adds image values, float64 elsewhere; no fused mul-add
+    names, _ = tr.precision_closure(antialias.GLSL_DOUBLE_ROOTS)
     tr.precise = set(names)
     tr.infer(names, {"fxaa_pixel": {"x": "int", "y": "int"}})
     table = ", ".join(_flt(v) for v in steps)
-    return ("// Generated from renderers/antialias.py by renderers/gpu/codegen.py: do not edit.\n"
-            f"const float AA_STEPS[{len(steps)}] = float[{len(steps)}]({table});\n"
+    return (_header(antialias)
+            + f"const float AA_STEPS[{len(steps)}] = float[{len(steps)}]({table});\n"
             + tr.emit(names, helpers=False))
 
 
@@ -1117,7 +1122,7 @@ def warp_glsl() -> str:
     tr.externals = {"fragment": ("rep_fragment", "void")}
     names = tr.closure(_warp.GLSL_FLOAT_ROOTS)
     tr.infer(names, {"warp_quad": {k: "int" for k in ("a", "b", "cc", "d", "w_eff", "w")}})
-    return "// Generated from renderers/_warp.py by renderers/gpu/codegen.py: do not edit.\n" \
+    return _header(_warp) \
         + tr.emit(names, helpers=False)
 
 
@@ -1129,13 +1134,10 @@ def projection_glsl() -> str:
     from .. import projection
 
     tr = Translator(projection, "proj_")
-    doubles = tr.closure(projection.GLSL_DOUBLE_ROOTS)
-    floats = [n for n in tr.closure(projection.GLSL_FLOAT_ROOTS) if n not in doubles]
-    for n in doubles:
-        tr.fns[n].real = "double"
+    doubles, floats = tr.precision_closure(projection.GLSL_DOUBLE_ROOTS, projection.GLSL_FLOAT_ROOTS)
     tr.precise = set(doubles)
     tr.infer(doubles + floats, {r: {} for r in (*projection.GLSL_DOUBLE_ROOTS, *projection.GLSL_FLOAT_ROOTS)})
-    return "// Generated from renderers/projection.py by renderers/gpu/codegen.py: do not edit.\n" \
+    return _header(projection) \
         + tr.emit(doubles + floats, helpers=False)
 
 
@@ -1150,7 +1152,7 @@ def _kernel_glsl(module, prefix: str, roots, params: dict, bindings: dict, bindi
     done = tr.closure(after)
     names = [n for n in tr.closure(roots) if n not in done]
     tr.infer(done + names, params)
-    head = f"// Generated from {module.__name__.replace('.', '/')}.py by renderers/gpu/codegen.py: do not edit.\n"
+    head = _header(module)
     return head + tr.emit(names, helpers=False, consts=not after)
 
 
@@ -1176,7 +1178,7 @@ def lp_glsl(part: str = "u") -> str:
         names = tr.closure(_lp.GLSL_NEEDED_ROOTS)
         tr.fns["needed"].real = "double"
         tr.infer(names, {"needed": {"border": "bool"}})
-        return "// Generated from renderers/_lp.py by renderers/gpu/codegen.py: do not edit.\n" \
+        return _header(_lp) \
             + tr.emit(names, helpers=False, consts=False)
     if part == "fill":
         return _kernel_glsl(_lp, "lp_", _lp.GLSL_FILL_ROOTS, {"fill_row": {"j": "int", "w": "int"}},
@@ -1202,7 +1204,7 @@ def antialias_glsl(part: str = "gauss") -> str:
         tr = Translator(AA, "aa_")
         names = tr.closure(AA.GLSL_LUMA_ROOTS)
         tr.infer(names, {"luma": {}})
-        return "// Generated from renderers/antialias.py by renderers/gpu/codegen.py: do not edit.\n" \
+        return _header(AA) \
             + tr.emit(names, helpers=False, consts=False)
     pixel = dict.fromkeys(("y", "x", "ch", "o", "r", "b", "h", "w"), "int")
     return _kernel_glsl(AA, "aa_", AA.GLSL_FLOAT_ROOTS if part == "gauss" else AA.GLSL_FOVEAL_ROOTS,
@@ -1224,11 +1226,9 @@ def gt_glsl() -> str:
     offset = "gt_sample_offset({1}, u_s0 + ({0}), {2}, SPP, SPP_SIDE)"
     tr = Translator(_gt, "gt_", bindings={"rad": "outbuf[3 * ((({0}) * u_width + ({1})) * SPP + ({2})) + ({3})]",
                                           "ox": offset + ".x", "oy": offset + ".y", "part": "gt_part[{0}]"})
-    names = tr.closure(_gt.GLSL_DOUBLE_ROOTS)
-    for n in names:
-        tr.fns[n].real = "double"
+    names, _ = tr.precision_closure(_gt.GLSL_DOUBLE_ROOTS)
     tr.infer(names, {r: {p: "int" for p in tr.fns[r].params if p not in tr.bindings} for r in _gt.GLSL_DOUBLE_ROOTS})
-    return "// Generated from renderers/_gt.py by renderers/gpu/codegen.py: do not edit.\n" \
+    return _header(_gt) \
         + tr.emit(names, helpers=False)
 
 

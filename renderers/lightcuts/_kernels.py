@@ -69,12 +69,6 @@ def bitangent(n0, n1, n2):
 
 
 @njit(cache=True)
-def frame(n0, n1, n2):
-    """Orthonormal tangents (T, B) of a unit normal (Duff et al. 2017)."""
-    return tangent(n0, n1, n2), bitangent(n0, n1, n2)
-
-
-@njit(cache=True)
 def dot_interval(v0, v1, v2, p, bmin, bmax, k):
     """Range ``[lo, hi]`` of ``v.(x - p)`` over the box of node ``k``."""
     lo = 0.0
