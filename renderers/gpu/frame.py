@@ -77,9 +77,9 @@ def set_uniforms(prog, values: dict) -> None:
         if k in prog:
             u = prog[k]
             n = getattr(u, "array_length", 1)
-            if isinstance(v, tuple) and n > 1 and u.dimension == 1 and len(v) > n:
-                v = v[:n]
-            prog[k] = v[0] if isinstance(v, tuple) and n == 1 and u.dimension == 1 and len(v) > 1 else v
+            if isinstance(v, tuple) and u.dimension == 1 and len(v) > n:   # an array the compiler shortened
+                v = v[:n] if n > 1 else v[0]
+            prog[k] = v
 
 
 def bind(buffers: dict | None, images: dict | None = None) -> None:
